@@ -23,6 +23,12 @@ from .laws import (
     weighted_gains,
     weighted_law,
 )
+from .qp import (
+    AllocationResult,
+    QPAllocator,
+    available_solvers,
+    conic_allocator_function,
+)
 from .symbolic import (
     min_norm_function,
     pyramid_axes_function,
@@ -33,11 +39,13 @@ from .symbolic import (
 
 __all__ = [
     "AdcsError",
+    "AllocationResult",
     "EQ9_GAINS",
     "InfeasibleError",
     "InvalidValueError",
     "LinearLaw",
     "PAPER_EQ9_GAINS_PRINTED",
+    "QPAllocator",
     "RankError",
     "ShapeError",
     "SolverError",
@@ -45,6 +53,8 @@ __all__ = [
     "WheelArray",
     "WheelMotor",
     "allocate_min_norm",
+    "available_solvers",
+    "conic_allocator_function",
     "min_norm_function",
     "min_norm_gains",
     "min_norm_law",

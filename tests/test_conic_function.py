@@ -1,0 +1,79 @@
+"""The QP allocator as one casadi Function: equal to QPAllocator, and C."""
+
+import shutil
+import subprocess
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from allocation import (
+    QPAllocator,
+    SolverNotFound,
+    WheelArray,
+    conic_allocator_function,
+    min_norm_function,
+)
+from allocation.qp.conic_function import conic_c_flags
+from conftest import DELTA, GAMMA
+
+RNG = np.random.default_rng(7)
+
+
+def _array():
+    return WheelArray.pyramid(DELTA, GAMMA, h_max=4.0, m_max=0.2)
+
+
+@pytest.mark.parametrize("plugin", ["daqp", "qrqp"])
+def test_conic_function_equals_qp_allocator(plugin):
+    arr = _array()
+    V = [1.0, 2.0, 0.5, 1.5]
+    f = conic_allocator_function(arr, V, dt=0.5, plugin=plugin)
+    qa = QPAllocator(arr, V, solver="daqp")
+    saturated = 0
+    for _ in range(40):
+        M = RNG.normal(size=3) * 0.3
+        h = RNG.uniform(-3.9, 3.9, 4)
+        m, alpha, violation = (x.full().ravel() for x in f(M, h))
+        ref = qa.allocate(M, wheel_momentum=h, dt=0.5)
+        np.testing.assert_allclose(m, ref.torques, atol=1e-9)
+        assert alpha[0] == pytest.approx(ref.alpha, abs=1e-12)
+        assert violation[0] < 1e-12
+        saturated += ref.status == "saturated"
+    assert 5 < saturated < 35
+
+
+def test_conic_function_without_momentum_has_one_input():
+    f = conic_allocator_function(_array())
+    assert f.name_in() == ["M"]
+    assert f.name_out() == ["m", "alpha", "violation"]
+
+
+def test_conic_function_unknown_plugin():
+    with pytest.raises(SolverNotFound, match="casadi:nosuch"):
+        conic_allocator_function(_array(), plugin="nosuch")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc")
+def test_generated_c_matches_casadi(tmp_path):
+    """Codegen round trip: generate, compile, load with external, compare."""
+    arr = _array()
+    funcs = [min_norm_function(arr), conic_allocator_function(arr, dt=0.5)]
+    for f in funcs:
+        src = tmp_path / f"{f.name()}.c"
+        lib = tmp_path / f"{f.name()}.so"
+        cg = ca.CodeGenerator(src.name, {"with_header": False})
+        cg.add(f)
+        cg.generate(str(tmp_path) + "/")
+        subprocess.run(["gcc", "-O2", "-fPIC", "-shared", str(src), "-o",
+                        str(lib), *conic_c_flags("daqp")], check=True,
+                       capture_output=True)
+        ext = ca.external(f.name(), str(lib))
+        for _ in range(10):
+            args = [RNG.normal(size=3) * 0.3]
+            if f.n_in() == 2:
+                args.append(RNG.uniform(-3.9, 3.9, 4))
+            for a, b in zip(f(*args) if f.n_out() > 1 else [f(*args)],
+                            ext(*args) if f.n_out() > 1 else [ext(*args)]):
+                np.testing.assert_allclose(a.full(), b.full(), atol=1e-10)
