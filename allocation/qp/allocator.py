@@ -177,7 +177,11 @@ class QPAllocator:
         self.solver = solver
         self.solver_options = dict(solver_options or {})
         self._axes = array.working_axes
+        self._active = array.active
         self._normals = facet_normals(self._axes[:, array.active])
+        self._abs_na = np.abs(self._normals @ self._axes)
+        self._static_cost = None
+        self._m_scale = float(np.max(array.m_max))
         self._nvar = 2 * n if motor is not None else n
         self._nrow = 3 + (2 * n if motor is not None else 0)
         self._backend = self._make_backend(self._nrow, 3)
@@ -189,6 +193,9 @@ class QPAllocator:
                            self.solver_options)
 
     def _cost(self, h: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        depends_on_h = self.momentum_target is not None
+        if self._static_cost is not None and (h is None or not depends_on_h):
+            return self._static_cost
         n = self.array.n_wheels
         P = np.zeros((self._nvar, self._nvar))
         q = np.zeros(self._nvar)
@@ -202,6 +209,8 @@ class QPAllocator:
             P[:n, :n] += 2.0 * c * np.eye(n)
             P[n:, n:] = _EPIGRAPH_REGULARISATION * np.eye(n)
             q[n:] = self.power_weight
+        if h is None or not depends_on_h:
+            self._static_cost = (P, q)
         return P, q
 
     def _power_rows(self, h: np.ndarray | None
@@ -255,11 +264,10 @@ class QPAllocator:
     def _check(self, x, target, lo, hi, backend: str) -> np.ndarray:
         n = self.array.n_wheels
         m = x[:n]
-        scale = max(float(np.max(self.array.m_max)), float(np.max(
-            np.abs(target))))
+        scale = max(self._m_scale, float(np.abs(target).max()))
         tol = self.check_tol * scale
-        bound_err = float(np.max(np.maximum(lo - m, m - hi)))
-        eq_err = float(np.max(np.abs(self._axes @ m - target)))
+        bound_err = float(np.maximum(lo - m, m - hi).max())
+        eq_err = float(np.abs(self._axes @ m - target).max())
         if bound_err > tol or eq_err > tol:
             raise SolverError(
                 f"{backend} returned a point that fails the checks: bound "
@@ -307,10 +315,11 @@ class QPAllocator:
                 raise InvalidValueError(
                     "dt bounds the momentum after the step and needs "
                     "wheel_momentum")
-        lo, hi, _ = torque_bounds(self.array, h, dt)
-        normals = set_normals(self.array, lo, hi, self._normals)
+        lo, hi, _ = torque_bounds(self.array, h, dt, self._active)
+        normals = set_normals(self.array, lo, hi, self._normals, self._active)
         alpha = None if normals is None else max_scale(
-            normals, self._axes, lo, hi, M)
+            normals, self._axes, lo, hi, M,
+            self._abs_na if normals is self._normals else None)
         if alpha is not None and alpha >= 1.0:
             mode, status = "exact", "optimal"
             boundary, anchor = M, np.zeros(3)

@@ -54,7 +54,8 @@ class QPData:
     n_eq: int
 
 
-def torque_bounds(array: WheelArray, wheel_momentum=None, dt=None
+def torque_bounds(array: WheelArray, wheel_momentum=None, dt=None,
+                  active: np.ndarray | None = None
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-wheel torque bounds for one step [N·m].
 
@@ -64,28 +65,32 @@ def torque_bounds(array: WheelArray, wheel_momentum=None, dt=None
     full torque (``lo = hi = -sign(h) m_max``). Failed wheels get
     ``lo = hi = 0``.
 
+    Parameters
+    ----------
+    active : (N,) bool ndarray, optional
+        ``array.active``, when the caller has it already.
+
     Returns
     -------
     lo, hi : (N,) ndarray
         Bounds [N·m].
-    overrun : (N,) bool ndarray
-        Wheels whose momentum cannot be brought within ``h_max`` this step.
+    overrun : (N,) bool ndarray or None
+        Wheels whose momentum cannot be brought within ``h_max`` this step
+        (None without ``dt``).
     """
-    lo = -np.array(array.m_max)
-    hi = np.array(array.m_max)
-    overrun = np.zeros(array.n_wheels, dtype=bool)
-    if dt is not None:
-        h = wheel_momentum
-        lo = np.maximum(lo, (-array.h_max - h) / dt)
-        hi = np.minimum(hi, (array.h_max - h) / dt)
-        overrun = lo > hi
-        back = -np.sign(h) * array.m_max
+    active = array.active if active is None else active
+    m_max = array.m_max * active
+    if dt is None:
+        return -m_max, m_max.copy(), None
+    h = wheel_momentum
+    lo = np.maximum(-m_max, (-array.h_max - h) / dt)
+    hi = np.minimum(m_max, (array.h_max - h) / dt)
+    overrun = lo > hi
+    if overrun.any():
+        back = -np.sign(h) * m_max
         lo = np.where(overrun, back, lo)
         hi = np.where(overrun, back, hi)
-    fail = ~array.active
-    lo[fail] = 0.0
-    hi[fail] = 0.0
-    return lo, hi, overrun
+    return lo * active, hi * active, overrun
 
 
 def facet_normals(axes: np.ndarray) -> np.ndarray:
@@ -99,7 +104,8 @@ def facet_normals(axes: np.ndarray) -> np.ndarray:
 
 
 def max_scale(normals: np.ndarray, axes: np.ndarray, lo: np.ndarray,
-              hi: np.ndarray, torque: np.ndarray) -> float | None:
+              hi: np.ndarray, torque: np.ndarray,
+              abs_normal_axes: np.ndarray | None = None) -> float | None:
     """Largest ``α`` in [0, 1] with ``α M`` attainable, or None.
 
     The attainable set ``{A m : lo <= m <= hi}`` is the zonotope with
@@ -117,6 +123,8 @@ def max_scale(normals: np.ndarray, axes: np.ndarray, lo: np.ndarray,
         Torque bounds [N·m].
     torque : (3,) ndarray
         Demand M [N·m].
+    abs_normal_axes : (F, N) ndarray, optional
+        ``|normals @ axes|``, precomputed by the caller.
 
     Returns
     -------
@@ -124,19 +132,18 @@ def max_scale(normals: np.ndarray, axes: np.ndarray, lo: np.ndarray,
         ``α*`` (1 when M is attainable), or None when no ``α >= 0`` is
         (the bounds exclude zero torque and the direction of M).
     """
-    center = axes @ ((lo + hi) / 2.0)
-    radius = (hi - lo) / 2.0
-    d = normals @ center + np.abs(normals @ axes) @ radius
+    if abs_normal_axes is None:
+        abs_normal_axes = np.abs(normals @ axes)
+    d = normals @ (axes @ ((lo + hi) * 0.5)) + abs_normal_axes @ (
+        (hi - lo) * 0.5)
     s = normals @ torque
-    scale = np.max(np.abs(d)) + np.max(np.abs(s)) + 1e-300
-    tol = _BOUNDARY_TOL * scale
+    tol = _BOUNDARY_TOL * (np.abs(d).max() + np.abs(s).max() + 1e-300)
     pos = s > tol
     neg = s < -tol
-    zero = ~(pos | neg)
-    if np.any(d[zero] < -tol):
+    if (d[~(pos | neg)] < -tol).any():
         return None
-    a_hi = np.min(d[pos] / s[pos]) if np.any(pos) else np.inf
-    a_lo = np.max(d[neg] / s[neg]) if np.any(neg) else -np.inf
+    a_hi = (d[pos] / s[pos]).min() if pos.any() else np.inf
+    a_lo = (d[neg] / s[neg]).max() if neg.any() else -np.inf
     alpha = min(1.0, a_hi)
     if alpha < max(a_lo, 0.0) - 1e-12:
         return None
@@ -144,15 +151,17 @@ def max_scale(normals: np.ndarray, axes: np.ndarray, lo: np.ndarray,
 
 
 def set_normals(array: WheelArray, lo: np.ndarray, hi: np.ndarray,
-                cached: np.ndarray) -> np.ndarray | None:
+                cached: np.ndarray, active: np.ndarray | None = None
+                ) -> np.ndarray | None:
     """Normals valid for the set of bounds ``lo``/``hi``.
 
     The cached normals of the array hold while every working wheel has
     ``hi > lo``; otherwise they are recomputed from the free wheels.
     Returns None when the free wheels do not span 3-D (flat set).
     """
-    free = (hi > lo) & array.active
-    if np.array_equal(free, array.active):
+    active = array.active if active is None else active
+    free = (hi > lo) & active
+    if np.array_equal(free, active):
         return cached
     try:
         return facet_normals(array.axes[:, free])

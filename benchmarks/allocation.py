@@ -1,0 +1,134 @@
+"""Per-call cost of every wheel-allocation method (prints a table).
+
+Run from the repository root: ``python -m benchmarks.allocation [--quick]``
+(as a module, so that this file does not shadow the `allocation` package). Each figure is the
+median over repeated blocks of calls, in µs per demand, with its ratio to
+the numpy closed form measured in the same run. The QP demands are all
+attainable with some wheel on its torque bound (the minimum-norm law
+cannot meet them), plus a saturated share.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+import warnings
+
+import numpy as np
+
+from allocation import (
+    QPAllocator,
+    WheelArray,
+    available_solvers,
+    conic_allocator_function,
+    min_norm_function,
+    min_norm_gains,
+    min_norm_law,
+)
+
+
+def per_call(fn, n_calls: int, repeats: int) -> float:
+    """Median time of one call [µs] over ``repeats`` blocks."""
+    fn()
+    samples = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(n_calls):
+            fn()
+        samples.append((time.perf_counter() - t0) / n_calls)
+    return statistics.median(samples) * 1e6
+
+
+def demands(array: WheelArray, k: int, rng) -> np.ndarray:
+    """Demands with a bound active for the QP (some saturated)."""
+    G = min_norm_gains(array)
+    out = []
+    while len(out) < k:
+        u = rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        reach_mn = 1.0 / np.max(np.abs(G @ u) / array.m_max)
+        out.append(u * reach_mn * rng.uniform(1.05, 1.6))
+    return np.array(out).T
+
+
+def run(quick: bool = False) -> list[tuple[str, float]]:
+    """Measure every method; returns (label, µs per demand) rows."""
+    rng = np.random.default_rng(0)
+    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    n_calls, repeats = (50, 3) if quick else (2000, 7)
+    Ms = demands(arr, 64, rng)
+    cycle = iter(np.tile(np.arange(64), 10**6))
+    rows: list[tuple[str, float]] = []
+
+    G = min_norm_gains(arr)
+    M0 = Ms[:, 0].copy()
+    rows.append(("closed form, numpy G @ M (per call)",
+                 per_call(lambda: G @ M0, n_calls * 5, repeats)))
+    law = min_norm_law(arr)
+    rows.append(("closed form, LinearLaw.allocate (checked)",
+                 per_call(lambda: law.allocate(M0), n_calls, repeats)))
+    big = rng.normal(size=(3, 10_000 if quick else 1_000_000))
+    t = per_call(lambda: G @ big, 1, repeats)
+    rows.append((f"closed form, numpy batch of {big.shape[1]:,}",
+                 t / big.shape[1]))
+    f = min_norm_function(arr)
+    rows.append(("closed form, CasADi Function (numpy in)",
+                 per_call(lambda: f(M0), n_calls, repeats)))
+    buf, call = f.buffer()
+    m_in, m_out = M0.copy(), np.zeros(4)
+    buf.set_arg(0, memoryview(m_in))
+    buf.set_res(0, memoryview(m_out))
+    rows.append(("closed form, CasADi Function.buffer",
+                 per_call(call, n_calls * 5, repeats)))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name in [s for s in available_solvers()
+                     if not s.startswith("qpsolvers:")] + ["qpsolvers:osqp"]:
+            qa = QPAllocator(arr, solver=name)
+            label = {"osqp": "QP osqp (persistent, warm-started)",
+                     "qpsolvers:osqp": "QP osqp via qpsolvers (set up per "
+                     "call)"}.get(name, f"QP {name}")
+            rows.append((label, per_call(
+                lambda: qa.allocate(Ms[:, next(cycle)]),
+                max(n_calls // 10, 5), repeats)))
+
+    qf = conic_allocator_function(arr, plugin="daqp")
+    rows.append(("QP conic_allocator_function daqp (numpy in)",
+                 per_call(lambda: qf(Ms[:, next(cycle)]), n_calls,
+                          repeats)))
+    qbuf, qcall = qf.buffer()
+    q_in = Ms[:, 0].copy()
+    outs = [np.zeros(4), np.zeros(1), np.zeros(1)]
+    qbuf.set_arg(0, memoryview(q_in))
+    for i, o in enumerate(outs):
+        qbuf.set_res(i, memoryview(o))
+
+    def buffered():
+        q_in[:] = Ms[:, next(cycle)]
+        qcall()
+
+    rows.append(("QP conic_allocator_function daqp, Function.buffer",
+                 per_call(buffered, n_calls, repeats)))
+    return rows
+
+
+def main() -> None:
+    """Print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="few repetitions (smoke test)")
+    args = parser.parse_args()
+    rows = run(args.quick)
+    base = rows[0][1]
+    print(f"{'method':58s} {'µs/demand':>10s} {'ratio':>9s}")
+    for label, us in rows:
+        print(f"{label:58s} {us:10.3f} {us / base:9.1f}")
+    batch = next(us for label, us in rows if "batch" in label)
+    print(f"\nclosed-form batch throughput: {1e6 / batch / 1e6:.1f} million "
+          "demands/s on one core")
+
+
+if __name__ == "__main__":
+    main()
