@@ -1,0 +1,1 @@
+"""Design studies of `adcs report`, one module each with ``run(ctx)``."""
