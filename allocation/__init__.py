@@ -1,7 +1,20 @@
 """Reaction-wheel arrays and torque allocation (seed 001, SPEC section 1)."""
 
+from .accuracy import (
+    AccuracyResult,
+    ErrorSummary,
+    TorqueError,
+    actual_axes,
+    compare_law_axes,
+    gain_error_uniform,
+    gain_error_uniform_as_printed,
+    monte_carlo_accuracy,
+    paper_actual_axes_as_printed,
+    torque_error,
+)
 from .arrays import WheelArray, pyramid_axes
 from .electrical import WheelMotor
+from .envelope import Envelope, Facets, envelope
 from .exceptions import (
     AdcsError,
     InfeasibleError,
@@ -23,6 +36,15 @@ from .laws import (
     weighted_gains,
     weighted_law,
 )
+from .plots import plot_accuracy_histogram, plot_envelope
+from .reach import (
+    ReachResult,
+    fibonacci_directions,
+    format_reach_table,
+    law_extent,
+    reach_table,
+    torque_reach,
+)
 from .symbolic import (
     min_norm_function,
     pyramid_axes_function,
@@ -32,28 +54,49 @@ from .symbolic import (
 )
 
 __all__ = [
+    "AccuracyResult",
     "AdcsError",
     "EQ9_GAINS",
+    "Envelope",
+    "ErrorSummary",
+    "Facets",
     "InfeasibleError",
     "InvalidValueError",
     "LinearLaw",
     "PAPER_EQ9_GAINS_PRINTED",
     "RankError",
+    "ReachResult",
     "ShapeError",
     "SolverError",
     "SolverNotFound",
+    "TorqueError",
     "WheelArray",
     "WheelMotor",
+    "actual_axes",
     "allocate_min_norm",
+    "compare_law_axes",
+    "envelope",
+    "fibonacci_directions",
+    "format_reach_table",
+    "gain_error_uniform",
+    "gain_error_uniform_as_printed",
+    "law_extent",
     "min_norm_function",
     "min_norm_gains",
     "min_norm_law",
+    "monte_carlo_accuracy",
+    "paper_actual_axes_as_printed",
+    "plot_accuracy_histogram",
+    "plot_envelope",
     "pyramid_axes",
     "pyramid_axes_function",
     "pyramid_failure_gains",
     "pyramid_min_norm_function",
+    "reach_table",
     "sign_matrix_function",
     "sign_matrix_gains",
+    "torque_error",
+    "torque_reach",
     "weighted_function",
     "weighted_gains",
     "weighted_law",

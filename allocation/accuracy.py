@@ -14,7 +14,7 @@ from .arrays import PYRAMID_SIGN_Y, PYRAMID_SIGN_Z
 
 __all__ = [
     "AccuracyResult",
-    "Summary",
+    "ErrorSummary",
     "TorqueError",
     "actual_axes",
     "compare_law_axes",
@@ -211,7 +211,7 @@ def torque_error(demand, actual) -> TorqueError:
 
 # ------------------------------------------------------- Monte Carlo
 @dataclass(frozen=True)
-class Summary:
+class ErrorSummary:
     """Summary statistics of one error quantity over the samples."""
 
     mean: float
@@ -219,7 +219,7 @@ class Summary:
     max: float
 
     @classmethod
-    def of(cls, x: np.ndarray) -> "Summary":
+    def of(cls, x: np.ndarray) -> "ErrorSummary":
         """Mean, 95th percentile and maximum of ``x``."""
         return cls(float(np.mean(x)), float(np.percentile(x, 95.0)),
                    float(np.max(x)))
@@ -248,7 +248,7 @@ class AccuracyResult:
         Demanded torques M (unit vectors when drawn at random) [N·m].
     relative_error, magnitude_error, angle : numpy.ndarray, shape (S,)
         |ΔM|/|M| [1], (|M1|−|M|)/|M| [1], Δα [rad]; see `TorqueError`.
-    relative_error_stats, magnitude_error_stats, angle_stats : Summary
+    relative_error_stats, magnitude_error_stats, angle_stats : ErrorSummary
         Mean, p95, max (of ``|magnitude_error|`` for the magnitude).
     """
 
@@ -263,9 +263,9 @@ class AccuracyResult:
     relative_error: np.ndarray
     magnitude_error: np.ndarray
     angle: np.ndarray
-    relative_error_stats: Summary
-    magnitude_error_stats: Summary
-    angle_stats: Summary
+    relative_error_stats: ErrorSummary
+    magnitude_error_stats: ErrorSummary
+    angle_stats: ErrorSummary
 
 
 def _draw(rng: np.random.Generator, tol: float, shape, distribution: str
@@ -431,9 +431,9 @@ def monte_carlo_accuracy(*, d_delta_tol: float, d_gamma_tol: float,
         tolerances=tolerances, d_delta=dd, d_gamma=dg, d_scale=ds,
         demands=M, relative_error=te.relative_error,
         magnitude_error=te.magnitude_error, angle=te.angle,
-        relative_error_stats=Summary.of(te.relative_error),
-        magnitude_error_stats=Summary.of(np.abs(te.magnitude_error)),
-        angle_stats=Summary.of(te.angle))
+        relative_error_stats=ErrorSummary.of(te.relative_error),
+        magnitude_error_stats=ErrorSummary.of(np.abs(te.magnitude_error)),
+        angle_stats=ErrorSummary.of(te.angle))
 
 
 def compare_law_axes(*, measure_delta_tol: float, measure_gamma_tol: float,

@@ -238,3 +238,11 @@ def test_plot_envelope_rejects_2d_axes(env):
     from matplotlib.figure import Figure
     with pytest.raises(InvalidValueError, match="ax"):
         plot_envelope(env, ax=Figure().add_subplot())
+
+
+def test_package_exposes_envelope_as_a_function(pyramid):
+    import allocation
+    e = allocation.envelope(pyramid, kind="torque")
+    assert isinstance(e, allocation.Envelope)
+    assert all(hasattr(allocation, name) for name in allocation.__all__)
+    assert allocation.__all__ == sorted(allocation.__all__)
