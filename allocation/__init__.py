@@ -9,7 +9,9 @@ from .accuracy import (
     gain_error_uniform,
     gain_error_uniform_as_printed,
     monte_carlo_accuracy,
+    monte_carlo_accuracy_array,
     paper_actual_axes_as_printed,
+    tilted_axes,
     torque_error,
 )
 from .arrays import WheelArray, pyramid_axes
@@ -85,6 +87,7 @@ __all__ = [
     "min_norm_gains",
     "min_norm_law",
     "monte_carlo_accuracy",
+    "monte_carlo_accuracy_array",
     "paper_actual_axes_as_printed",
     "plot_accuracy_histogram",
     "plot_envelope",
@@ -95,6 +98,7 @@ __all__ = [
     "reach_table",
     "sign_matrix_function",
     "sign_matrix_gains",
+    "tilted_axes",
     "torque_error",
     "torque_reach",
     "weighted_function",
