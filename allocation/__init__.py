@@ -1,7 +1,22 @@
 """Reaction-wheel arrays and torque allocation (seed 001, SPEC section 1)."""
 
+from .accuracy import (
+    AccuracyResult,
+    ErrorSummary,
+    TorqueError,
+    actual_axes,
+    compare_law_axes,
+    gain_error_uniform,
+    gain_error_uniform_as_printed,
+    monte_carlo_accuracy,
+    monte_carlo_accuracy_array,
+    paper_actual_axes_as_printed,
+    tilted_axes,
+    torque_error,
+)
 from .arrays import WheelArray, pyramid_axes
 from .electrical import WheelMotor
+from .envelope import Envelope, Facets, envelope
 from .exceptions import (
     AdcsError,
     InfeasibleError,
@@ -23,11 +38,20 @@ from .laws import (
     weighted_gains,
     weighted_law,
 )
+from .plots import plot_accuracy_histogram, plot_envelope
 from .qp import (
     AllocationResult,
     QPAllocator,
     available_solvers,
     conic_allocator_function,
+)
+from .reach import (
+    ReachResult,
+    fibonacci_directions,
+    format_reach_table,
+    law_extent,
+    reach_table,
+    torque_reach,
 )
 from .symbolic import (
     min_norm_function,
@@ -38,32 +62,55 @@ from .symbolic import (
 )
 
 __all__ = [
+    "AccuracyResult",
     "AdcsError",
     "AllocationResult",
     "EQ9_GAINS",
+    "Envelope",
+    "ErrorSummary",
+    "Facets",
     "InfeasibleError",
     "InvalidValueError",
     "LinearLaw",
     "PAPER_EQ9_GAINS_PRINTED",
     "QPAllocator",
     "RankError",
+    "ReachResult",
     "ShapeError",
     "SolverError",
     "SolverNotFound",
+    "TorqueError",
     "WheelArray",
     "WheelMotor",
+    "actual_axes",
     "allocate_min_norm",
     "available_solvers",
+    "compare_law_axes",
     "conic_allocator_function",
+    "envelope",
+    "fibonacci_directions",
+    "format_reach_table",
+    "gain_error_uniform",
+    "gain_error_uniform_as_printed",
+    "law_extent",
     "min_norm_function",
     "min_norm_gains",
     "min_norm_law",
+    "monte_carlo_accuracy",
+    "monte_carlo_accuracy_array",
+    "paper_actual_axes_as_printed",
+    "plot_accuracy_histogram",
+    "plot_envelope",
     "pyramid_axes",
     "pyramid_axes_function",
     "pyramid_failure_gains",
     "pyramid_min_norm_function",
+    "reach_table",
     "sign_matrix_function",
     "sign_matrix_gains",
+    "tilted_axes",
+    "torque_error",
+    "torque_reach",
     "weighted_function",
     "weighted_gains",
     "weighted_law",

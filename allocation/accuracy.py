@@ -10,18 +10,25 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError, RankError, ShapeError
 from adcs_common.validation import as_finite_array, as_finite_scalar
 
-from .arrays import PYRAMID_SIGN_Y, PYRAMID_SIGN_Z
+from .arrays import (
+    PYRAMID_SIGN_Y,
+    PYRAMID_SIGN_Z,
+    WheelArray,
+    perpendicular_frames,
+)
 
 __all__ = [
     "AccuracyResult",
-    "Summary",
+    "ErrorSummary",
     "TorqueError",
     "actual_axes",
     "compare_law_axes",
     "gain_error_uniform",
     "gain_error_uniform_as_printed",
     "monte_carlo_accuracy",
+    "monte_carlo_accuracy_array",
     "paper_actual_axes_as_printed",
+    "tilted_axes",
     "torque_error",
 ]
 
@@ -211,7 +218,7 @@ def torque_error(demand, actual) -> TorqueError:
 
 # ------------------------------------------------------- Monte Carlo
 @dataclass(frozen=True)
-class Summary:
+class ErrorSummary:
     """Summary statistics of one error quantity over the samples."""
 
     mean: float
@@ -219,7 +226,7 @@ class Summary:
     max: float
 
     @classmethod
-    def of(cls, x: np.ndarray) -> "Summary":
+    def of(cls, x: np.ndarray) -> "ErrorSummary":
         """Mean, 95th percentile and maximum of ``x``."""
         return cls(float(np.mean(x)), float(np.percentile(x, 95.0)),
                    float(np.max(x)))
@@ -238,17 +245,22 @@ class AccuracyResult:
     n_samples : int
         Number of samples S.
     tolerances : dict of str to float
-        ``d_delta``, ``d_gamma`` [rad], ``scale`` [1] and, for measured
-        axes, ``measure_delta``, ``measure_gamma`` [rad].
-    d_delta, d_gamma : numpy.ndarray, shape (S, 4)
-        Mounting errors Δδ_i, Δγ_i [rad] drawn.
-    d_scale : numpy.ndarray, shape (S, 4)
+        ``d_delta``, ``d_gamma`` (or ``tilt_a``, ``tilt_b``) [rad],
+        ``scale`` [1] and, for measured axes, ``measure_delta``,
+        ``measure_gamma`` (or ``measure_tilt_a``, ``measure_tilt_b``)
+        [rad].
+    mounting : {"pyramid angles", "tilts"}
+        What the mounting errors are.
+    d_delta, d_gamma : numpy.ndarray, shape (S, N)
+        Mounting errors drawn [rad]: Δδ_i, Δγ_i of the pyramid, or the two
+        tilts of each axis (`monte_carlo_accuracy_array`).
+    d_scale : numpy.ndarray, shape (S, N)
         Scale-factor errors Δ_i [1]: m̂_i = m_i(1 + Δ_i).
     demands : numpy.ndarray, shape (S, 3)
         Demanded torques M (unit vectors when drawn at random) [N·m].
     relative_error, magnitude_error, angle : numpy.ndarray, shape (S,)
         |ΔM|/|M| [1], (|M1|−|M|)/|M| [1], Δα [rad]; see `TorqueError`.
-    relative_error_stats, magnitude_error_stats, angle_stats : Summary
+    relative_error_stats, magnitude_error_stats, angle_stats : ErrorSummary
         Mean, p95, max (of ``|magnitude_error|`` for the magnitude).
     """
 
@@ -256,6 +268,7 @@ class AccuracyResult:
     distribution: str
     n_samples: int
     tolerances: dict
+    mounting: str
     d_delta: np.ndarray
     d_gamma: np.ndarray
     d_scale: np.ndarray
@@ -263,9 +276,9 @@ class AccuracyResult:
     relative_error: np.ndarray
     magnitude_error: np.ndarray
     angle: np.ndarray
-    relative_error_stats: Summary
-    magnitude_error_stats: Summary
-    angle_stats: Summary
+    relative_error_stats: ErrorSummary
+    magnitude_error_stats: ErrorSummary
+    angle_stats: ErrorSummary
 
 
 def _draw(rng: np.random.Generator, tol: float, shape, distribution: str
@@ -362,6 +375,53 @@ def monte_carlo_accuracy(*, d_delta_tol: float, d_gamma_tol: float,
     """
     tol_d = _tolerance(d_delta_tol, "d_delta_tol")
     tol_g = _tolerance(d_gamma_tol, "d_gamma_tol")
+    measure = _measure_tolerances(
+        law_axes, {"measure_delta_tol": measure_delta_tol,
+                   "measure_gamma_tol": measure_gamma_tol})
+    d0 = as_finite_scalar(delta, "delta")
+    g0 = as_finite_scalar(gamma, "gamma")
+    active = np.ones(4, dtype=bool)
+    for i in failed:
+        if not 0 <= int(i) < 4:
+            raise InvalidValueError(
+                f"failed wheel index {i} out of range 0..3 (0-based)")
+        active[int(i)] = False
+    return _simulate(
+        nominal=actual_axes(np.full(4, d0), np.full(4, g0)),
+        perturbed=lambda a, b: actual_axes(d0 + a, g0 + b),
+        mount_tol={"d_delta": tol_d, "d_gamma": tol_g},
+        measure_tol=measure, scale_tol=scale_tol, active=active,
+        n_samples=n_samples, distribution=distribution, demand=demand,
+        law_axes=law_axes, seed=seed, mounting="pyramid angles")
+
+
+def _measure_tolerances(law_axes: str, given: dict) -> dict | None:
+    if law_axes not in _LAW_AXES:
+        raise InvalidValueError(
+            f"law_axes must be 'nominal' or 'measured', got {law_axes!r}")
+    names = " and ".join(given)
+    if law_axes == "measured":
+        if any(v is None for v in given.values()):
+            raise InvalidValueError(
+                f"law_axes='measured' needs {names} (the measurement "
+                "tolerances [rad])")
+        return {k: _tolerance(v, k) for k, v in given.items()}
+    if any(v is not None for v in given.values()):
+        raise InvalidValueError(
+            f"{names} apply only with law_axes='measured'")
+    return None
+
+
+def _simulate(*, nominal: np.ndarray, perturbed, mount_tol: dict,
+              measure_tol: dict | None, scale_tol, active: np.ndarray,
+              n_samples, distribution: str, demand, law_axes: str,
+              seed: int, mounting: str) -> AccuracyResult:
+    """Monte Carlo core shared by the pyramid and general arrays.
+
+    ``perturbed(a, b)`` maps two (S, N) mounting-error arrays to the
+    actual axes (S, 3, N); the law uses ``nominal`` (3, N) or the axes
+    perturbed by mounting plus measurement errors.
+    """
     tol_s = _tolerance(scale_tol, "scale_tol")
     if isinstance(n_samples, bool) or not isinstance(
             n_samples, (int, np.integer)) or n_samples < 1:
@@ -371,69 +431,136 @@ def monte_carlo_accuracy(*, d_delta_tol: float, d_gamma_tol: float,
         raise InvalidValueError(
             "distribution must be 'uniform' or 'normal', got "
             f"{distribution!r}")
-    if law_axes not in _LAW_AXES:
-        raise InvalidValueError(
-            f"law_axes must be 'nominal' or 'measured', got {law_axes!r}")
-    measured = law_axes == "measured"
-    given = (measure_delta_tol is not None, measure_gamma_tol is not None)
-    if measured and not all(given):
-        raise InvalidValueError(
-            "law_axes='measured' needs measure_delta_tol and "
-            "measure_gamma_tol (the measurement tolerances [rad])")
-    if not measured and any(given):
-        raise InvalidValueError(
-            "measure_delta_tol/measure_gamma_tol apply only with "
-            "law_axes='measured'")
-    d0 = as_finite_scalar(delta, "delta")
-    g0 = as_finite_scalar(gamma, "gamma")
-    active = np.ones(4)
-    for i in failed:
-        if not 0 <= int(i) < 4:
-            raise InvalidValueError(
-                f"failed wheel index {i} out of range 0..3 (0-based)")
-        active[int(i)] = 0.0
+    n = nominal.shape[1]
+    A_nom = nominal * active
+    rank = int(np.linalg.matrix_rank(A_nom))
+    if rank < 3:
+        raise RankError(
+            f"failed wheels {[int(i) + 1 for i in np.flatnonzero(~active)]}"
+            f" leave rank {rank} < 3: no law can produce an arbitrary "
+            "torque", rank=rank, required=3)
 
     S = int(n_samples)
     streams = [np.random.default_rng(s)
                for s in np.random.SeedSequence(seed).spawn(4)]
-    dd = _draw(streams[0], tol_d, (S, 4), distribution)
-    dg = _draw(streams[0], tol_g, (S, 4), distribution)
-    ds = _draw(streams[1], tol_s, (S, 4), distribution)
+    tol_a, tol_b = mount_tol.values()
+    da = _draw(streams[0], tol_a, (S, n), distribution)
+    db = _draw(streams[0], tol_b, (S, n), distribution)
+    ds = _draw(streams[1], tol_s, (S, n), distribution)
     M = _demands(demand, S, streams[2])
 
-    A_nom = actual_axes(np.full(4, d0), np.full(4, g0)) * active
-    rank = int(np.linalg.matrix_rank(A_nom))
-    if rank < 3:
-        raise RankError(
-            f"failed wheels {[int(i) + 1 for i in failed]} leave rank "
-            f"{rank} < 3: no law can produce an arbitrary torque",
-            rank=rank, required=3)
-    A1 = actual_axes(d0 + dd, g0 + dg) * active          # (S, 3, 4)
-    tolerances = {"d_delta": tol_d, "d_gamma": tol_g, "scale": tol_s}
-    if measured:
-        tol_md = _tolerance(measure_delta_tol, "measure_delta_tol")
-        tol_mg = _tolerance(measure_gamma_tol, "measure_gamma_tol")
-        tolerances |= {"measure_delta": tol_md, "measure_gamma": tol_mg}
-        AL = actual_axes(
-            d0 + dd + _draw(streams[3], tol_md, (S, 4), distribution),
-            g0 + dg + _draw(streams[3], tol_mg, (S, 4), distribution)
-        ) * active
+    A1 = perturbed(da, db) * active                      # (S, 3, N)
+    tolerances = dict(mount_tol, scale=tol_s)
+    if measure_tol is not None:
+        tol_ma, tol_mb = measure_tol.values()
+        tolerances |= {k.removesuffix("_tol"): v
+                       for k, v in measure_tol.items()}
+        AL = perturbed(da + _draw(streams[3], tol_ma, (S, n), distribution),
+                       db + _draw(streams[3], tol_mb, (S, n), distribution)
+                       ) * active
         AAT = AL @ np.swapaxes(AL, 1, 2)                     # (S, 3, 3)
         y = np.linalg.solve(AAT, M[:, :, None])               # (S, 3, 1)
-        m = (np.swapaxes(AL, 1, 2) @ y)[:, :, 0]              # (S, 4)
+        m = (np.swapaxes(AL, 1, 2) @ y)[:, :, 0]              # (S, N)
     else:
-        G = A_nom.T @ np.linalg.inv(A_nom @ A_nom.T)          # (4, 3)
+        G = A_nom.T @ np.linalg.inv(A_nom @ A_nom.T)          # (N, 3)
         m = M @ G.T
     M1 = (A1 @ ((1.0 + ds) * m)[:, :, None])[:, :, 0]
     te = torque_error(M, M1)
     return AccuracyResult(
         law_axes=law_axes, distribution=distribution, n_samples=S,
-        tolerances=tolerances, d_delta=dd, d_gamma=dg, d_scale=ds,
-        demands=M, relative_error=te.relative_error,
+        tolerances=tolerances, mounting=mounting, d_delta=da, d_gamma=db,
+        d_scale=ds, demands=M, relative_error=te.relative_error,
         magnitude_error=te.magnitude_error, angle=te.angle,
-        relative_error_stats=Summary.of(te.relative_error),
-        magnitude_error_stats=Summary.of(np.abs(te.magnitude_error)),
-        angle_stats=Summary.of(te.angle))
+        relative_error_stats=ErrorSummary.of(te.relative_error),
+        magnitude_error_stats=ErrorSummary.of(np.abs(te.magnitude_error)),
+        angle_stats=ErrorSummary.of(te.angle))
+
+
+def tilted_axes(axes, tilt_a, tilt_b) -> np.ndarray:
+    """Axes tilted by two small angles each, vectorised over samples.
+
+    The same construction as `WheelArray.with_mounting_errors`: axis
+    ``h_i`` is turned by ``tilt_a`` towards ``e1_i`` and then by
+    ``tilt_b`` towards ``e2_i``, ``(h_i, e1_i, e2_i)`` a right-handed
+    frame (`allocation.arrays.perpendicular_frames`).
+
+    Parameters
+    ----------
+    axes : array_like, shape (3, N)
+        Nominal unit axes.
+    tilt_a, tilt_b : array_like, shape (N,) or (S, N)
+        Tilt angles [rad].
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, N) or (S, 3, N)
+        Unit axes.
+    """
+    h = as_finite_array(axes, "axes", (3, None))
+    ta = as_finite_array(tilt_a, "tilt_a")
+    tb = as_finite_array(tilt_b, "tilt_b")
+    if ta.shape[-1:] != h.shape[1:] or ta.ndim > 2 or tb.shape != ta.shape:
+        raise ShapeError(
+            f"tilt_a and tilt_b must both have shape ({h.shape[1]},) or "
+            f"(S, {h.shape[1]}), got {ta.shape} and {tb.shape}")
+    e1, e2 = perpendicular_frames(h)
+    ta, tb = ta[..., None, :], tb[..., None, :]
+    h1 = np.cos(ta) * h + np.sin(ta) * e1
+    h2 = np.cos(tb) * h1 + np.sin(tb) * e2
+    out = h2 / np.linalg.norm(h2, axis=-2, keepdims=True)
+    return out[0] if np.ndim(tilt_a) == 1 else out
+
+
+def monte_carlo_accuracy_array(array: WheelArray, *, tilt_tol: float,
+                               scale_tol: float, n_samples: int = 100_000,
+                               distribution: str = "uniform", demand=None,
+                               law_axes: str = "nominal",
+                               measure_tol: float | None = None,
+                               seed: int = 0) -> AccuracyResult:
+    """Monte Carlo of the realised torque of any wheel array.
+
+    As `monte_carlo_accuracy`, with each axis tilted by two independent
+    angles within ``tilt_tol`` (`tilted_axes`) instead of the pyramid's
+    δ_i, γ_i; the result's ``d_delta``/``d_gamma`` hold the two tilts.
+    The law is eq. (5) with the array's nominal axes or the measured ones
+    (actual tilts plus measurement errors within ``measure_tol``); failed
+    wheels of ``array`` are left out. Scale errors of ``array.scale`` are
+    not used: ``scale_tol`` draws them.
+
+    Parameters
+    ----------
+    array : WheelArray
+        Nominal axes and failed wheels.
+    tilt_tol : float
+        Mounting tolerance of each tilt [rad].
+    scale_tol : float
+        Scale-factor tolerance Δ [1].
+    n_samples, distribution, demand, law_axes, seed
+        As in `monte_carlo_accuracy`.
+    measure_tol : float, optional
+        Measurement tolerance of each tilt [rad]; with ``"measured"``
+        only.
+
+    Returns
+    -------
+    AccuracyResult
+    """
+    if not isinstance(array, WheelArray):
+        raise InvalidValueError(
+            f"array must be a WheelArray, got {type(array).__name__}")
+    tol = _tolerance(tilt_tol, "tilt_tol")
+    measure = _measure_tolerances(
+        law_axes, {"measure_tol": measure_tol})
+    if measure is not None:
+        measure = {"measure_tilt_a_tol": measure["measure_tol"],
+                   "measure_tilt_b_tol": measure["measure_tol"]}
+    h = np.array(array.axes)
+    return _simulate(
+        nominal=h, perturbed=lambda a, b: tilted_axes(h, a, b),
+        mount_tol={"tilt_a": tol, "tilt_b": tol}, measure_tol=measure,
+        scale_tol=scale_tol, active=array.active, n_samples=n_samples,
+        distribution=distribution, demand=demand, law_axes=law_axes,
+        seed=seed, mounting="tilts")
 
 
 def compare_law_axes(*, measure_delta_tol: float, measure_gamma_tol: float,

@@ -299,7 +299,8 @@ def _refine_linear(array: WheelArray, gains: np.ndarray, env, u0s,
     return best_f, best_u
 
 
-def torque_reach(array: WheelArray, law: Any, *, n_directions: int = 4000,
+def torque_reach(array: WheelArray, law: Any, *,
+                 n_directions: int | None = None,
                  sampling: str = "fibonacci", seed: int = 0,
                  tol: float = 1e-6, rtol: float = 1e-4, refine: bool = True,
                  name: str | None = None) -> ReachResult:
@@ -329,15 +330,19 @@ def torque_reach(array: WheelArray, law: Any, *, n_directions: int = 4000,
     law : LinearLaw, object with ``allocate(M)``, or callable
         See `law_extent`. Non-linear laws cost about ``14 n_directions``
         allocations (one when the law reaches the boundary).
-    n_directions : int
-        Number of directions K.
+    n_directions : int, optional
+        Number of directions K; default 4000 for a `LinearLaw` (exact and
+        vectorised), 500 for other laws (bisection, one allocation per
+        step).
     sampling : {"fibonacci", "random"}
         Fibonacci lattice (deterministic, equal areas) or uniform random
         unit vectors from ``numpy.random.default_rng(seed)``.
     seed : int
         Seed of the random directions.
     tol, rtol : float
-        Tolerances of `law_extent`.
+        Tolerances of `law_extent`. For an iterative solver use a ``tol``
+        comparable to the solver's own tolerance, or its near-boundary
+        answers count as misses.
     refine : bool
         For linear laws, refine the worst sampled direction by a local
         search (Nelder-Mead on the sphere); the sampled minimum otherwise.
@@ -356,6 +361,8 @@ def torque_reach(array: WheelArray, law: Any, *, n_directions: int = 4000,
     RankError
         The working wheels do not span 3-D space.
     """
+    if n_directions is None:
+        n_directions = 4000 if isinstance(law, LinearLaw) else 500
     n = _check_count(n_directions, "n_directions")
     if sampling not in _SAMPLINGS:
         raise InvalidValueError(

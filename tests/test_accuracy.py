@@ -10,14 +10,22 @@ import matplotlib
 import numpy as np
 import pytest
 
-from allocation import InvalidValueError, RankError, ShapeError, min_norm_gains
+from allocation import (
+    InvalidValueError,
+    RankError,
+    ShapeError,
+    WheelArray,
+    min_norm_gains,
+)
 from allocation.accuracy import (
     actual_axes,
     compare_law_axes,
     gain_error_uniform,
     gain_error_uniform_as_printed,
     monte_carlo_accuracy,
+    monte_carlo_accuracy_array,
     paper_actual_axes_as_printed,
+    tilted_axes,
     torque_error,
 )
 from allocation.plots import plot_accuracy_histogram
@@ -207,6 +215,45 @@ def test_monte_carlo_per_sample_demands_and_failed_wheel():
     with pytest.raises(RankError):
         monte_carlo_accuracy(d_delta_tol=0.0, d_gamma_tol=0.0,
                              scale_tol=0.0, failed=[0, 1])
+
+
+# ------------------------------------------------- any array (SPEC 1.4)
+def test_tilted_axes_match_with_mounting_errors():
+    arr = WheelArray.orthogonal_plus_skew()
+    rng = np.random.default_rng(2)
+    ta, tb = rng.uniform(-0.02, 0.02, (2, 6, 4))
+    stack = tilted_axes(arr.axes, ta, tb)
+    assert stack.shape == (6, 3, 4)
+    for s in range(6):
+        np.testing.assert_allclose(
+            stack[s], arr.with_mounting_errors(ta[s], tb[s]).axes,
+            atol=1e-15)
+
+
+def test_orthogonal_triad_coupling_angle_is_the_axis_tilt():
+    # wheels on x, y, z and M = (1, 0, 0): m = (1, 0, 0), M1 = h1 tilted,
+    # cos Δα = h1·e_x = cos a cos b
+    triad = WheelArray.from_axes(np.eye(3))
+    r = monte_carlo_accuracy_array(triad, tilt_tol=1.0 * DEG, scale_tol=0.0,
+                                   demand=[1.0, 0.0, 0.0], n_samples=1000)
+    assert r.mounting == "tilts"
+    np.testing.assert_allclose(
+        r.angle, np.arccos(np.cos(r.d_delta[:, 0]) * np.cos(r.d_gamma[:, 0])),
+        atol=1e-7)   # arccos near 1 limits the reference to ~1e-8
+
+
+def test_array_monte_carlo_measured_axes_remove_the_coupling():
+    arr = WheelArray.orthogonal_plus_skew(failed=[1])
+    r = monte_carlo_accuracy_array(arr, tilt_tol=1.0 * DEG, scale_tol=0.0,
+                                   law_axes="measured", measure_tol=0.0,
+                                   n_samples=2000)
+    assert r.relative_error_stats.max < 1e-12
+    nominal = monte_carlo_accuracy_array(arr, tilt_tol=1.0 * DEG,
+                                         scale_tol=0.0, n_samples=2000)
+    assert nominal.relative_error_stats.mean > 1e-3
+    with pytest.raises(InvalidValueError, match="measure_tol"):
+        monte_carlo_accuracy_array(arr, tilt_tol=0.0, scale_tol=0.0,
+                                   law_axes="measured")
 
 
 # ------------------------------------------------------------ bad input

@@ -238,3 +238,44 @@ def test_plot_envelope_rejects_2d_axes(env):
     from matplotlib.figure import Figure
     with pytest.raises(InvalidValueError, match="ax"):
         plot_envelope(env, ax=Figure().add_subplot())
+
+
+def test_package_exposes_envelope_as_a_function(pyramid):
+    import allocation
+    e = allocation.envelope(pyramid, kind="torque")
+    assert isinstance(e, allocation.Envelope)
+    assert all(hasattr(allocation, name) for name in allocation.__all__)
+    assert allocation.__all__ == sorted(allocation.__all__)
+
+
+def test_orthogonal_plus_equal_angle_skew_inscribed_radius_sqrt2():
+    # facet normal e1 x s = (0, -1, 1)/sqrt(2), s = (1, 1, 1)/sqrt(3):
+    # offset = |e2·n| + |e3·n| + |s·n| = 2/sqrt(2) = sqrt(2), the smallest
+    e = envelope(WheelArray.orthogonal_plus_skew(skew="equal_angle"))
+    assert e.inscribed_radius == pytest.approx(np.sqrt(2.0), abs=1e-12)
+    assert e.utilisation == pytest.approx(np.sqrt(2.0) / 4.0, abs=1e-12)
+    # along x: wheel 1 at +1, the skew wheel at +1 adds 1/sqrt(3) to x and
+    # its y, z parts are cancelled by wheels 2, 3 at -1/sqrt(3)
+    np.testing.assert_allclose(e.axis_max, 1.0 + 1.0 / np.sqrt(3.0),
+                               atol=1e-12)
+    assert e.support(np.ones(3)) == pytest.approx(np.sqrt(3.0) + 1.0)
+
+
+def test_utilisation_of_arrays_with_more_wheels_stays_below_0_47():
+    # seed 001 quoting ref. [5]: with more wheels the coefficient of use
+    # does not exceed 0.47; e.g. six wheels on the icosahedron's axes,
+    # N wheels on a 54.7° cone
+    p = (1.0 + np.sqrt(5.0)) / 2.0
+    ico = np.array([[0, 1, p], [0, -1, p], [1, p, 0], [-1, p, 0],
+                    [p, 0, 1], [p, 0, -1]], dtype=float).T
+    arrays = [WheelArray.from_axes(ico, normalize=True)]
+    beta = np.arccos(1.0 / np.sqrt(3.0))
+    for n in (5, 6, 8, 12):
+        th = 2.0 * np.pi * np.arange(n) / n
+        arrays.append(WheelArray.from_axes(np.vstack([
+            np.sin(beta) * np.cos(th), np.sin(beta) * np.sin(th),
+            np.cos(beta) * np.ones(n)])))
+    util = [envelope(a).utilisation for a in arrays]
+    assert max(util) <= 0.47
+    assert util[0] == pytest.approx(0.4588, abs=5e-5)
+    assert util[2] == pytest.approx(4.0 / 9.0, abs=1e-12)   # six on cone

@@ -268,3 +268,11 @@ def test_law_of_unknown_kind_or_wrong_output_is_rejected(nominal):
 def test_reach_table_rejects_unknown_options(nominal):
     with pytest.raises(InvalidValueError, match="n_dirs"):
         reach_table(nominal, n_dirs=10)
+
+
+def test_default_direction_counts_for_linear_and_other_laws(nominal):
+    law = min_norm_law(nominal)
+    assert torque_reach(nominal, law).n_directions == 4000
+    other = torque_reach(nominal, lambda M: law.gains @ M, refine=False)
+    assert other.n_directions == 500
+    assert other.mean_direction_fraction == pytest.approx(0.867, abs=0.003)
