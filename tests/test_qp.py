@@ -255,3 +255,40 @@ def test_property_bounds_kept_and_attainable_demands_met(
         np.testing.assert_allclose(res.achieved, res.alpha *
                                    np.asarray(demand), atol=1e-7)
         assert res.alpha < 1.0
+
+
+@settings(max_examples=40, deadline=None)
+@given(n=st.integers(4, 7), seed=st.integers(0, 10_000),
+       scale=st.floats(0.01, 3.0), n_failed=st.integers(0, 2),
+       solver=st.sampled_from(["osqp", "daqp", "casadi:daqp"]))
+def test_property_random_arrays(n, seed, scale, n_failed, solver):
+    rng = np.random.default_rng(seed)
+    arr = WheelArray.from_axes(rng.normal(size=(3, n)), h_max=1.0,
+                               m_max=rng.uniform(0.05, 0.3, n),
+                               normalize=True,
+                               failed=rng.choice(n, n_failed, replace=False))
+    if arr.rank < 3:
+        with pytest.raises(RankError):
+            QPAllocator(arr, solver=solver)
+        return
+    M = rng.normal(size=3) * scale * 0.2
+    h = rng.uniform(-0.9, 0.9, n)
+    res = QPAllocator(arr, solver=solver).allocate(M, wheel_momentum=h,
+                                                   dt=1.0)
+    assert np.all(np.abs(res.torques) <= arr.m_max)
+    assert np.all(np.abs(h + res.torques) <= 1.0 + 1e-12)
+    assert np.all(res.torques[list(arr.failed)] == 0.0)
+    if res.status == "optimal":
+        np.testing.assert_allclose(res.achieved, M, atol=1e-8)
+    else:
+        np.testing.assert_allclose(res.achieved, res.alpha * M, atol=1e-7)
+        # the scale reached is the attainable maximum: a little more is not
+        # attainable by any allocation (checked with an LP)
+        from scipy.optimize import linprog
+        lo = np.maximum(-arr.m_max, -1.0 - h) * arr.active
+        hi = np.minimum(arr.m_max, 1.0 - h) * arr.active
+        lp = linprog(np.r_[np.zeros(n), -1.0],
+                     A_eq=np.c_[arr.working_axes, -M], b_eq=np.zeros(3),
+                     bounds=list(zip(lo, hi)) + [(0, 1)], method="highs")
+        assert lp.status == 0
+        assert res.alpha == pytest.approx(-lp.fun, abs=1e-6)
