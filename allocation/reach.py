@@ -372,6 +372,10 @@ def torque_reach(array: WheelArray, law: Any, *,
     if sampling == "fibonacci":
         u = fibonacci_directions(n)
     else:
+        if isinstance(seed, bool) or not isinstance(
+                seed, (int, np.integer)) or seed < 0:
+            raise InvalidValueError(
+                f"seed must be a non-negative int, got {seed!r}")
         u = np.random.default_rng(seed).normal(size=(3, n))
         u /= np.linalg.norm(u, axis=0)
     env = envelope(array, "torque")      # validates array, rank
