@@ -440,6 +440,10 @@ def _simulate(*, nominal: np.ndarray, perturbed, mount_tol: dict,
             f" leave rank {rank} < 3: no law can produce an arbitrary "
             "torque", rank=rank, required=3)
 
+    if isinstance(seed, bool) or not isinstance(
+            seed, (int, np.integer)) or seed < 0:
+        raise InvalidValueError(
+            f"seed must be a non-negative int, got {seed!r}")
     S = int(n_samples)
     streams = [np.random.default_rng(s)
                for s in np.random.SeedSequence(seed).spawn(4)]

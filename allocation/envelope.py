@@ -7,7 +7,6 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from adcs_common.exceptions import InvalidValueError, RankError, ShapeError
 from adcs_common.validation import as_finite_array
@@ -117,6 +116,8 @@ def _zonotope_vertices(G: np.ndarray, normals: np.ndarray) -> np.ndarray:
             s = base.copy()
             s[idx] = signs
             candidates.append(G @ s)
+    from scipy.spatial import ConvexHull   # lazy: keeps import fast
+
     pts = np.unique(np.round(np.array(candidates), 12), axis=0)
     hull = ConvexHull(pts)
     return pts[np.sort(hull.vertices)]

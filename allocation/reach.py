@@ -6,8 +6,6 @@ from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
-from scipy.optimize import minimize
-from scipy.spatial import ConvexHull, HalfspaceIntersection
 
 from adcs_common.exceptions import AdcsError, InvalidValueError, ShapeError
 from adcs_common.validation import as_finite_scalar, as_vector
@@ -265,6 +263,8 @@ class ReachResult:
 def _linear_volume(array: WheelArray, gains: np.ndarray, tol: float
                    ) -> float:
     """Exact volume of ``{M : |G_i M| <= m_max,i}`` (0 if not exact)."""
+    from scipy.spatial import ConvexHull, HalfspaceIntersection
+
     if np.linalg.norm(array.working_axes @ gains - np.eye(3)) > tol:
         return 0.0
     act = array.active
@@ -281,6 +281,8 @@ def _linear_volume(array: WheelArray, gains: np.ndarray, tol: float
 def _refine_linear(array: WheelArray, gains: np.ndarray, env, u0s,
                    tol: float) -> tuple[float, np.ndarray]:
     """Local minimum of the linear law's fraction near the worst samples."""
+    from scipy.optimize import minimize
+
     def frac(x: np.ndarray) -> float:
         nx = np.linalg.norm(x)
         if nx == 0.0:
@@ -372,6 +374,10 @@ def torque_reach(array: WheelArray, law: Any, *,
     if sampling == "fibonacci":
         u = fibonacci_directions(n)
     else:
+        if isinstance(seed, bool) or not isinstance(
+                seed, (int, np.integer)) or seed < 0:
+            raise InvalidValueError(
+                f"seed must be a non-negative int, got {seed!r}")
         u = np.random.default_rng(seed).normal(size=(3, n))
         u /= np.linalg.norm(u, axis=0)
     env = envelope(array, "torque")      # validates array, rank

@@ -270,6 +270,7 @@ def test_array_monte_carlo_measured_axes_remove_the_coupling():
     (dict(demand=[np.nan, 0.0, 1.0]), InvalidValueError, "demand"),
     (dict(n_samples=0), InvalidValueError, "n_samples"),
     (dict(failed=[4]), InvalidValueError, "failed"),
+    (dict(seed=-1), InvalidValueError, "seed"),
 ])
 def test_bad_monte_carlo_input_names_the_argument(kwargs, error, name):
     base = dict(d_delta_tol=0.001, d_gamma_tol=0.001, scale_tol=0.01,

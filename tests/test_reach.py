@@ -254,6 +254,8 @@ def test_unknown_sampling_and_bad_counts_are_rejected(nominal):
         torque_reach(nominal, law, n_directions=0)
     with pytest.raises(InvalidValueError, match="tol"):
         torque_reach(nominal, law, tol=np.nan)
+    with pytest.raises(InvalidValueError, match="seed"):
+        torque_reach(nominal, law, sampling="random", seed=-3)
 
 
 def test_law_of_unknown_kind_or_wrong_output_is_rejected(nominal):
