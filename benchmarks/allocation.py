@@ -111,7 +111,45 @@ def run(quick: bool = False) -> list[tuple[str, float]]:
 
     rows.append(("QP conic_allocator_function daqp, Function.buffer",
                  per_call(buffered, n_calls, repeats)))
+
+    compiled = compile_external(qf)
+    if compiled is not None:
+        cbuf, ccall = compiled.buffer()
+        cbuf.set_arg(0, memoryview(q_in))
+        for i, o in enumerate(outs):
+            cbuf.set_res(i, memoryview(o))
+
+        def c_buffered():
+            q_in[:] = Ms[:, next(cycle)]
+            ccall()
+
+        rows.append(("QP same Function compiled to C (gcc -O2), buffer",
+                     per_call(c_buffered, n_calls, repeats)))
     return rows
+
+
+def compile_external(f):
+    """Generate C for ``f``, build it with gcc, load it (None: no gcc)."""
+    import shutil
+    import subprocess
+    import tempfile
+    from pathlib import Path
+
+    import casadi as ca
+
+    from allocation.qp.conic_function import conic_c_flags
+
+    if shutil.which("gcc") is None:
+        return None
+    tmp = Path(tempfile.mkdtemp(prefix="adcs_bench_"))
+    cg = ca.CodeGenerator(f"{f.name()}.c")
+    cg.add(f)
+    cg.generate(f"{tmp}/")
+    lib = tmp / f"{f.name()}.so"
+    subprocess.run(["gcc", "-O2", "-fPIC", "-shared",
+                    str(tmp / f"{f.name()}.c"), "-o", str(lib),
+                    *conic_c_flags("daqp")], check=True)
+    return ca.external(f.name(), str(lib))
 
 
 def main() -> None:
