@@ -8,6 +8,14 @@ from .exceptions import (
     SolverError,
     SolverNotFound,
 )
+from .laws import (
+    THRUST_AXIS,
+    TORQUE_AXES,
+    LawResult,
+    pair_forces,
+    reorientation_law,
+    unloading_law,
+)
 from .symbolic import force_torque_function, six_unit_function
 from .unit import (
     G0,
@@ -23,12 +31,18 @@ __all__ = [
     "InfeasibleError",
     "InvalidValueError",
     "KGF_PER_CM2",
+    "LawResult",
     "SIX_UNIT_PAIRS",
     "ShapeError",
     "SolverError",
     "SolverNotFound",
+    "THRUST_AXIS",
+    "TORQUE_AXES",
     "ThrusterSet",
     "force_torque_function",
+    "pair_forces",
+    "reorientation_law",
     "six_thruster_unit",
     "six_unit_function",
+    "unloading_law",
 ]
