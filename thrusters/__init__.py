@@ -16,6 +16,14 @@ from .laws import (
     reorientation_law,
     unloading_law,
 )
+from .qp import (
+    AllocationResult,
+    DutyCycleAllocator,
+    DutyCycleQP,
+    MinOnTimeCarry,
+    available_solvers,
+    build_qp,
+)
 from .symbolic import force_torque_function, six_unit_function
 from .unit import (
     G0,
@@ -27,11 +35,15 @@ from .unit import (
 
 __all__ = [
     "AdcsError",
+    "AllocationResult",
+    "DutyCycleAllocator",
+    "DutyCycleQP",
     "G0",
     "InfeasibleError",
     "InvalidValueError",
     "KGF_PER_CM2",
     "LawResult",
+    "MinOnTimeCarry",
     "SIX_UNIT_PAIRS",
     "ShapeError",
     "SolverError",
@@ -39,6 +51,8 @@ __all__ = [
     "THRUST_AXIS",
     "TORQUE_AXES",
     "ThrusterSet",
+    "available_solvers",
+    "build_qp",
     "force_torque_function",
     "pair_forces",
     "reorientation_law",
