@@ -1,0 +1,319 @@
+"""Duty-cycle QP allocator (build once, solve many) and min on-time carry."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linprog
+
+from adcs_common.exceptions import InvalidValueError
+from adcs_common.validation import as_finite_array, as_finite_scalar
+
+from ..laws import THRUST_AXIS, TORQUE_AXES
+from ..unit import ThrusterSet
+from .backends import make_backend
+from .problem import N_THETA, build_qp
+
+#: Largest scaled constraint violation accepted from a backend.
+RESIDUAL_TOL = 1e-6
+#: Slack (scaled by h_max) below which the momentum bound counts as met.
+SLACK_TOL = 1e-7
+
+
+@dataclass(frozen=True, eq=False)
+class AllocationResult:
+    """One cycle of the duty-cycle QP.
+
+    Attributes
+    ----------
+    duty : numpy.ndarray, shape (n,)
+        Duty fractions in [0, 1] (D1..Dn). Zeros when ``found`` is False.
+    status : str
+        ``"optimal"``: every constraint met; ``"bound_relaxed"``: no duty
+        cycle keeps the momentum inside the bound, the returned cycle
+        exceeds it by the least amount (``momentum_excess``);
+        ``"infeasible"``: the hard tracking demand is outside what the
+        thrusters can give (duty zeros, never NaN); ``"failed"``: the
+        backend returned no point or one failing the residual check
+        while the problem is feasible (duty zeros).
+    found : bool
+        True for ``"optimal"`` and ``"bound_relaxed"``.
+    demand : numpy.ndarray, shape (3,)
+        ``(P_T [N], M_X [N·m], M_Z [N·m])``.
+    achieved : numpy.ndarray, shape (3,)
+        What ``duty`` gives (linear cycle model).
+    tracking_error : numpy.ndarray, shape (3,)
+        ``achieved - demand``.
+    momentum_after : numpy.ndarray, shape (3,)
+        :math:`H + T_T(\\tau_{thr} + \\tau_{dist})` [N·m·s].
+    momentum_excess : float
+        How far the bound had to be relaxed [N·m·s] (0 when met).
+    residual : float
+        Largest scaled constraint violation of the backend's point.
+    propellant : float
+        Propellant of the cycle :math:`\\sum k_i T_T P_i / (I_{sp} g_0)`
+        [kg].
+    solve_time : float
+        Wall time of the backend call [s].
+    solver : str
+        Backend name.
+    """
+
+    duty: np.ndarray
+    status: str
+    found: bool
+    demand: np.ndarray
+    achieved: np.ndarray
+    tracking_error: np.ndarray
+    momentum_after: np.ndarray
+    momentum_excess: float
+    residual: float
+    propellant: float
+    solve_time: float
+    solver: str
+
+
+class DutyCycleAllocator:
+    """Duty-cycle QP of a thruster set, built once and solved per cycle.
+
+    Per cycle, with demand :math:`(P_T, M_X, M_Z)`, wheel momentum H and
+    disturbance torque estimate :math:`\\tau_{dist}`:
+
+    .. math::
+        \\min_{k\\in[0,1]^n}\\ \\sum_i \\frac{k_i T_T P_i}{I_{sp} g_0}
+        \\ (+\\ \\text{tracking})\\quad
+        \\text{s.t.}\\ \\ \\sum_i k_i P_{y,i} = P_T,\\ \\
+        H + T_T(M_{thr} k + \\tau_{dist}) \\in \\mathcal{B}(h_{max})
+
+    (SPEC section 2; details and scaling in `build_qp`). It generalises
+    eq. (2) (``P_T != 0``, ``M = -K_{unl} H / T_T``) and eqs. (8)-(9)
+    (``P_T = 0``): where they stay inside [0, 1] the hard-tracking QP
+    returns the same duties; where they must clip, the QP returns the
+    best cycle that keeps the momentum bound.
+
+    Parameters
+    ----------
+    unit : ThrusterSet
+        The thrusters (uses its K_p, pressure and Isp at build time).
+    cycle : float
+        Cycle length T_T [s] (>= ``unit.min_on_time``).
+    h_max : float
+        Momentum bound [N·m·s] (0.012 in seed 004's Table 2).
+    solver : str
+        Backend name (default ``"osqp"``, the persistent OSQP object);
+        see `available_solvers`. Tolerances set per backend are listed in
+        the backend modules (OSQP: eps_abs = eps_rel = 1e-9, polishing).
+    tracking : {"hard", "weighted"}
+        ``"hard"``: thrust and both torques are equalities; ``"weighted"``:
+        thrust hard, torques in the cost with ``torque_weight``.
+    bound : {"box", "norm"}
+        Box :math:`|H_X|, |H_Z| \\le h_{max}` or the ``n_facets``-gon
+        inscribed in the circle :math:`\\|(H_X, H_Z)\\| \\le h_{max}`.
+    n_facets : int
+        Facets of the norm bound.
+    torque_weight, propellant_weight, regularization, slack_weight : float
+        Cost weights (see `build_qp`).
+    solver_options : dict, optional
+        Forwarded untouched to the backend (override the defaults).
+    """
+
+    def __init__(self, unit: ThrusterSet, cycle: float, h_max: float, *,
+                 solver: str = "osqp", tracking: str = "hard",
+                 bound: str = "box", n_facets: int = 16,
+                 torque_weight: float = 1e3, propellant_weight: float = 1.0,
+                 regularization: float = 1e-4, slack_weight: float = 1e4,
+                 solver_options: dict | None = None) -> None:
+        t0 = time.perf_counter()
+        self.unit = unit
+        self.cycle = unit.check_cycle(cycle)
+        self.h_max = float(h_max)
+        self.tracking = tracking
+        self.qp = build_qp(unit, cycle, h_max, tracking=tracking,
+                           bound=bound, n_facets=n_facets,
+                           torque_weight=torque_weight,
+                           propellant_weight=propellant_weight,
+                           regularization=regularization,
+                           slack_weight=slack_weight)
+        self.solver = solver
+        self.backend = make_backend(solver, self.qp, solver_options or {})
+        F = unit.force_matrix()
+        Mt = unit.torque_matrix()
+        self._track = np.vstack([F[THRUST_AXIS], Mt[TORQUE_AXES[0]],
+                                 Mt[TORQUE_AXES[1]]])
+        self._torque = Mt
+        self._prop = self.cycle * unit.propellant_rate()
+        self._theta = np.zeros(N_THETA)
+        self.build_time = time.perf_counter() - t0
+
+    # ------------------------------------------------------------------
+    def theta(self, P_T, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
+              tau_dist=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """Parameter vector (P_T, M_X, M_Z, H, tau_dist), validated.
+
+        Raises
+        ------
+        ShapeError, InvalidValueError
+            An argument has the wrong shape or is not finite (the message
+            names it).
+        """
+        th = self._theta
+        try:
+            th[0] = P_T
+            th[1:3] = M
+            th[3:6] = H
+            th[6:9] = tau_dist
+        except (TypeError, ValueError):
+            for value, name, shape in ((P_T, "P_T", ()), (M, "M", (2,)),
+                                       (H, "H", (3,)),
+                                       (tau_dist, "tau_dist", (3,))):
+                as_finite_array(value, name, shape)
+            raise
+        if not np.isfinite(th).all():
+            for value, name in ((P_T, "P_T"), (M, "M"), (H, "H"),
+                                (tau_dist, "tau_dist")):
+                as_finite_array(value, name)
+        return th.copy()
+
+    def solve(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
+              tau_dist=(0.0, 0.0, 0.0)) -> AllocationResult:
+        """Allocate one cycle.
+
+        Parameters
+        ----------
+        P_T : float
+            Required mean thrust along +Y [N] (0: reorientation/hold).
+        M : array_like, shape (2,)
+            Demanded mean torques (M_X, M_Z) [N·m].
+        H : array_like, shape (3,)
+            Wheel momentum at the start of the cycle [N·m·s].
+        tau_dist : array_like, shape (3,)
+            Disturbance torque estimate over the cycle [N·m].
+
+        Returns
+        -------
+        AllocationResult
+        """
+        th = self.theta(P_T, M, H, tau_dist)
+        return self.solve_theta(th)
+
+    def solve_theta(self, th: np.ndarray) -> AllocationResult:
+        """`solve` with a ready parameter vector (9,) (no validation)."""
+        t0 = time.perf_counter()
+        x, status, residual = self.backend.solve(th)
+        solve_time = time.perf_counter() - t0
+        qp = self.qp
+        if x is None:
+            residual = np.inf
+        elif residual is None:
+            _, l, u = qp.vectors(th)
+            Ax = qp.A @ x
+            residual = float(np.concatenate(
+                (l - Ax, Ax - u, qp.lb - x, x - qp.ub, (0.0,))).max())
+        if x is None or residual > RESIDUAL_TOL:
+            status = ("infeasible" if status == "infeasible"
+                      or not self._feasible(th) else "failed")
+            k = np.zeros(self.unit.n)
+            slack = 0.0
+        else:
+            k = np.clip(x[:-1], 0.0, 1.0)
+            slack = max(float(x[-1]), 0.0)
+            status = "optimal" if slack <= SLACK_TOL else "bound_relaxed"
+        return self._result(k, th, status, slack, residual, solve_time)
+
+    def duty(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
+             tau_dist=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """Duty fractions only (fast path; raises unless found)."""
+        res = self.solve(P_T, M, H, tau_dist)
+        if not res.found:
+            from adcs_common.exceptions import InfeasibleError
+            raise InfeasibleError(
+                f"duty-cycle QP: status {res.status!r} for demand "
+                f"{res.demand}", problem=self.qp, result=res)
+        return res.duty
+
+    # ------------------------------------------------------------------
+    def _result(self, k, th, status, slack, residual, solve_time):
+        achieved = self._track @ k
+        demand = th[:3].copy()
+        H_after = th[3:6] + self.cycle * (self._torque @ k + th[6:9])
+        return AllocationResult(
+            duty=k, status=status,
+            found=status in ("optimal", "bound_relaxed"), demand=demand,
+            achieved=achieved, tracking_error=achieved - demand,
+            momentum_after=H_after, momentum_excess=slack * self.h_max,
+            residual=residual, propellant=float(self._prop @ k),
+            solve_time=solve_time, solver=self.solver)
+
+    def _feasible(self, th: np.ndarray) -> bool:
+        """Phase-1 LP (HiGHS via scipy): is the equality set reachable?"""
+        qp = self.qp
+        _, l, u = qp.vectors(th)
+        eq = slice(0, qp.n_eq)
+        ub = np.minimum(qp.ub, 1e9)
+        res = linprog(np.zeros(qp.nx), A_eq=qp.A[eq], b_eq=l[eq],
+                      bounds=list(zip(qp.lb, ub)), method="highs")
+        return res.status == 0
+
+
+@dataclass
+class MinOnTimeCarry:
+    """Min on-time without losing impulse: carry the remainder.
+
+    Per engine, the demanded duty plus the carried remainder is fired
+    when it reaches half the minimum pulse, rounded up to the minimum
+    pulse if shorter; what was not fired (positive or negative) is
+    carried to the next cycle. The commanded duties over any run then sum
+    to the demanded ones up to the final carry, which stays within
+    ``±min_on_time / (2 T_T)``. For opposed pairs (same line of action),
+    equal carries of both engines cancel (no force, no torque) and are
+    dropped.
+
+    Attributes
+    ----------
+    unit : ThrusterSet
+        Provides ``min_on_time`` and ``pairs``.
+    cycle : float
+        Cycle length T_T [s].
+    carry : numpy.ndarray, shape (n,)
+        Remainder carried per engine [duty fraction].
+    """
+
+    unit: ThrusterSet
+    cycle: float
+    carry: np.ndarray = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        self.cycle = self.unit.check_cycle(self.cycle)
+        if self.carry is None:
+            self.carry = np.zeros(self.unit.n)
+
+    @property
+    def min_duty(self) -> float:
+        """Minimum pulse as a duty fraction, ``min_on_time / T_T``."""
+        return self.unit.min_on_time / self.cycle
+
+    def apply(self, duty) -> np.ndarray:
+        """Commanded duties for demanded ``duty`` (n,), updating the carry.
+
+        Raises
+        ------
+        InvalidValueError
+            ``duty`` is not finite or leaves [0, 1].
+        """
+        k = as_finite_array(duty, "duty", (self.unit.n,))
+        if np.any(k < -1e-12) or np.any(k > 1 + 1e-12):
+            raise InvalidValueError(f"duty must lie in [0, 1], got {k}")
+        total = k + self.carry
+        for i, j in self.unit.pairs:
+            common = min(total[i], total[j])
+            if common > 0:
+                total[i] -= common
+                total[j] -= common
+        kmin = self.min_duty
+        fire = total >= 0.5 * kmin
+        cmd = np.where(fire, np.clip(np.maximum(total, kmin), 0.0, 1.0),
+                       0.0)
+        self.carry = total - cmd
+        return cmd

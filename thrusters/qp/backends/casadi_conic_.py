@@ -1,0 +1,81 @@
+"""CasADi ``conic`` backend, wrapped as one Function of the parameters."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ..problem import INF, DutyCycleQP
+
+#: Options set per plugin (printing off, no exception on failure: the
+#: allocator checks residuals itself, since qrqp can report success on a
+#: violated point, SOLVER_NOTES).
+DEFAULTS = {
+    "qrqp": {"print_iter": False, "print_header": False,
+             "print_info": False, "error_on_fail": False},
+
+    "osqp": {"osqp": {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": True,
+                      "max_iter": 200000, "verbose": False},
+             "error_on_fail": False},
+}
+
+
+def _inf(v: np.ndarray) -> np.ndarray:
+    out = v.astype(float).copy()
+    out[out >= INF / 2] = np.inf
+    out[out <= -INF / 2] = -np.inf
+    return out
+
+
+def conic_function(qp: DutyCycleQP, plugin: str,
+                   options: dict | None = None) -> ca.Function:
+    """``duty_qp(theta[9]) -> (x[n+1], violation)`` as a casadi Function.
+
+    ``q, l, u`` are formed from ``theta`` inside the Function, so one call
+    (or one `casadi.Function.buffer` trigger, or generated C) solves a
+    cycle; ``violation`` is the largest constraint violation of ``x``.
+    """
+    opts = {**DEFAULTS.get(plugin, {"error_on_fail": False}),
+            **(options or {})}
+    nx = qp.nx
+    H = ca.DM(qp.P)
+    Asp = ca.DM(qp.A)
+    solver = ca.conic("duty_conic", plugin,
+                      {"h": H.sparsity(), "a": Asp.sparsity()}, opts)
+    theta = ca.MX.sym("theta", qp.Lm.shape[1])
+    q = ca.DM(qp.q0) + ca.DM(qp.Q) @ theta
+    l = ca.DM(_inf(qp.l0)) + ca.DM(qp.Lm) @ theta
+    u = ca.DM(_inf(qp.u0)) + ca.DM(qp.Um) @ theta
+    lbx, ubx = ca.DM(qp.lb), ca.DM(_inf(qp.ub))
+    sol = solver(h=H, g=q, a=Asp, lba=l, uba=u, lbx=lbx, ubx=ubx)
+    x = sol["x"]
+    Ax = Asp @ x
+    viol = ca.mmax(ca.vertcat(ca.fmax(l - Ax, 0), ca.fmax(Ax - u, 0),
+                              ca.fmax(lbx - x, 0), ca.fmax(x - ubx, 0)))
+    return ca.Function("duty_qp", [theta], [x, viol], ["theta"],
+                       ["x", "violation"])
+
+
+class Backend:
+    """CasADi conic called through ``Function.buffer()`` (no conversion)."""
+
+    def __init__(self, qp: DutyCycleQP, plugin: str, options: dict) -> None:
+        self.qp = qp
+        self.function = conic_function(qp, plugin, options)
+        self._theta = np.zeros(qp.Lm.shape[1])
+        self._x = np.zeros(qp.nx)
+        self._viol = np.zeros(1)
+        self._buf, self._trigger = self.function.buffer()
+        self._buf.set_arg(0, memoryview(self._theta))
+        self._buf.set_res(0, memoryview(self._x))
+        self._buf.set_res(1, memoryview(self._viol))
+
+    def solve(self, theta: np.ndarray):
+        """Return ``(x, status, violation)``; residuals decide success."""
+        self._theta[:] = theta
+        self._trigger()
+        x = self._x.copy()
+        viol = float(self._viol[0])
+        if not np.isfinite(viol):
+            return None, "failed", None
+        return x, "solved", viol
