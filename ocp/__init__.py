@@ -15,6 +15,7 @@ from .attitude import (
     quat_to_dcm,
     rotation_between,
 )
+from .laws import EigenaxisSlew, eigenaxis_slew, quaternion_feedback_slew
 from .models import (
     SpacecraftModel,
     check_inertia,
@@ -22,18 +23,23 @@ from .models import (
     euler_krylov_model,
     rigid_spacecraft,
 )
+from .trajectory import SlewTrajectory
 
 __all__: list[str] = [
+    "EigenaxisSlew",
+    "SlewTrajectory",
     "SpacecraftModel",
     "body_rates_from_angle_rates",
     "check_inertia",
     "dcm_body_from_ref_ek",
     "dynamics_numpy",
+    "eigenaxis_slew",
     "ek_angle_rates",
     "ek_angle_rates_function",
     "ek_from_quat",
     "euler_krylov_model",
     "quat_conj",
+    "quaternion_feedback_slew",
     "quat_error_angle",
     "quat_from_axis_angle",
     "quat_from_ek",
