@@ -1,3 +1,51 @@
 """`ocp`: spacecraft models, slews, MPC, code export and the command line."""
 
-__all__: list[str] = []
+from .attitude import (
+    body_rates_from_angle_rates,
+    dcm_body_from_ref_ek,
+    ek_angle_rates,
+    ek_angle_rates_function,
+    ek_from_quat,
+    quat_conj,
+    quat_error_angle,
+    quat_from_axis_angle,
+    quat_from_ek,
+    quat_mul,
+    quat_rate,
+    quat_to_dcm,
+    rotation_between,
+)
+from .laws import EigenaxisSlew, eigenaxis_slew, quaternion_feedback_slew
+from .models import (
+    SpacecraftModel,
+    check_inertia,
+    dynamics_numpy,
+    euler_krylov_model,
+    rigid_spacecraft,
+)
+from .trajectory import SlewTrajectory
+
+__all__: list[str] = [
+    "EigenaxisSlew",
+    "SlewTrajectory",
+    "SpacecraftModel",
+    "body_rates_from_angle_rates",
+    "check_inertia",
+    "dcm_body_from_ref_ek",
+    "dynamics_numpy",
+    "eigenaxis_slew",
+    "ek_angle_rates",
+    "ek_angle_rates_function",
+    "ek_from_quat",
+    "euler_krylov_model",
+    "quat_conj",
+    "quaternion_feedback_slew",
+    "quat_error_angle",
+    "quat_from_axis_angle",
+    "quat_from_ek",
+    "quat_mul",
+    "quat_rate",
+    "quat_to_dcm",
+    "rigid_spacecraft",
+    "rotation_between",
+]
