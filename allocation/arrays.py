@@ -30,14 +30,14 @@ def _readonly(arr: np.ndarray) -> np.ndarray:
 
 
 def pyramid_axes(delta, gamma) -> np.ndarray:
-    """Spin axes of the four-wheel pyramid, seed 001 eq. (6).
+    r"""Spin axes of the four-wheel pyramid, seed 001 eq. (6).
 
     .. math::
-        h_i = (-\\sin\\delta_i\\cos\\gamma_i,\\;
-               \\sigma^y_i\\sin\\delta_i\\sin\\gamma_i,\\;
-               \\sigma^z_i\\cos\\delta_i)
+        h_i = (-\sin\delta_i\cos\gamma_i,\;
+               \sigma^y_i\sin\delta_i\sin\gamma_i,\;
+               \sigma^z_i\cos\delta_i)
 
-    with :math:`\\sigma^y = (+,-,-,+)`, :math:`\\sigma^z = (-,-,+,+)`.
+    with :math:`\sigma^y = (+,-,-,+)`, :math:`\sigma^z = (-,-,+,+)`.
 
     Parameters
     ----------
@@ -61,11 +61,11 @@ def pyramid_axes(delta, gamma) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class WheelArray:
-    """A reaction-wheel array.
+    r"""A reaction-wheel array.
 
     Wheel ``i`` (0-based in code, named ``i + 1`` in reports) spins about
     the unit column ``axes[:, i]`` of the body frame. Motor torques ``m``
-    (on the rotors, :math:`\\dot H_i = m_i`) give the array torque
+    (on the rotors, :math:`\dot H_i = m_i`) give the array torque
     :math:`M = A m` of seed 001 eq. (1); the reaction on the body is
     :math:`-M`.
 
@@ -94,6 +94,7 @@ class WheelArray:
     scale: np.ndarray = field(default=None)  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
+        """Check the fields and store read-only copies."""
         axes = as_finite_array(self.axes, "axes", (3, None))
         n = axes.shape[1]
         if n == 0:
@@ -171,7 +172,7 @@ class WheelArray:
                 "can produce an arbitrary torque", rank=r, required=3)
 
     def body_torque(self, m) -> np.ndarray:
-        """Torque the array actually produces for commanded ``m``.
+        r"""Torque the array actually produces for commanded ``m``.
 
         Parameters
         ----------
@@ -181,7 +182,7 @@ class WheelArray:
         Returns
         -------
         numpy.ndarray, shape (3,) or (3, K)
-            :math:`A\\,\\mathrm{diag}(s)\\,m` with failed wheels giving no
+            :math:`A\,\mathrm{diag}(s)\,m` with failed wheels giving no
             torque [N·m].
         """
         m = np.asarray(m, dtype=float)

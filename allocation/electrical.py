@@ -66,6 +66,7 @@ class WheelMotor:
     regen_efficiency: float = 0.5
 
     def __post_init__(self) -> None:
+        """Check the fields and store read-only copies."""
         for name in ("torque_constant", "resistance", "back_emf",
                      "bus_voltage", "rotor_inertia"):
             check_positive(as_finite_scalar(getattr(self, name), name), name)

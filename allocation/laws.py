@@ -93,11 +93,11 @@ def _pinv_with_failures(array: WheelArray, weights=None) -> np.ndarray:
 
 
 def min_norm_gains(array: WheelArray) -> np.ndarray:
-    """Minimum-norm gains, seed 001 eq. (5), failures included.
+    r"""Minimum-norm gains, seed 001 eq. (5), failures included.
 
     .. math:: m = A^T (A A^T)^{-1} M
 
-    minimises :math:`J = \\sum m_i^2` (eq. 4) subject to :math:`A m = M`.
+    minimises :math:`J = \sum m_i^2` (eq. 4) subject to :math:`A m = M`.
     Failed wheels have their column of A zeroed (seed 001, "control
     algorithm under failures"), which makes their row of G zero: this is
     the general failure law for any set of failed wheels.
@@ -116,17 +116,17 @@ def min_norm_gains(array: WheelArray) -> np.ndarray:
 
 
 def min_norm_law(array: WheelArray) -> LinearLaw:
-    """The minimum-norm law (eq. 5) of ``array`` as a `LinearLaw`."""
+    """Return the minimum-norm law (eq. 5) of ``array`` as a `LinearLaw`."""
     return LinearLaw(min_norm_gains(array), "minimum-norm (eq. 5)")
 
 
 def sign_matrix_gains(delta: float, gamma: float) -> np.ndarray:
-    """Gains of the pyramid by the sign-matrix form, eqs. (7)-(8).
+    r"""Gains of the pyramid by the sign-matrix form, eqs. (7)-(8).
 
     .. math::
-        m = \\tfrac14 B^T \\hat M,\\quad
-        \\hat M = (M_x/(s_\\delta c_\\gamma),\\; M_y/(s_\\delta s_\\gamma),
-                   \\; M_z/c_\\delta),\\quad B B^T = 4 I
+        m = \tfrac14 B^T \hat M,\quad
+        \hat M = (M_x/(s_\delta c_\gamma),\; M_y/(s_\delta s_\gamma),
+                   \; M_z/c_\delta),\quad B B^T = 4 I
 
     Parameters
     ----------
@@ -149,13 +149,13 @@ def pyramid_scale(delta: float, gamma: float) -> np.ndarray:
 
 def pyramid_failure_gains(failed: int, delta: float,
                           gamma: float) -> np.ndarray:
-    """The paper's single-failure law of the pyramid for wheel ``failed``.
+    r"""Return the paper's single-failure law of the pyramid.
 
     Seed 001, "four variants": the failed wheel gives zero and the other
     three solve the 3x3 system, e.g. wheel 1 (index 0) failed:
-    :math:`m_2 = \\tfrac12(-\\hat M_x - \\hat M_z)`,
-    :math:`m_3 = \\tfrac12(-\\hat M_y + \\hat M_z)`,
-    :math:`m_4 = \\tfrac12(-\\hat M_x + \\hat M_y)`.
+    :math:`m_2 = \tfrac12(-\hat M_x - \hat M_z)`,
+    :math:`m_3 = \tfrac12(-\hat M_y + \hat M_z)`,
+    :math:`m_4 = \tfrac12(-\hat M_x + \hat M_y)`.
 
     Parameters
     ----------
@@ -175,11 +175,11 @@ def pyramid_failure_gains(failed: int, delta: float,
 
 
 def weighted_gains(array: WheelArray, weights) -> np.ndarray:
-    """Weighted minimum-norm gains (seed 001, criterion of ref. [10]).
+    r"""Weighted minimum-norm gains (seed 001, criterion of ref. [10]).
 
     .. math::
-        \\min \\sum V_i m_i^2 \\;\\text{s.t.}\\; A m = M \\;\\Rightarrow\\;
-        m = W^{-1}A^T (A W^{-1} A^T)^{-1} M,\\quad W = \\mathrm{diag}(V)
+        \min \sum V_i m_i^2 \;\text{s.t.}\; A m = M \;\Rightarrow\;
+        m = W^{-1}A^T (A W^{-1} A^T)^{-1} M,\quad W = \mathrm{diag}(V)
 
     Parameters
     ----------
@@ -197,7 +197,7 @@ def weighted_gains(array: WheelArray, weights) -> np.ndarray:
 
 
 def weighted_law(array: WheelArray, weights) -> LinearLaw:
-    """The weighted law of ``array`` as a `LinearLaw`."""
+    """Return the weighted law of ``array`` as a `LinearLaw`."""
     return LinearLaw(weighted_gains(array, weights), "weighted")
 
 

@@ -1,8 +1,9 @@
 """Per-call cost of every wheel-allocation method (prints a table).
 
-Run from the repository root: ``python -m benchmarks.allocation [--quick]``
-(as a module, so that this file does not shadow the `allocation` package). Each figure is the
-median over repeated blocks of calls, in µs per demand, with its ratio to
+Run from the repository root as ``python -m benchmarks.allocation
+[--quick]`` (as a module, so that this file does not shadow the
+`allocation` package). Each figure is the median over repeated blocks of
+calls, in µs per demand, with its ratio to
 the numpy closed form measured in the same run. The QP demands are all
 attainable with some wheel on its torque bound (the minimum-norm law
 cannot meet them), plus a saturated share.

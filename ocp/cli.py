@@ -24,7 +24,7 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``adcs``."""
+    """Build the argument parser of ``adcs``."""
     parser = argparse.ArgumentParser(
         prog="adcs", description="ADCS optimal-control and allocation "
         "toolbox: design studies, benchmarks, code export.")

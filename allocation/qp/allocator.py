@@ -23,6 +23,7 @@ from .problem import (
     QPData,
     facet_normals,
     max_scale,
+    pin_to_face,
     set_normals,
     torque_bounds,
 )
@@ -30,12 +31,14 @@ from .problem import (
 SATURATION_MODES = ("scale", "least_squares")
 _LS_REGULARISATION = 1e-9
 _EPIGRAPH_REGULARISATION = 1e-9
-#: A saturated target is pulled inside the boundary by these relative
-#: margins, the second only if the backend fails with the first: exactly on
-#: a facet the feasible set of A m = α M is a face of the box, where
+#: How a saturated target on the boundary of the attainable set is solved,
+#: each step only if the backend failed the previous one: exactly on a
+#: facet the feasible set of A m = α M is a face of the box, where
 #: quadprog fails on about half of the demands and interior-point or ADMM
-#: solvers (clarabel, proxqp, osqp in CasADi) on a few per cent at 1e-9.
-_BOUNDARY_MARGINS = (1e-9, 1e-6)
+#: solvers (osqp, clarabel, proxqp) on a few per cent. ("margin", r) pulls
+#: the target inside by the relative margin r; ("pin", 0) fixes the wheels
+#: the facet determines (`pin_to_face`) and solves for the others exactly.
+_BOUNDARY_STEPS = (("margin", 1e-9), ("pin", 0.0), ("margin", 1e-6))
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,14 +87,14 @@ class AllocationResult:
 
 
 class QPAllocator:
-    """Bounded, weighted wheel-torque allocation by quadratic programming.
+    r"""Bounded, weighted wheel-torque allocation by quadratic programming.
 
     Each call solves
 
     .. math::
-        \\min_m \\sum V_i m_i^2 + w_n \\lVert m - m_d\\rVert^2 + w_p P_e(m)
-        \\quad\\text{s.t.}\\quad A m = M,\\;|m_i| \\le m_{max,i},\\;
-        |h_i + m_i\\,dt| \\le h_{max,i},\\; m_{failed} = 0
+        \min_m \sum V_i m_i^2 + w_n \lVert m - m_d\rVert^2 + w_p P_e(m)
+        \quad\text{s.t.}\quad A m = M,\;|m_i| \le m_{max,i},\;
+        |h_i + m_i\,dt| \le h_{max,i},\; m_{failed} = 0
 
     (seed 001's weighted criterion with the wheels' limits). The
     null-space term drives wheel momenta towards ``momentum_target`` with
@@ -331,16 +334,21 @@ class QPAllocator:
             boundary = self._project(M, lo, hi, h)
             anchor = self._axes @ ((lo + hi) / 2.0)
         P, q = self._cost(h)
-        margins = (0.0,) if mode == "exact" else _BOUNDARY_MARGINS
-        for margin in margins:
+        steps = (("margin", 0.0),) if mode == "exact" else tuple(
+            st for st in _BOUNDARY_STEPS
+            if st[0] == "margin" or normals is not None)
+        for step, margin in steps:
             target = anchor + (boundary - anchor) * (1.0 - margin)
-            data = self._data(P, q, self._axes, target, lo, hi, h)
+            lo_s, hi_s = (lo, hi) if step == "margin" else pin_to_face(
+                normals, self._axes, lo, hi, target)
+            data = self._data(P, q, self._axes, target, lo_s, hi_s, h)
             try:
                 res = self._solve(self._backend, data)
-                m = self._check(res.x, target, lo, hi, self._backend.name)
+                m = self._check(res.x, target, lo_s, hi_s,
+                                self._backend.name)
                 break
             except SolverError:
-                if margin == margins[-1]:
+                if (step, margin) == steps[-1]:
                     raise
         if mode != "exact":
             nm = float(M @ M)

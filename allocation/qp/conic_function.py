@@ -109,7 +109,7 @@ def conic_allocator_function(array: WheelArray, weights=None, *,
 
 
 def conic_c_flags(plugin: str = "daqp") -> list[str]:
-    """gcc flags that build C generated for a conic ``plugin``.
+    """Return the gcc flags that build C generated for a conic ``plugin``.
 
     qrqp generates self-contained C; daqp's C includes ``daqp/api.h`` and
     links the static DAQP library that the casadi wheel ships.

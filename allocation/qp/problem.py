@@ -1,10 +1,10 @@
-"""QP data of the wheel allocator and the saturation geometry it needs.
+r"""QP data of the wheel allocator and the saturation geometry it needs.
 
 Every allocation QP here has the form
 
 .. math::
-    \\min_x \\tfrac12 x^T P x + q^T x \\quad\\text{s.t.}\\quad
-    l \\le C x \\le u,\\; lb \\le x \\le ub
+    \min_x \tfrac12 x^T P x + q^T x \quad\text{s.t.}\quad
+    l \le C x \le u,\; lb \le x \le ub
 
 with ``x = m`` (motor torques, N) or ``x = (m, s)`` when the power cost adds
 N epigraph variables; the first three rows of C are the equality
@@ -47,7 +47,7 @@ class QPData:
     P: np.ndarray
     q: np.ndarray
     C: np.ndarray
-    l: np.ndarray
+    l: np.ndarray  # noqa: E741 (OSQP's name for the lower row bound)
     u: np.ndarray
     lb: np.ndarray
     ub: np.ndarray
@@ -153,7 +153,7 @@ def max_scale(normals: np.ndarray, axes: np.ndarray, lo: np.ndarray,
 def set_normals(array: WheelArray, lo: np.ndarray, hi: np.ndarray,
                 cached: np.ndarray, active: np.ndarray | None = None
                 ) -> np.ndarray | None:
-    """Normals valid for the set of bounds ``lo``/``hi``.
+    """Return normals valid for the set of bounds ``lo``/``hi``.
 
     The cached normals of the array hold while every working wheel has
     ``hi > lo``; otherwise they are recomputed from the free wheels.
@@ -167,3 +167,45 @@ def set_normals(array: WheelArray, lo: np.ndarray, hi: np.ndarray,
         return facet_normals(array.axes[:, free])
     except RankError:
         return None
+
+
+def pin_to_face(normals: np.ndarray, axes: np.ndarray, lo: np.ndarray,
+                hi: np.ndarray, point: np.ndarray, rtol: float = 1e-9
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds that fix the wheels a boundary point of the set determines.
+
+    A point on a facet ``n·x = d`` of ``{A m : lo <= m <= hi}`` is reached
+    only with every wheel whose axis has ``n·a_i != 0`` at the bound on
+    the side of ``n`` (``hi`` if ``n·a_i > 0``, else ``lo``); only the
+    wheels in the facet's plane remain free. Fixing them turns the nearly
+    infeasible boundary QP into a well-posed one.
+
+    Parameters
+    ----------
+    normals : (F, 3) ndarray
+        Facet normals of the set.
+    axes : (3, N) ndarray
+        Working axes.
+    lo, hi : (N,) ndarray
+        Torque bounds [N·m].
+    point : (3,) ndarray
+        A point on the boundary [N·m].
+    rtol : float
+        Relative tolerance of "on the facet" and of ``n·a_i = 0``.
+
+    Returns
+    -------
+    lo, hi : (N,) ndarray
+        Bounds with the determined wheels fixed (``lo == hi``).
+    """
+    na = normals @ axes
+    d = normals @ (axes @ ((lo + hi) * 0.5)) + np.abs(na) @ ((hi - lo) * 0.5)
+    scale = np.abs(d).max() + 1e-300
+    on = normals @ point >= d - rtol * scale
+    lo2, hi2 = lo.copy(), hi.copy()
+    for f in np.flatnonzero(on):
+        up = na[f] > rtol
+        down = na[f] < -rtol
+        lo2[up] = hi[up]
+        hi2[down] = lo[down]
+    return lo2, hi2

