@@ -276,6 +276,39 @@ class ThrusterSet:
         rise = 1.0 - np.exp(-D / self.rise_time)
         return P * (D + (self.tail_time - self.rise_time) * rise)
 
+    def cumulative_impulse(self, t, on_time, steady_thrust=None):
+        """Impulse delivered from the cycle start up to time ``t`` [N·s].
+
+        Closed-form integral of `thrust_profile` (same first-order model
+        as `pulse_impulse`, which is its limit for large ``t``).
+
+        Parameters
+        ----------
+        t : float
+            Time from the start of the cycle [s] (may exceed the cycle:
+            the tail-off of a pulse spills into the next one).
+        on_time : array_like, shape (n,)
+            Valve command durations [s] (0: no pulse).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+        """
+        t_on = np.asarray(on_time, dtype=float)
+        P = self.steady_thrust if steady_thrust is None else np.asarray(
+            steady_thrust, dtype=float)
+        a = self.open_delay
+        c = t_on + self.close_delay
+        D = np.where(t_on > 0, np.maximum(c - a, 0.0), 0.0)
+        tr, td = self.rise_time, self.tail_time
+        up = np.clip(t - a, 0.0, D)
+        rising = up - tr * (1.0 - np.exp(-up / tr))
+        level = 1.0 - np.exp(-D / tr)
+        after = np.maximum(t - c, 0.0)
+        tail = (level * td * (1.0 - np.exp(-after / td)) if td > 0
+                else 0.0 * level)
+        return P * np.where(D > 0, rising + np.where(t > c, tail, 0.0), 0.0)
+
     def mean_thrust(self, duty, cycle: float) -> np.ndarray:
         """True mean thrust of each engine over a cycle, (n,) [N].
 
