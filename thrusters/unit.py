@@ -180,6 +180,12 @@ class ThrusterSet:
             set_(self, name, value)
         set_(self, "pairs", pairs)
         set_(self, "names", names)
+        # derived matrices, computed once (the set is immutable)
+        arms = np.cross(pos - com[:, None], dirs, axis=0)
+        level = corr * steady
+        set_(self, "_arms", _readonly(arms))
+        set_(self, "_force", _readonly(dirs * level))
+        set_(self, "_torque", _readonly(arms * level))
 
     # ------------------------------------------------------------------
     @property
@@ -200,22 +206,21 @@ class ThrusterSet:
     @property
     def arms(self) -> np.ndarray:
         """Torque per newton :math:`(r_i - c) \\times d_i`, (3, n) [m]."""
-        rel = self.positions - self.center_of_mass[:, None]
-        return np.cross(rel, self.directions, axis=0)
+        return self._arms
 
     def force_matrix(self) -> np.ndarray:
         """Mean force per unit duty, (3, n) [N]: ``F = force_matrix() @ k``.
 
         .. math:: F = \\sum_i k_i K_{pi} P_{Di} d_i \\quad (eq. 6)
         """
-        return self.directions * self.cycle_thrust
+        return self._force
 
     def torque_matrix(self) -> np.ndarray:
         """Mean torque per unit duty, (3, n) [N·m]: ``M = torque_matrix() @ k``.
 
         .. math:: M = \\sum_i k_i K_{pi} P_{Di} (r_i - c) \\times d_i
         """
-        return self.arms * self.cycle_thrust
+        return self._torque
 
     def propellant_rate(self) -> np.ndarray:
         """Propellant mass flow of each engine at cycle thrust, (n,) [kg/s].

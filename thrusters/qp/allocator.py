@@ -104,7 +104,9 @@ class DutyCycleAllocator:
     solver : str
         Backend name (default ``"osqp"``, the persistent OSQP object);
         see `available_solvers`. Tolerances set per backend are listed in
-        the backend modules (OSQP: eps_abs = eps_rel = 1e-9, polishing).
+        the backend modules (OSQP: eps_abs = eps_rel = 1e-6 with
+        polishing, exact to the reference; qrqp: defaults, residuals
+        checked; piqp 1e-12; clarabel 1e-12; daqp, quadprog: defaults).
     tracking : {"hard", "weighted"}
         ``"hard"``: thrust and both torques are equalities; ``"weighted"``:
         thrust hard, torques in the cost with ``torque_weight``.
