@@ -334,3 +334,15 @@ def test_min_on_time_carry_rejects_bad_duty_and_short_cycle():
         MinOnTimeCarry(UNIT, 0.01)
     with pytest.raises(InvalidValueError, match="duty"):
         MinOnTimeCarry(UNIT, 2.0).apply([np.nan] * 6)
+
+
+def test_casadi_function_for_codegen_matches_allocator():
+    alloc = DutyCycleAllocator(UNIT, 2.0, H_MAX, tracking="weighted",
+                               solver="daqp")
+    f = alloc.casadi_function()
+    th = alloc.theta(0.0, (0.003, -0.001), (0.005, 0.0, 0.002))
+    x, viol = f(th)
+    assert float(viol) < 1e-9
+    np.testing.assert_allclose(np.array(x).ravel()[:-1],
+                               alloc.solve_theta(th).duty, atol=1e-8)
+    assert f.name_in() == ["theta"]
