@@ -1,5 +1,8 @@
-"""Duty-cycle QP (SPEC 2): every backend vs an exact KKT reference, closed
-forms of eqs. (2), (8)-(9) vs the QP, momentum bound, min on-time carry."""
+"""Duty-cycle QP (SPEC 2): backends vs an exact KKT reference.
+
+Also the closed forms of eqs. (2), (8)-(9) vs the QP, the momentum bound
+and the min on-time carry.
+"""
 
 import warnings
 
@@ -218,7 +221,7 @@ FEAS_CACHE = {}
 
 
 def momentum_feasible(P_T, H, tau, T):
-    """LP: is there k in [0,1]^6 with thrust P_T and |H+| <= h_max?"""
+    """Tell (LP) if some k in [0,1]^6 gives P_T and |H+| <= h_max."""
     F = UNIT.force_matrix()[1]
     Mt = UNIT.torque_matrix()[[0, 2]]
     shift = np.array([H[0], H[2]]) + T * np.array([tau[0], tau[2]])

@@ -120,6 +120,7 @@ class ThrusterSet:
     names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        """Validate every field and freeze the arrays."""
         pos = as_finite_array(self.positions, "positions", (3, None))
         n = pos.shape[1]
         if n == 0:
@@ -216,7 +217,7 @@ class ThrusterSet:
         return self._force
 
     def torque_matrix(self) -> np.ndarray:
-        """Mean torque per unit duty, (3, n) [N·m]: ``M = torque_matrix() @ k``.
+        """Mean torque per unit duty, (3, n) [N·m]: ``torque_matrix() @ k``.
 
         .. math:: M = \\sum_i k_i K_{pi} P_{Di} (r_i - c) \\times d_i
         """

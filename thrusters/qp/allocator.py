@@ -9,7 +9,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 from adcs_common.exceptions import InvalidValueError
-from adcs_common.validation import as_finite_array, as_finite_scalar
+from adcs_common.validation import as_finite_array
 
 from ..laws import THRUST_AXIS, TORQUE_AXES
 from ..unit import ThrusterSet
@@ -233,7 +233,7 @@ class DutyCycleAllocator:
 
     def casadi_function(self, plugin: str = "qrqp",
                         options: dict | None = None):
-        """This QP as a casadi Function for code generation.
+        """Return this QP as a casadi Function for code generation.
 
         Returns
         -------
@@ -274,7 +274,7 @@ class DutyCycleAllocator:
             solver=self.solver)
 
     def _feasible(self, th: np.ndarray) -> bool:
-        """Phase-1 LP (HiGHS via scipy): is the equality set reachable?"""
+        """Phase-1 LP (HiGHS via scipy): tell if the equalities are met."""
         qp = self.qp
         _, l, u = qp.vectors(th)
         eq = slice(0, qp.n_eq)
@@ -312,6 +312,7 @@ class MinOnTimeCarry:
     carry: np.ndarray = field(default=None)  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
+        """Validate the cycle and start with no carry."""
         self.cycle = self.unit.check_cycle(self.cycle)
         if self.carry is None:
             self.carry = np.zeros(self.unit.n)

@@ -76,6 +76,7 @@ class DutyCycleQP:
         return self.P.shape[0]
 
     def __post_init__(self) -> None:
+        """Stack q, l, u's affine maps (one product per cycle)."""
         # one stacked affine map for q, l, u (one product per cycle)
         object.__setattr__(self, "_v0", np.concatenate(
             [self.q0, self.l0, self.u0]))

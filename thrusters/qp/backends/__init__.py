@@ -31,7 +31,8 @@ CODEGEN_PLUGINS = ("qrqp",)
 #: qpsolvers' 'osqp' (set up again on every call; the persistent "osqp"
 #: backend is the OSQP offering).
 QPSOLVERS_NAMES = ("clarabel", "daqp", "piqp", "quadprog")
-INSTALL_HINT = 'Install the optional solvers with: pip install "adcs-toolbox[solvers]"'
+INSTALL_HINT = ('Install the optional solvers with: '
+                'pip install "adcs-toolbox[solvers]"')
 
 
 def _qpsolvers_names() -> tuple[str, ...]:

@@ -37,7 +37,6 @@ def conic_function(qp: DutyCycleQP, plugin: str,
     """
     opts = {**DEFAULTS.get(plugin, {"error_on_fail": False}),
             **(options or {})}
-    nx = qp.nx
     H = ca.DM(qp.P)
     Asp = ca.DM(qp.A)
     solver = ca.conic("duty_conic", plugin,
