@@ -349,3 +349,18 @@ def test_casadi_function_for_codegen_matches_allocator():
     np.testing.assert_allclose(np.array(x).ravel()[:-1],
                                alloc.solve_theta(th).duty, atol=1e-8)
     assert f.name_in() == ["theta"]
+
+
+ALLOC_N = DutyCycleAllocator(UNIT, 10.0, H_MAX, tracking="weighted",
+                             bound="norm", n_facets=12, solver="daqp")
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.floats(0.1, 1.2), st.floats(-0.05, 0.05), st.floats(-0.05, 0.05),
+       st.floats(-0.008, 0.008), st.floats(-0.008, 0.008))
+def test_property_norm_bound_keeps_momentum_in_the_circle(P_T, mx, mz, hx,
+                                                          hz):
+    res = ALLOC_N.solve(P_T, (mx, mz), (hx, 0.0, hz))
+    assert res.status == "optimal"      # |H| < h_max cos(pi/12) at start
+    # the 12-gon is inscribed: inside it means inside the circle
+    assert np.hypot(*res.momentum_after[[0, 2]]) <= H_MAX + 1e-9

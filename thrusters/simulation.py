@@ -275,7 +275,8 @@ def _check_allocation(allocation):
 def burn_scenario(allocation: str = "law", solver: str = "osqp",
                   K_unl: float = 1.0, unit: ThrusterSet | None = None,
                   disturbance=BURN_DISTURBANCE, dt: float = 0.05,
-                  settle: float = 60.0) -> ScenarioResult:
+                  settle: float = 60.0,
+                  calibrate: bool = True) -> ScenarioResult:
     """Translation burn of Table 2 with wheel unloading (eq. 2 or the QP).
 
     The spacecraft (54 kg, J = diag(3.0, 2.5, 3.5) kg·m²) fires group 1
@@ -290,7 +291,9 @@ def burn_scenario(allocation: str = "law", solver: str = "osqp",
     allocator's K_p comes from the transient model at the nominal duty
     (`ThrusterSet.calibrated`); the truth applies the transient model
     (`ThrusterSet.cumulative_impulse`) to the commanded valve times, and
-    the mass decreases with the propellant used.
+    the mass decreases with the propellant used. ``calibrate=False``
+    keeps K_p = 1 (no transient correction): the per-cycle thrust then
+    misses P_T by the transients' impulse loss, about 0.3 %.
 
     Returns
     -------
@@ -301,7 +304,7 @@ def burn_scenario(allocation: str = "law", solver: str = "osqp",
     P_T = TABLE2["P_T"]
     base = unit if unit is not None else six_thruster_unit()
     duty0 = P_T / float(np.sum(base.steady_thrust[:3]))
-    cal = base.calibrated(T, duty0)
+    cal = base.calibrated(T, duty0) if calibrate else base
     dist = as_finite_array(disturbance, "disturbance", (3,))
     n_cycles = int(round(TABLE2["T_imp"] / T))
     state = {"H_prev": None, "tau_est": np.zeros(3), "k_prev": None}
