@@ -1,5 +1,8 @@
-"""Duty-cycle QP (SPEC 2): every backend vs an exact KKT reference, closed
-forms of eqs. (2), (8)-(9) vs the QP, momentum bound, min on-time carry."""
+"""Duty-cycle QP (SPEC 2): backends vs an exact KKT reference.
+
+Also the closed forms of eqs. (2), (8)-(9) vs the QP, the momentum bound
+and the min on-time carry.
+"""
 
 import warnings
 
@@ -218,7 +221,7 @@ FEAS_CACHE = {}
 
 
 def momentum_feasible(P_T, H, tau, T):
-    """LP: is there k in [0,1]^6 with thrust P_T and |H+| <= h_max?"""
+    """Tell (LP) if some k in [0,1]^6 gives P_T and |H+| <= h_max."""
     F = UNIT.force_matrix()[1]
     Mt = UNIT.torque_matrix()[[0, 2]]
     shift = np.array([H[0], H[2]]) + T * np.array([tau[0], tau[2]])
@@ -334,3 +337,30 @@ def test_min_on_time_carry_rejects_bad_duty_and_short_cycle():
         MinOnTimeCarry(UNIT, 0.01)
     with pytest.raises(InvalidValueError, match="duty"):
         MinOnTimeCarry(UNIT, 2.0).apply([np.nan] * 6)
+
+
+def test_casadi_function_for_codegen_matches_allocator():
+    alloc = DutyCycleAllocator(UNIT, 2.0, H_MAX, tracking="weighted",
+                               solver="daqp")
+    f = alloc.casadi_function()
+    th = alloc.theta(0.0, (0.003, -0.001), (0.005, 0.0, 0.002))
+    x, viol = f(th)
+    assert float(viol) < 1e-9
+    np.testing.assert_allclose(np.array(x).ravel()[:-1],
+                               alloc.solve_theta(th).duty, atol=1e-8)
+    assert f.name_in() == ["theta"]
+
+
+ALLOC_N = DutyCycleAllocator(UNIT, 10.0, H_MAX, tracking="weighted",
+                             bound="norm", n_facets=12, solver="daqp")
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.floats(0.1, 1.2), st.floats(-0.05, 0.05), st.floats(-0.05, 0.05),
+       st.floats(-0.008, 0.008), st.floats(-0.008, 0.008))
+def test_property_norm_bound_keeps_momentum_in_the_circle(P_T, mx, mz, hx,
+                                                          hz):
+    res = ALLOC_N.solve(P_T, (mx, mz), (hx, 0.0, hz))
+    assert res.status == "optimal"      # |H| < h_max cos(pi/12) at start
+    # the 12-gon is inscribed: inside it means inside the circle
+    assert np.hypot(*res.momentum_after[[0, 2]]) <= H_MAX + 1e-9

@@ -193,3 +193,34 @@ def test_bad_pairs_rejected(unit):
     with pytest.raises(InvalidValueError, match="pairs"):
         ThrusterSet(unit.positions, unit.directions, pairs=((0, 4),),
                     pressure_slope=unit.pressure_slope)
+
+
+def test_cumulative_impulse_integrates_the_profile(unit):
+    on = np.array([0.03, 0.05, 0.1, 0.2, 0.0, 0.5])
+    t = np.linspace(0.0, 0.8, 200001)
+    prof = unit.thrust_profile(t, on)
+    for tk in (0.01, 0.04, 0.07, 0.3, 0.8):
+        sel = t <= tk
+        np.testing.assert_allclose(unit.cumulative_impulse(tk, on),
+                                   np.trapezoid(prof[:, sel], t[sel],
+                                                axis=1), atol=2e-7)
+    np.testing.assert_allclose(unit.cumulative_impulse(50.0, on),
+                               unit.pulse_impulse(on), rtol=1e-12)
+
+
+def test_thrusters_is_a_leaf_package():
+    import subprocess
+    import sys
+    code = ("import sys, thrusters, thrusters.simulation; "
+            "bad = [m for m in ('allocation', 'ocp') if m in sys.modules]; "
+            "print(bad); sys.exit(1 if bad else 0)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True,
+                         text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+
+
+def test_public_api_is_listed():
+    import thrusters
+    for name in thrusters.__all__:
+        assert hasattr(thrusters, name)
+    assert "DutyCycleAllocator" in thrusters.__all__

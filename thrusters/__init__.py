@@ -24,6 +24,15 @@ from .qp import (
     available_solvers,
     build_qp,
 )
+from .simulation import (
+    ScenarioResult,
+    burn_scenario,
+    burn_table,
+    format_table,
+    plot_scenario,
+    reorientation_scenario,
+    reorientation_table,
+)
 from .symbolic import force_torque_function, six_unit_function
 from .unit import (
     G0,
@@ -45,6 +54,7 @@ __all__ = [
     "LawResult",
     "MinOnTimeCarry",
     "SIX_UNIT_PAIRS",
+    "ScenarioResult",
     "ShapeError",
     "SolverError",
     "SolverNotFound",
@@ -53,9 +63,15 @@ __all__ = [
     "ThrusterSet",
     "available_solvers",
     "build_qp",
+    "burn_scenario",
+    "burn_table",
     "force_torque_function",
+    "format_table",
     "pair_forces",
+    "plot_scenario",
     "reorientation_law",
+    "reorientation_scenario",
+    "reorientation_table",
     "six_thruster_unit",
     "six_unit_function",
     "unloading_law",

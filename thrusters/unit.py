@@ -120,6 +120,7 @@ class ThrusterSet:
     names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        """Validate every field and freeze the arrays."""
         pos = as_finite_array(self.positions, "positions", (3, None))
         n = pos.shape[1]
         if n == 0:
@@ -180,6 +181,12 @@ class ThrusterSet:
             set_(self, name, value)
         set_(self, "pairs", pairs)
         set_(self, "names", names)
+        # derived matrices, computed once (the set is immutable)
+        arms = np.cross(pos - com[:, None], dirs, axis=0)
+        level = corr * steady
+        set_(self, "_arms", _readonly(arms))
+        set_(self, "_force", _readonly(dirs * level))
+        set_(self, "_torque", _readonly(arms * level))
 
     # ------------------------------------------------------------------
     @property
@@ -200,22 +207,21 @@ class ThrusterSet:
     @property
     def arms(self) -> np.ndarray:
         """Torque per newton :math:`(r_i - c) \\times d_i`, (3, n) [m]."""
-        rel = self.positions - self.center_of_mass[:, None]
-        return np.cross(rel, self.directions, axis=0)
+        return self._arms
 
     def force_matrix(self) -> np.ndarray:
         """Mean force per unit duty, (3, n) [N]: ``F = force_matrix() @ k``.
 
         .. math:: F = \\sum_i k_i K_{pi} P_{Di} d_i \\quad (eq. 6)
         """
-        return self.directions * self.cycle_thrust
+        return self._force
 
     def torque_matrix(self) -> np.ndarray:
-        """Mean torque per unit duty, (3, n) [N·m]: ``M = torque_matrix() @ k``.
+        """Mean torque per unit duty, (3, n) [N·m]: ``torque_matrix() @ k``.
 
         .. math:: M = \\sum_i k_i K_{pi} P_{Di} (r_i - c) \\times d_i
         """
-        return self.arms * self.cycle_thrust
+        return self._torque
 
     def propellant_rate(self) -> np.ndarray:
         """Propellant mass flow of each engine at cycle thrust, (n,) [kg/s].
@@ -275,6 +281,39 @@ class ThrusterSet:
                                        - self.open_delay, 0.0), 0.0)
         rise = 1.0 - np.exp(-D / self.rise_time)
         return P * (D + (self.tail_time - self.rise_time) * rise)
+
+    def cumulative_impulse(self, t, on_time, steady_thrust=None):
+        """Impulse delivered from the cycle start up to time ``t`` [N·s].
+
+        Closed-form integral of `thrust_profile` (same first-order model
+        as `pulse_impulse`, which is its limit for large ``t``).
+
+        Parameters
+        ----------
+        t : float
+            Time from the start of the cycle [s] (may exceed the cycle:
+            the tail-off of a pulse spills into the next one).
+        on_time : array_like, shape (n,)
+            Valve command durations [s] (0: no pulse).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+        """
+        t_on = np.asarray(on_time, dtype=float)
+        P = self.steady_thrust if steady_thrust is None else np.asarray(
+            steady_thrust, dtype=float)
+        a = self.open_delay
+        c = t_on + self.close_delay
+        D = np.where(t_on > 0, np.maximum(c - a, 0.0), 0.0)
+        tr, td = self.rise_time, self.tail_time
+        up = np.clip(t - a, 0.0, D)
+        rising = up - tr * (1.0 - np.exp(-up / tr))
+        level = 1.0 - np.exp(-D / tr)
+        after = np.maximum(t - c, 0.0)
+        tail = (level * td * (1.0 - np.exp(-after / td)) if td > 0
+                else 0.0 * level)
+        return P * np.where(D > 0, rising + np.where(t > c, tail, 0.0), 0.0)
 
     def mean_thrust(self, duty, cycle: float) -> np.ndarray:
         """True mean thrust of each engine over a cycle, (n,) [N].

@@ -9,7 +9,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 from adcs_common.exceptions import InvalidValueError
-from adcs_common.validation import as_finite_array, as_finite_scalar
+from adcs_common.validation import as_finite_array
 
 from ..laws import THRUST_AXIS, TORQUE_AXES
 from ..unit import ThrusterSet
@@ -104,7 +104,9 @@ class DutyCycleAllocator:
     solver : str
         Backend name (default ``"osqp"``, the persistent OSQP object);
         see `available_solvers`. Tolerances set per backend are listed in
-        the backend modules (OSQP: eps_abs = eps_rel = 1e-9, polishing).
+        the backend modules (OSQP: eps_abs = eps_rel = 1e-6 with
+        polishing, exact to the reference; qrqp: defaults, residuals
+        checked; piqp 1e-12; clarabel 1e-12; daqp, quadprog: defaults).
     tracking : {"hard", "weighted"}
         ``"hard"``: thrust and both torques are equalities; ``"weighted"``:
         thrust hard, torques in the cost with ``torque_weight``.
@@ -144,6 +146,13 @@ class DutyCycleAllocator:
                                  Mt[TORQUE_AXES[1]]])
         self._torque = Mt
         self._prop = self.cycle * unit.propellant_rate()
+        self._out = np.vstack([self._track, Mt, self._prop[None]])
+        qp = self.qp
+        self._m = qp.A.shape[0]
+        self._A = qp.A
+        self._lu0 = np.concatenate([qp.l0, qp.u0])
+        self._LU = np.vstack([qp.Lm, qp.Um])
+        self._lb, self._ub = qp.lb, qp.ub
         self._theta = np.zeros(N_THETA)
         self.build_time = time.perf_counter() - t0
 
@@ -203,24 +212,41 @@ class DutyCycleAllocator:
         t0 = time.perf_counter()
         x, status, residual = self.backend.solve(th)
         solve_time = time.perf_counter() - t0
-        qp = self.qp
         if x is None:
             residual = np.inf
         elif residual is None:
-            _, l, u = qp.vectors(th)
-            Ax = qp.A @ x
+            lu = self._lu0 + self._LU @ th
+            Ax = self._A @ x
             residual = float(np.concatenate(
-                (l - Ax, Ax - u, qp.lb - x, x - qp.ub, (0.0,))).max())
+                (lu[:self._m] - Ax, Ax - lu[self._m:], self._lb - x,
+                 x - self._ub)).max())
         if x is None or residual > RESIDUAL_TOL:
             status = ("infeasible" if status == "infeasible"
                       or not self._feasible(th) else "failed")
             k = np.zeros(self.unit.n)
             slack = 0.0
         else:
-            k = np.clip(x[:-1], 0.0, 1.0)
+            k = x[:-1].clip(0.0, 1.0)
             slack = max(float(x[-1]), 0.0)
             status = "optimal" if slack <= SLACK_TOL else "bound_relaxed"
         return self._result(k, th, status, slack, residual, solve_time)
+
+    def casadi_function(self, plugin: str = "qrqp",
+                        options: dict | None = None):
+        """Return this QP as a casadi Function for code generation.
+
+        Returns
+        -------
+        casadi.Function
+            ``duty_qp(theta[9]) -> (x[n+1], violation)`` with
+            ``theta = (P_T, M_X, M_Z, H[3], tau_dist[3])`` (see `theta`),
+            ``x = (k, s)``; ``Function.generate`` gives self-contained C
+            with ``plugin="qrqp"``. Check ``violation`` (qrqp can report
+            success on a violated point).
+        """
+        from .backends.casadi_conic_ import conic_function
+
+        return conic_function(self.qp, plugin, options)
 
     def duty(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
              tau_dist=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -235,19 +261,20 @@ class DutyCycleAllocator:
 
     # ------------------------------------------------------------------
     def _result(self, k, th, status, slack, residual, solve_time):
-        achieved = self._track @ k
+        out = self._out @ k                 # tracked (3), torque (3), kg
+        achieved = out[:3]
         demand = th[:3].copy()
-        H_after = th[3:6] + self.cycle * (self._torque @ k + th[6:9])
         return AllocationResult(
             duty=k, status=status,
             found=status in ("optimal", "bound_relaxed"), demand=demand,
             achieved=achieved, tracking_error=achieved - demand,
-            momentum_after=H_after, momentum_excess=slack * self.h_max,
-            residual=residual, propellant=float(self._prop @ k),
-            solve_time=solve_time, solver=self.solver)
+            momentum_after=th[3:6] + self.cycle * (out[3:6] + th[6:9]),
+            momentum_excess=slack * self.h_max, residual=residual,
+            propellant=float(out[6]), solve_time=solve_time,
+            solver=self.solver)
 
     def _feasible(self, th: np.ndarray) -> bool:
-        """Phase-1 LP (HiGHS via scipy): is the equality set reachable?"""
+        """Phase-1 LP (HiGHS via scipy): tell if the equalities are met."""
         qp = self.qp
         _, l, u = qp.vectors(th)
         eq = slice(0, qp.n_eq)
@@ -285,6 +312,7 @@ class MinOnTimeCarry:
     carry: np.ndarray = field(default=None)  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
+        """Validate the cycle and start with no carry."""
         self.cycle = self.unit.check_cycle(self.cycle)
         if self.carry is None:
             self.carry = np.zeros(self.unit.n)

@@ -75,10 +75,21 @@ class DutyCycleQP:
         """Number of variables (duties and slack)."""
         return self.P.shape[0]
 
+    def __post_init__(self) -> None:
+        """Stack q, l, u's affine maps (one product per cycle)."""
+        # one stacked affine map for q, l, u (one product per cycle)
+        object.__setattr__(self, "_v0", np.concatenate(
+            [self.q0, self.l0, self.u0]))
+        object.__setattr__(self, "_V", np.vstack([self.Q, self.Lm,
+                                                  self.Um]))
+        object.__setattr__(self, "_cuts", (self.nx,
+                                           self.nx + self.A.shape[0]))
+
     def vectors(self, theta: np.ndarray):
         """``(q, l, u)`` at parameters ``theta`` (9,)."""
-        return (self.q0 + self.Q @ theta, self.l0 + self.Lm @ theta,
-                self.u0 + self.Um @ theta)
+        v = self._v0 + self._V @ theta
+        a, b = self._cuts
+        return v[:a], v[a:b], v[b:]
 
 
 def facet_normals(n_facets: int) -> np.ndarray:

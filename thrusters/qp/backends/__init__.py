@@ -13,6 +13,8 @@ _MODULES = {
     "osqp": ".osqp_",
     "qpsolvers": ".qpsolvers_",
     "casadi": ".casadi_conic_",
+    "casadi-c": ".casadi_conic_",
+    "daqp": ".daqp_",
 }
 #: CasADi conic plugins offered (each tested against the reference).
 #: Not offered, measured on 150 random cycles of this QP: CasADi's 'daqp'
@@ -20,13 +22,17 @@ _MODULES = {
 #: through qpsolvers is exact and is offered), 'qpoases' (5 of 150 cycles
 #: fail the residual check), 'proxqp' (26 of 150 fail).
 CASADI_PLUGINS = ("qrqp", "osqp")
+#: Plugins offered as generated C (``"casadi-c:<plugin>"``), needing a C
+#: compiler; qrqp generates self-contained C.
+CODEGEN_PLUGINS = ("qrqp",)
 #: qpsolvers backends offered (tested to 1e-6 against the reference with
 #: the tolerances of `qpsolvers_.DEFAULTS`). Not offered: 'proxqp' (11 of
 #: 150 random cycles without a solution at any tolerance tried) and
 #: qpsolvers' 'osqp' (set up again on every call; the persistent "osqp"
 #: backend is the OSQP offering).
 QPSOLVERS_NAMES = ("clarabel", "daqp", "piqp", "quadprog")
-INSTALL_HINT = 'Install the optional solvers with: pip install "adcs-toolbox[solvers]"'
+INSTALL_HINT = ('Install the optional solvers with: '
+                'pip install "adcs-toolbox[solvers]"')
 
 
 def _qpsolvers_names() -> tuple[str, ...]:
@@ -44,11 +50,28 @@ def _casadi_names() -> tuple[str, ...]:
     return tuple(f"casadi:{p}" for p in CASADI_PLUGINS if ca.has_conic(p))
 
 
+def _codegen_names() -> tuple[str, ...]:
+    from .casadi_conic_ import compiler
+
+    if compiler() is None:
+        return ()
+    return tuple(f"casadi-c:{p}" for p in CODEGEN_PLUGINS)
+
+
+def _has_daqp() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("daqp") is not None
+
+
 def available_solvers() -> tuple[str, ...]:
     """Solver names that work on this installation.
 
-    ``"osqp"`` is the persistent OSQP object; ``"casadi:<plugin>"`` a
-    CasADi conic (`CASADI_PLUGINS`); ``"<name>"`` or ``"qpsolvers:<name>"``
+    ``"osqp"`` is the persistent OSQP object; ``"daqp"`` DAQP called
+    directly (the fastest exact backend); ``"casadi:<plugin>"`` a
+    CasADi conic (`CASADI_PLUGINS`); ``"casadi-c:<plugin>"`` the same
+    conic exported to C and compiled at build time (`CODEGEN_PLUGINS`,
+    needs a C compiler); ``"qpsolvers:<name>"`` (or a bare ``"<name>"``)
     an installed qpsolvers backend among `QPSOLVERS_NAMES`.
     """
     names = []
@@ -57,8 +80,11 @@ def available_solvers() -> tuple[str, ...]:
         names.append("osqp")
     except ImportError:
         pass
+    if _has_daqp():
+        names.append("daqp")
     names += list(_casadi_names())
-    names += list(_qpsolvers_names())
+    names += list(_codegen_names())
+    names += [f"qpsolvers:{n}" for n in _qpsolvers_names()]
     return tuple(names)
 
 
@@ -68,15 +94,21 @@ def resolve(name: str) -> tuple[str, str]:
         raise SolverNotFound(repr(name), available_solvers(), INSTALL_HINT)
     if name == "osqp":
         family, plugin = "osqp", "osqp"
+    elif name == "daqp":
+        family, plugin = "daqp", "daqp"
     elif name.startswith("casadi:"):
         family, plugin = "casadi", name.split(":", 1)[1]
+    elif name.startswith("casadi-c:"):
+        family, plugin = "casadi-c", name.split(":", 1)[1]
     elif name.startswith("qpsolvers:"):
         family, plugin = "qpsolvers", name.split(":", 1)[1]
     else:
         family, plugin = "qpsolvers", name
     ok = {
         "osqp": lambda: "osqp" in available_solvers(),
+        "daqp": _has_daqp,
         "casadi": lambda: f"casadi:{plugin}" in _casadi_names(),
+        "casadi-c": lambda: f"casadi-c:{plugin}" in _codegen_names(),
         "qpsolvers": lambda: plugin in _qpsolvers_names(),
     }[family]()
     if not ok:
@@ -88,4 +120,5 @@ def make_backend(name: str, qp: DutyCycleQP, options: dict):
     """Build the backend object of solver ``name`` for ``qp``."""
     family, plugin = resolve(name)
     module = importlib.import_module(_MODULES[family], __name__)
-    return module.Backend(qp, plugin, dict(options))
+    cls = module.CodegenBackend if family == "casadi-c" else module.Backend
+    return cls(qp, plugin, dict(options))

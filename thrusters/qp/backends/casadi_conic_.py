@@ -14,8 +14,8 @@ DEFAULTS = {
     "qrqp": {"print_iter": False, "print_header": False,
              "print_info": False, "error_on_fail": False},
 
-    "osqp": {"osqp": {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": True,
-                      "max_iter": 200000, "verbose": False},
+    "osqp": {"osqp": {"eps_abs": 1e-6, "eps_rel": 1e-6, "polishing": True,
+                      "max_iter": 20000, "verbose": False},
              "error_on_fail": False},
 }
 
@@ -37,7 +37,6 @@ def conic_function(qp: DutyCycleQP, plugin: str,
     """
     opts = {**DEFAULTS.get(plugin, {"error_on_fail": False}),
             **(options or {})}
-    nx = qp.nx
     H = ca.DM(qp.P)
     Asp = ca.DM(qp.A)
     solver = ca.conic("duty_conic", plugin,
@@ -79,3 +78,52 @@ class Backend:
         if not np.isfinite(viol):
             return None, "failed", None
         return x, "solved", viol
+
+
+def compiler() -> str | None:
+    """A C compiler on PATH (``cc``, ``gcc`` or ``clang``), or None."""
+    import shutil
+
+    for name in ("cc", "gcc", "clang"):
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
+
+
+class CodegenBackend(Backend):
+    """The conic Function exported to C, compiled, loaded as external.
+
+    ``casadi.Function.generate`` writes self-contained C for code-
+    generatable plugins (qrqp); it is compiled once with the system C
+    compiler (``-O2 -shared -fPIC``) in a temporary folder and called
+    through ``Function.buffer()``.
+    """
+
+    def __init__(self, qp: DutyCycleQP, plugin: str, options: dict) -> None:
+        import os
+        import subprocess
+        import tempfile
+
+        self.qp = qp
+        fn = conic_function(qp, plugin, options)
+        folder = tempfile.mkdtemp(prefix="thrusters_qp_")
+        cwd = os.getcwd()
+        try:
+            os.chdir(folder)
+            fn.generate("duty_qp.c")
+        finally:
+            os.chdir(cwd)
+        src = os.path.join(folder, "duty_qp.c")
+        lib = os.path.join(folder, "duty_qp.so")
+        subprocess.run([compiler(), "-O2", "-shared", "-fPIC", src, "-o",
+                        lib, "-lm"], check=True, capture_output=True)
+        self.function = ca.external("duty_qp", lib)
+        self.library = lib
+        self._theta = np.zeros(qp.Lm.shape[1])
+        self._x = np.zeros(qp.nx)
+        self._viol = np.zeros(1)
+        self._buf, self._trigger = self.function.buffer()
+        self._buf.set_arg(0, memoryview(self._theta))
+        self._buf.set_res(0, memoryview(self._x))
+        self._buf.set_res(1, memoryview(self._viol))
