@@ -19,6 +19,8 @@ STUDIES: dict[str, tuple[str, str]] = {
     "wheels": ("wheels", "Meteor-M No. 2 wheel pyramid (seed 001)"),
     "accuracy": ("accuracy", "Torque accuracy under mounting and "
                  "scale-factor errors (seed 001)"),
+    "thrusters": ("thrusters", "Six-thruster unit in pulse-cycle mode "
+                  "(seed 004)"),
     "chibis": ("chibis", "Chibis-M: coil and wheel failures, gravity boom "
                "(seed 002)"),
 }
