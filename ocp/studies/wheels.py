@@ -178,12 +178,19 @@ def trade_maps(ctx: StudyContext) -> tuple[Figure, str]:
             _, offsets = zonotope_facets(pyramid_axes(d, g))
             util[j, i] = offsets.min() / 4.0
     k = np.unravel_index(np.argmax(util), util.shape)
-    best = (np.rad2deg(deltas[k[1]]), np.rad2deg(gammas[k[0]]))
+    from scipy.optimize import minimize
+
+    opt = minimize(lambda x: -zonotope_facets(pyramid_axes(*x))[1].min(),
+                   [deltas[k[1]], gammas[k[0]]], method="Nelder-Mead",
+                   options={"xatol": 1e-8, "fatol": 1e-12})
+    best = tuple(np.rad2deg(opt.x))
+    best_util = -opt.fun / 4.0
     fig, ax = plt.subplots(figsize=(6, 4.5))
     cs = ax.contourf(np.rad2deg(deltas), np.rad2deg(gammas), util, 20)
-    fig.colorbar(cs, ax=ax, label="utilisation r / ΣH* (= r for H* = 1/4)")
+    fig.colorbar(cs, ax=ax, label="utilisation r / ΣH*")
     ax.plot(55, 45, "r*", ms=12, label="Meteor-M (55°, 45°)")
-    ax.plot(*best, "wx", ms=10, label=f"best ({best[0]:.0f}°, {best[1]:.0f}°)")
+    ax.plot(*best, "wx", ms=10,
+            label=f"optimum ({best[0]:.2f}°, {best[1]:.2f}°)")
     ax.set_xlabel("δ [deg]")
     ax.set_ylabel("γ [deg]")
     ax.legend(loc="lower right")
@@ -192,8 +199,9 @@ def trade_maps(ctx: StudyContext) -> tuple[Figure, str]:
     return (Figure(name, "δ/γ trade: utilisation r/ΣH* (the inscribed "
                    "radius per unit total capacity) over the mounting "
                    "angles"),
-            f"best utilisation {util.max():.4f} at δ = {best[0]:.0f}°, "
-            f"γ = {best[1]:.0f}° (Meteor-M 55°/45°: 0.4076)")
+            f"optimum utilisation {best_util:.4f} at δ = {best[0]:.2f}°, "
+            f"γ = {best[1]:.2f}° (arctan √2 = 54.74°: the equal-angle "
+            "pyramid); Meteor-M 55°/45°: 0.4076")
 
 
 def envelope_figures(ctx: StudyContext, arr: WheelArray) -> list[Figure]:
