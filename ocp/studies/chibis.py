@@ -102,7 +102,8 @@ def pitch_offset(ctx: StudyContext, orbit: CircularOrbit, inertia):
         "constant dipole along the boom: held in the orbit frame the "
         "field turns at ω0 and -Bdot then gives a constant pitch torque "
         "2 k B0 sin² i. Deployed inertia inferred from the paper's ε = 0.16 "
-        f"and 6° (A, B, C) = {tuple(round(v, 2) for v in inertia)} kg·m², "
+        "and 6° (A, B, C) = ("
+        + ", ".join(f"{v:.2f}" for v in inertia) + ") kg·m², "
         "so the 6° row checks the inference; the others test eq. (3.7) "
         "against the nonlinear 3-D model.", digits=3)
     fig, ax = plt.subplots(figsize=(5, 3.6))
