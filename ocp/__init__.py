@@ -23,12 +23,22 @@ from .models import (
     euler_krylov_model,
     rigid_spacecraft,
 )
+from .slews import (
+    NLP_SOLVERS,
+    TRANSCRIPTIONS,
+    available_nlp_solvers,
+    min_energy_slew,
+    time_optimal_slew,
+)
 from .trajectory import SlewTrajectory
 
 __all__: list[str] = [
     "EigenaxisSlew",
+    "NLP_SOLVERS",
     "SlewTrajectory",
     "SpacecraftModel",
+    "TRANSCRIPTIONS",
+    "available_nlp_solvers",
     "body_rates_from_angle_rates",
     "check_inertia",
     "dcm_body_from_ref_ek",
@@ -37,6 +47,7 @@ __all__: list[str] = [
     "ek_angle_rates",
     "ek_angle_rates_function",
     "ek_from_quat",
+    "min_energy_slew",
     "euler_krylov_model",
     "quat_conj",
     "quaternion_feedback_slew",
@@ -48,4 +59,5 @@ __all__: list[str] = [
     "quat_to_dcm",
     "rigid_spacecraft",
     "rotation_between",
+    "time_optimal_slew",
 ]
