@@ -23,6 +23,13 @@ from .models import (
     euler_krylov_model,
     rigid_spacecraft,
 )
+from .seed003 import (
+    SEED003_INERTIA,
+    Seed003Run,
+    Seed003Spacecraft,
+    seed003_run,
+    seed003_spacecraft,
+)
 from .slews import (
     NLP_SOLVERS,
     TRANSCRIPTIONS,
@@ -36,6 +43,9 @@ __all__: list[str] = [
     "EigenaxisSlew",
     "NLP_SOLVERS",
     "SlewTrajectory",
+    "SEED003_INERTIA",
+    "Seed003Run",
+    "Seed003Spacecraft",
     "SpacecraftModel",
     "TRANSCRIPTIONS",
     "available_nlp_solvers",
@@ -59,5 +69,7 @@ __all__: list[str] = [
     "quat_to_dcm",
     "rigid_spacecraft",
     "rotation_between",
+    "seed003_run",
+    "seed003_spacecraft",
     "time_optimal_slew",
 ]
