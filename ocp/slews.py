@@ -147,7 +147,7 @@ def _check_common(N: int, transcription: str, substeps: int) -> None:
 
 def _guess(s: _Setup, N: int, T: float, kind: str, perturbation: float,
            seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Initial guess (X (nx, N+1), U (nu, N)) in physical units."""
+    """Return the initial guess (X (nx, N+1), U (nu, N)), physical units."""
     model = s.model
     J = model.inertia
     t = np.linspace(0.0, T, N + 1)
@@ -427,8 +427,9 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
     transcription : {"multiple_shooting", "collocation"}
         Transcription of the dynamics.
     solver : {"ipopt", "sqpmethod"}
-        NLP solver (default ``"ipopt"``); ``"sqpmethod"`` is CasADi's SQP
-        with qpOASES (slow to converge on time-optimal slews).
+        NLP solver (default ``"ipopt"``). ``"sqpmethod"`` is CasADi's SQP
+        with qpOASES: it converges on minimum-energy slews but stalls on
+        time-optimal ones (its status then says so).
     expand : bool
         Build the NLP as an SX graph (what ``expand`` gives: faster
         evaluations) instead of an MX graph of Function calls.
@@ -504,7 +505,9 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
     T : float
         Slew time [s]; infeasible below the time-optimal one (then
         ``success`` is False).
-    Other parameters
+    inertia, q0, qf, torque_max, wheels, N, transcription, solver
+        As `time_optimal_slew`.
+    expand, substeps, h0, rate_max, solver_options, verify
         As `time_optimal_slew`.
 
     Returns

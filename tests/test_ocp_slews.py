@@ -157,3 +157,23 @@ def test_plot_helper_draws_four_panels(bw_ms):
     fig = bw_ms.plot()
     assert len(fig.axes) == 4
     assert "time_optimal" in fig.axes[0].get_title()
+
+
+def test_sqpmethod_solves_the_min_energy_slew_like_ipopt():
+    qf = quat_from_axis_angle([0, 0, 1], 1.0)
+    kw = dict(torque_max=10.0, T=2.0, N=20, verify=False)
+    a = min_energy_slew(np.eye(3), Q0, qf, solver="sqpmethod", **kw)
+    b = min_energy_slew(np.eye(3), Q0, qf, solver="ipopt", **kw)
+    assert a.success and b.success
+    assert a.energy == pytest.approx(b.energy, rel=1e-6)
+    assert a.extras["solver"] == "sqpmethod"
+
+
+def test_benchmark_runs_one_configuration():
+    from benchmarks.slews import cases, run
+
+    res = run(cases()[0], "multiple_shooting", "ipopt", True, N=20,
+              repeats=1, max_iter=300)
+    assert res["status"] == "Solve_Succeeded"
+    assert res["T"] == pytest.approx(BILIMORIA_WIE_T, abs=0.02)
+    assert res["solve"] > 0
