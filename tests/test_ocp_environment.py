@@ -113,3 +113,11 @@ def test_bdot_rejects_bad_coil_index():
     with pytest.raises(InvalidValueError, match="failed_coils"):
         bdot_detumble(model, np.r_[1, 0, 0, 0, 0, 0, 0.0], t_final=10.0,
                       gain=1e6, failed_coils=(3,))
+
+
+def test_bdot_run_plot(detumble_runs):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    fig = detumble_runs[0].plot()
+    assert len(fig.axes) == 2
