@@ -33,6 +33,8 @@ from .environment import (
     gravity_gradient_torque,
     orbit_model,
     orbit_rate,
+    seed002_wheel_law,
+    simulate_wheel_law,
 )
 from .laws import EigenaxisSlew, eigenaxis_slew, quaternion_feedback_slew
 from .models import (
@@ -102,8 +104,10 @@ __all__: list[str] = [
     "quaternion_feedback_slew",
     "rigid_spacecraft",
     "rotation_between",
+    "seed002_wheel_law",
     "seed003_run",
     "seed003_slew_spacecraft",
     "seed003_spacecraft",
+    "simulate_wheel_law",
     "time_optimal_slew",
 ]

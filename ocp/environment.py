@@ -37,6 +37,8 @@ __all__ = [
     "BdotRun",
     "OrbitModel",
     "bdot_detumble",
+    "seed002_wheel_law",
+    "simulate_wheel_law",
     "dipole_field_orbit",
     "gravity_gradient_torque",
     "orbit_model",
@@ -122,6 +124,11 @@ class OrbitModel:
     field_body : casadi.Function
         ``field_body(x, t) -> (B, Bdot)``: field in body axes [T] and its
         time derivative seen by the body [T/s].
+    wheel_dynamics : casadi.Function
+        ``wheel_dynamics(x, hdot, m, tau, t) -> (xdot)`` with
+        ``x = (q, ω, H)`` (10), H the total wheel momentum in body axes
+        [N·m·s] (three orthogonal pairs, Chibis-M) and ``hdot`` its body
+        derivative: :math:`Jω̇ = -ω×(Jω + H) - \\dot H + M_{gr} + m×B + τ`.
     """
 
     inertia: np.ndarray
@@ -131,6 +138,7 @@ class OrbitModel:
     u0: float
     dynamics: ca.Function
     field_body: ca.Function
+    wheel_dynamics: ca.Function
 
     def relative_rate(self, x) -> np.ndarray:
         """Rate relative to the orbit frame, (3,) or (K, 3) [rad/s]."""
@@ -183,7 +191,65 @@ def orbit_model(inertia, *, radius: float = 6_850e3,
     Bdot = ca.jtimes(B, x, xdot0) + ca.jacobian(B, t)
     fb = ca.Function("field_body", [x, t], [B, Bdot], ["x", "t"],
                      ["B", "Bdot"])
-    return OrbitModel(J, float(radius), inc, w0, float(u0), dyn, fb)
+    # the same with wheels: state (q, ω, H), control Ḣ (body derivative)
+    xh = ca.SX.sym("x", 10)
+    hdot = ca.SX.sym("hdot", 3)
+    qh, wh, H = xh[:4], xh[4:7], xh[7:10]
+    Rh = quat_to_dcm(qh)
+    wh_rel = wh - Rh.T @ ca.DM([0.0, w0, 0.0])
+    Mh = (gravity_gradient_torque(J, Rh.T @ ca.DM([0.0, 0.0, 1.0]), w0)
+          + ca.cross(m, Rh.T @ B_orb) + tau)
+    whdot = Jinv @ (-ca.cross(wh, ca.DM(J) @ wh + H) - hdot + Mh)
+    dyn_h = ca.Function(
+        "orbit_wheel_dynamics", [xh, hdot, m, tau, t],
+        [ca.vertcat(quat_rate(qh, wh_rel), whdot, hdot)],
+        ["x", "hdot", "m", "tau", "t"], ["xdot"])
+    return OrbitModel(J, float(radius), inc, w0, float(u0), dyn, fb,
+                      dyn_h)
+
+
+def seed002_wheel_law(model: OrbitModel, k_omega: float,
+                      k_a: float) -> ca.Function:
+    """Nominal wheel law of seed 002, eq. (1.8).
+
+    .. math::
+        \\dot H + ω \\times H = k_ω ω_{rel} + k_a S - ω \\times Jω
+        - J \\dot A ω_0,\\quad
+        S = (a_{23} - a_{32},\\; a_{31} - a_{13},\\; a_{12} - a_{21})
+
+    with A the direction-cosine matrix body ← orbit and
+    :math:`A ω_0 = ω_0 A e_2` the orbit rate in body axes, so
+    :math:`\\dot A ω_0 = (ω_0 A e_2) \\times ω_{rel}`. The last term is
+    read from the extraction (SPEC 3 omits it): with it the closed loop is
+    exactly :math:`J \\dot ω_{rel} = -k_ω ω_{rel} - k_a S + M_{ext}`.
+
+    Parameters
+    ----------
+    model : OrbitModel
+    k_omega, k_a : float
+        Positive gains [N·m·s], [N·m].
+
+    Returns
+    -------
+    casadi.Function
+        ``law(x, t) -> (hdot)`` for ``x = (q, ω, H)``.
+    """
+    k_omega = as_finite_scalar(k_omega, "k_omega")
+    check_positive(k_omega, "k_omega")
+    k_a = as_finite_scalar(k_a, "k_a")
+    check_positive(k_a, "k_a")
+    x = ca.SX.sym("x", 10)
+    t = ca.SX.sym("t")
+    q, w, H = x[:4], x[4:7], x[7:10]
+    A = quat_to_dcm(q).T  # body <- orbit
+    w_orb = model.w0 * A[:, 1]
+    w_rel = w - w_orb
+    S = ca.vertcat(A[1, 2] - A[2, 1], A[2, 0] - A[0, 2], A[0, 1] - A[1, 0])
+    J = ca.DM(model.inertia)
+    hdot = (-ca.cross(w, H) + k_omega * w_rel + k_a * S
+            - ca.cross(w, J @ w) - J @ ca.cross(w_orb, w_rel))
+    return ca.Function("seed002_wheel_law", [x, t], [hdot], ["x", "t"],
+                       ["hdot"])
 
 
 @dataclass(frozen=True, eq=False)
@@ -298,3 +364,40 @@ def bdot_detumble(model: OrbitModel, x0, *, t_final: float,
     return BdotRun(t=times, x=X, dipole=M,
                    extras={"gain": k, "dipole_max": mmax,
                            "failed_coils": tuple(failed_coils), "dt": dt})
+
+
+def simulate_wheel_law(model: OrbitModel, law: ca.Function, x0, *,
+                       t_final: float, dt: float = 1.0) -> tuple[
+                           np.ndarray, np.ndarray]:
+    """Integrate the orbit model with wheels under ``law`` (CVODES).
+
+    Parameters
+    ----------
+    model : OrbitModel
+    law : casadi.Function
+        ``law(x, t) -> (hdot)``, e.g. `seed002_wheel_law`.
+    x0 : array_like (10,)
+        Initial ``(q, ω, H)``.
+    t_final, dt : float
+        Duration and output step [s].
+
+    Returns
+    -------
+    t : numpy.ndarray (K + 1,)
+    x : numpy.ndarray (K + 1, 10)
+    """
+    x0 = as_vector(x0, 10, "x0")
+    t_final = as_finite_scalar(t_final, "t_final")
+    check_positive(t_final, "t_final")
+    dt = as_finite_scalar(dt, "dt")
+    check_positive(dt, "dt")
+    n = int(np.ceil(t_final / dt - 1e-9))
+    times = dt * np.arange(n + 1)
+    x = ca.MX.sym("x", 10)
+    t = ca.MX.sym("t")
+    ode = model.wheel_dynamics(x, law(x, t), ca.DM.zeros(3),
+                               ca.DM.zeros(3), t)
+    F = ca.integrator("wheel_law", "cvodes", {"x": x, "t": t, "ode": ode},
+                      0.0, times[1:], {"abstol": 1e-11, "reltol": 1e-9})
+    X = np.asarray(F(x0=x0)["xf"]).T
+    return times, np.vstack([x0, X])

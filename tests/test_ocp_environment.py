@@ -121,3 +121,46 @@ def test_bdot_run_plot(detumble_runs):
     matplotlib.use("Agg")
     fig = detumble_runs[0].plot()
     assert len(fig.axes) == 2
+
+
+def test_seed002_wheel_law_gives_the_linear_closed_loop_exactly():
+    """Eq. (1.8): J ω̇_rel = -k_ω ω_rel - k_a S + M_gr (no field torque)."""
+    from ocp.attitude import quat_to_dcm
+    from ocp.environment import seed002_wheel_law
+
+    model = orbit_model(CHIBIS_J)
+    law = seed002_wheel_law(model, 0.02, 1e-4)
+    x = ca.SX.sym("x", 10)
+    t = ca.SX.sym("t")
+    xdot = model.wheel_dynamics(x, law(x, t), ca.DM.zeros(3),
+                                ca.DM.zeros(3), t)
+    A = quat_to_dcm(x[:4]).T
+    w_rel = x[4:7] - model.w0 * A[:, 1]
+    f = ca.Function("f", [x, t], [ca.jtimes(w_rel, x, xdot), w_rel])
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        q = rng.normal(size=4)
+        xv = np.r_[q / np.linalg.norm(q), 0.01 * rng.normal(size=3),
+                   0.02 * rng.normal(size=3)]
+        wdot, wr = (np.asarray(v).ravel() for v in f(xv, 50.0))
+        Av = quat_to_dcm(xv[:4]).T
+        S = np.array([Av[1, 2] - Av[2, 1], Av[2, 0] - Av[0, 2],
+                      Av[0, 1] - Av[1, 0]])
+        m_gr = gravity_gradient_torque(CHIBIS_J, Av[:, 2], model.w0)
+        np.testing.assert_allclose(CHIBIS_J @ wdot,
+                                   -0.02 * wr - 1e-4 * S + m_gr,
+                                   atol=1e-15)
+
+
+def test_seed002_wheel_law_aligns_body_with_orbit_frame():
+    from ocp.environment import seed002_wheel_law, simulate_wheel_law
+
+    model = orbit_model(CHIBIS_J)
+    law = seed002_wheel_law(model, k_omega=0.024, k_a=1e-4)
+    q0 = quat_from_axis_angle([1.0, -2.0, 0.5], np.deg2rad(20.0))
+    x0 = np.r_[q0, 0.0, model.w0, 0.0, np.zeros(3)]
+    t, X = simulate_wheel_law(model, law, x0, t_final=1500.0, dt=5.0)
+    err = 2 * np.arccos(np.clip(np.abs(X[:, 0]), 0, 1))
+    assert np.rad2deg(err[0]) == pytest.approx(20.0)
+    assert np.rad2deg(err[-1]) < 0.05
+    assert np.max(np.abs(X[:, 7:])) < 0.05  # Chibis-M pitch wheel 0.05
