@@ -371,7 +371,10 @@ def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
               "solver": solver, "expand": bool(expand), "N": N,
               "build_time": build_time,
               "solver_time": float(stats.get("t_wall_total", np.nan)),
-              "eigenaxis_T": s.T_eig, "initial_guess": initial_guess,
+              "eigenaxis_T": s.T_eig,
+              "initial_guess": ("perturbed_eigenaxis" if perturbation > 0
+                                and initial_guess == "eigenaxis"
+                                else initial_guess),
               "perturbation": perturbation,
               "nlp_objective": float(sol["f"])}
     traj = SlewTrajectory(

@@ -62,9 +62,10 @@ def test_unperturbed_eigenaxis_guess_is_a_stationary_point(bw_ms):
                           initial_guess="eigenaxis", verify=False)
     assert r.success
     assert r.T == pytest.approx(EIGENAXIS_T, rel=1e-5)
+    assert r.extras["initial_guess"] == "eigenaxis"
     # the default perturbed guess leaves it
     assert bw_ms.T < r.T - 0.25
-    assert bw_ms.extras["initial_guess"] == "eigenaxis"
+    assert bw_ms.extras["initial_guess"] == "perturbed_eigenaxis"
     assert bw_ms.extras["perturbation"] > 0
 
 
