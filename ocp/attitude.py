@@ -103,7 +103,7 @@ def quat_to_dcm(q):
 
 
 def quat_from_axis_angle(axis, angle: float) -> np.ndarray:
-    """Unit quaternion of a rotation by ``angle`` [rad] about ``axis``.
+    """Return the quaternion of a rotation by ``angle`` [rad] about ``axis``.
 
     Raises
     ------

@@ -22,15 +22,59 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError, ShapeError
 from adcs_common.validation import as_finite_array, as_vector
 
+from adcs_common.validation import as_finite_scalar
+
 from .attitude import quat_from_axis_angle, quat_mul, quat_rate, quat_to_dcm
 from .environment import (
-    CircularOrbit,
-    bdot_dipole,
+    EARTH_DIPOLE,
     dipole_field_orbit,
-    dipole_field_rate_orbit,
     gravity_gradient_torque,
-    magnetic_torque,
+    orbit_rate,
 )
+
+@dataclass(frozen=True)
+class CircularOrbit:
+    """The circular orbit of a study (Chibis-M by default).
+
+    Attributes
+    ----------
+    radius : float
+        Orbit radius r [m] (6850 km).
+    inclination : float
+        Inclination i [rad] (51.7°).
+    """
+
+    radius: float = 6850e3
+    inclination: float = np.deg2rad(51.7)
+
+    def __post_init__(self) -> None:
+        """Check the orbit."""
+        r = as_finite_scalar(self.radius, "radius")
+        if r < 6.4e6:
+            raise InvalidValueError(
+                f"radius is the orbit radius from Earth's centre in metres, "
+                f"got {r} (below the surface)")
+        as_finite_scalar(self.inclination, "inclination")
+
+    @property
+    def rate(self) -> float:
+        """Orbit rate ω0 [rad/s]."""
+        return orbit_rate(self.radius)
+
+    @property
+    def period(self) -> float:
+        """Orbit period 2π/ω0 [s]."""
+        return 2 * np.pi / self.rate
+
+    @property
+    def field_strength(self) -> float:
+        """B0 = μ_e / r³ [T], the direct dipole's scale at this radius."""
+        return EARTH_DIPOLE / self.radius**3
+
+    def field(self, u):
+        """Direct-dipole field in orbit axes at argument of latitude u [T]."""
+        return dipole_field_orbit(u, self.inclination, self.radius)
+
 
 #: Inertia before the boom is deployed [kg·m²] (seed 002).
 STOWED_INERTIA = (1.02, 1.51, 1.73)
@@ -132,40 +176,55 @@ class ChibisConfig:
 def _params(cfg: ChibisConfig) -> np.ndarray:
     spin_limit = cfg.spin_limit if np.isfinite(cfg.spin_limit) else 1e9
     return np.concatenate([
-        cfg.inertia, [cfg.bdot_gain, cfg.max_dipole], cfg.coils,
+        [cfg.bdot_gain, cfg.max_dipole], cfg.coils,
         cfg.constant_dipole, cfg.wheel_gains, cfg.spin_torque, [spin_limit],
         cfg.wheel_pairs]).astype(float)
 
 
-def closed_loop_ode(orbit: CircularOrbit) -> ca.Function:
+N_PARAMS = 17
+
+
+def closed_loop_ode(orbit: CircularOrbit, inertia) -> ca.Function:
     """Right-hand side ``f(x, p) -> xdot`` of the Chibis-M closed loop.
 
-    ``p`` packs `ChibisConfig` (inertia, Bdot gain, saturation, coil mask,
-    constant dipole, wheel-law gains, spin torque and limit, pair mask).
+    Parameters
+    ----------
+    orbit : CircularOrbit
+    inertia : (3,) array_like
+        Principal inertia [kg·m²].
+
+    ``p`` packs the rest of `ChibisConfig` (Bdot gain, saturation, coil
+    mask, constant dipole, wheel-law gains, spin torque and limit, pair
+    mask), so one Function serves every actuator setting.
     """
     x = ca.SX.sym("x", 11)
-    p = ca.SX.sym("p", 20)
+    p = ca.SX.sym("p", N_PARAMS)
     q, w, H, u = x[0:4], x[4:7], x[7:10], x[10]
-    J = ca.diag(p[0:3])
-    k_bdot, m_max, coils = p[3], p[4], p[5:8]
-    m_const, k_w, k_a = p[8:11], p[11], p[12]
-    spin, spin_limit, pairs = p[13:16], p[16], p[17:20]
+    J = np.diag(as_vector(inertia, 3, "inertia"))
+    k_bdot, m_max, coils = p[0], p[1], p[2:5]
+    m_const, k_w, k_a = p[5:8], p[8], p[9]
+    spin, spin_limit, pairs = p[10:13], p[13], p[14:17]
     w0 = orbit.rate
     A = quat_to_dcm(q).T                       # body from orbit
     w_orb = A @ ca.DM([0.0, w0, 0.0])
     w_rel = w - w_orb
-    B = A @ dipole_field_orbit(orbit, u)
-    B_dot = A @ dipole_field_rate_orbit(orbit, u) - ca.cross(w_rel, B)
+    B_orbit = orbit.field(u)
+    B = A @ B_orbit
+    B_dot = A @ (ca.jacobian(B_orbit, u) * w0) - ca.cross(w_rel, B)
     dipole = coils * ca.fmin(ca.fmax(-k_bdot * B_dot, -m_max), m_max) \
         + m_const
     e3 = A @ ca.DM([0.0, 0.0, 1.0])
-    torque = gravity_gradient_torque(w0, J, e3) + magnetic_torque(dipole, B)
+    torque = gravity_gradient_torque(J, e3, w0) + ca.cross(dipole, B)
     S = ca.vertcat(A[1, 2] - A[2, 1], A[2, 0] - A[0, 2], A[0, 1] - A[1, 0])
-    law = -ca.cross(w, H) + k_w * w_rel + k_a * S - ca.cross(w, J @ w)
+    # eq. (1.8) as `environment.seed002_wheel_law` reads it, gains symbolic
+    Jd = ca.DM(J)
+    law = -ca.cross(w, H) + k_w * w_rel + k_a * S - ca.cross(w, Jd @ w) \
+        - Jd @ ca.cross(w_orb, w_rel)
     law = ca.if_else(k_w + k_a > 0, law, ca.DM.zeros(3))
     spin_on = ca.fabs(H) < spin_limit
     h_dot = pairs * (law + spin * spin_on)
-    w_dot = ca.solve(J, -ca.cross(w, J @ w + H) + torque - h_dot)
+    w_dot = ca.DM(np.linalg.inv(J)) @ (-ca.cross(w, Jd @ w + H) + torque
+                                       - h_dot)
     x_dot = ca.vertcat(quat_rate(q, w_rel), w_dot, h_dot, w0)
     return ca.Function("chibis_ode", [x, p], [x_dot], ["x", "p"], ["xdot"])
 
@@ -256,9 +315,9 @@ def simulate(cfg: ChibisConfig, x0, duration: float, *,
         raise InvalidValueError(f"duration must be positive, got {duration}")
     if n_out < 2:
         raise ShapeError(f"n_out must be at least 2, got {n_out}")
-    f = closed_loop_ode(cfg.orbit)
+    f = closed_loop_ode(cfg.orbit, cfg.inertia)
     x = ca.SX.sym("x", 11)
-    p = ca.SX.sym("p", 20)
+    p = ca.SX.sym("p", N_PARAMS)
     t = np.linspace(0.0, duration, n_out)
     integ = ca.integrator("chibis", "cvodes", {"x": x, "p": p,
                                                "ode": f(x, p)},

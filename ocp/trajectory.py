@@ -75,9 +75,10 @@ class SlewTrajectory:
 
     @property
     def energy(self) -> float:
-        """:math:`\\sum_i \\int m_i^2\\,dt` [N²·m²·s] (body torque if no wheels).
+        """Control energy :math:`\\sum_i \\int m_i^2\\,dt` [N²·m²·s].
 
-        Exact for the piecewise-constant controls.
+        Body torque when there are no wheels; exact for the
+        piecewise-constant controls.
         """
         u = self.torque if self.wheel_torque is None else self.wheel_torque
         return float(np.sum(np.sum(u ** 2, axis=1) * self.dt))

@@ -1,145 +1,166 @@
-"""Seed 002 environment and the Chibis-M closed loop against hand values."""
+"""Orbit environment of seed 002: gravity gradient, dipole field, −Bdot."""
 
 import casadi as ca
 import numpy as np
 import pytest
 
-from adcs_common.exceptions import InvalidValueError
-from ocp.chibis import (
-    ChibisConfig,
-    deployed_inertia,
-    dipole_scale_gain,
-    initial_state,
-    pitch_offset_eq37,
-    planar_boom_rotates,
-    planar_model_critical_dipole,
-    simulate,
-)
+from adcs_common import InvalidValueError
+from ocp.attitude import quat_from_axis_angle
 from ocp.environment import (
-    CircularOrbit,
-    bdot_dipole,
+    EARTH_DIPOLE,
+    bdot_detumble,
     dipole_field_orbit,
-    dipole_field_rate_orbit,
     gravity_gradient_torque,
-    magnetic_torque,
+    orbit_model,
+    orbit_rate,
 )
 
-ORBIT = CircularOrbit()
+CHIBIS_J = np.diag([1.02, 1.51, 1.73])  # seed 002, boom stowed
+R_ORBIT = 6_850e3
+INC = np.deg2rad(51.7)
 
 
-def test_orbit_rate_and_period_by_hand():
-    w0 = np.sqrt(3.986004418e14 / 6850e3**3)
-    assert ORBIT.rate == pytest.approx(w0)
-    assert ORBIT.period / 60 == pytest.approx(94.04, abs=0.01)
+def test_orbit_rate_and_dipole_field_of_the_chibis_orbit():
+    w0 = orbit_rate(R_ORBIT)
+    assert 2 * np.pi / w0 == pytest.approx(5642.2, abs=0.1)  # 94 min
+    b0 = EARTH_DIPOLE / R_ORBIT ** 3
+    assert b0 == pytest.approx(2.47e-5, rel=2e-3)
+    B = dipole_field_orbit(np.array([0.0, np.pi / 2]), INC, R_ORBIT)
+    np.testing.assert_allclose(np.linalg.norm(B[:, 0]), b0, rtol=1e-12)
+    np.testing.assert_allclose(
+        np.linalg.norm(B[:, 1]),
+        b0 * np.sqrt(np.cos(INC) ** 2 + 4 * np.sin(INC) ** 2), rtol=1e-12)
 
 
-def test_dipole_field_components_seed_002():
-    b0, i = ORBIT.field_strength, np.deg2rad(51.7)
-    assert b0 == pytest.approx(7.94e15 / 6850e3**3)
-    np.testing.assert_allclose(dipole_field_orbit(ORBIT, 0.0),
-                               [b0 * np.sin(i), b0 * np.cos(i), 0.0])
-    np.testing.assert_allclose(dipole_field_orbit(ORBIT, np.pi / 2),
-                               [0.0, b0 * np.cos(i), -2 * b0 * np.sin(i)],
-                               atol=1e-20)
+def test_gravity_gradient_vanishes_on_principal_axes_and_restores():
+    J = np.diag([12.0, 12.5, 1.7])
+    w0 = 1e-3
+    assert np.allclose(gravity_gradient_torque(J, [0, 0, 1.0], w0), 0.0)
+    th = 0.01  # pitch about X2: E3 = (-sin θ, 0, cos θ)
+    M = gravity_gradient_torque(J, [-np.sin(th), 0, np.cos(th)], w0)
+    assert M[1] == pytest.approx(-3 * w0 ** 2 * np.sin(th) * np.cos(th)
+                                 * (12.0 - 1.7), rel=1e-12)
 
 
-def test_field_rate_is_the_derivative():
-    u, du = 0.7, 1e-6
-    fd = (dipole_field_orbit(ORBIT, u + du) - dipole_field_orbit(
-        ORBIT, u - du)) / (2 * du) * ORBIT.rate
-    np.testing.assert_allclose(dipole_field_rate_orbit(ORBIT, u), fd,
-                               rtol=1e-7)
+def test_pitch_libration_period_with_a_gravity_boom():
+    """Small pitch: J22 θ̈ = -3 ω0² (J11 - J33) θ."""
+    J = np.diag([12.0, 12.5, 1.7])
+    model = orbit_model(J, radius=R_ORBIT, inclination=INC)
+    w0 = model.w0
+    wp = w0 * np.sqrt(3 * (12.0 - 1.7) / 12.5)
+    half = np.pi / wp
+    th0 = np.deg2rad(2.0)
+    q0 = quat_from_axis_angle([0, 1, 0], th0)
+    # at rest in the orbit frame: absolute rate ω0 about the orbit normal
+    x0 = np.r_[q0, 0.0, w0, 0.0]
+    x = ca.MX.sym("x", 7)
+    t = ca.MX.sym("t")
+    ode = model.dynamics(x, ca.DM.zeros(3), ca.DM.zeros(3), t)
+    F = ca.integrator("lib", "cvodes", {"x": x, "t": t, "ode": ode}, 0.0,
+                      [half, 2 * half], {"abstol": 1e-12, "reltol": 1e-10})
+    X = np.asarray(F(x0=x0)["xf"]).T
+    pitch = 2 * np.arctan2(X[:, 2], X[:, 0])
+    assert pitch[0] == pytest.approx(-th0, rel=2e-3)
+    assert pitch[1] == pytest.approx(th0, rel=2e-3)
 
 
-def test_gravity_gradient_eq_1_5_by_hand():
-    J = np.diag([1.02, 1.51, 1.73])
-    e3 = np.array([0.0, np.sin(0.1), np.cos(0.1)])
-    M = gravity_gradient_torque(ORBIT.rate, J, e3)
-    # 3 w0^2 (e3 x J e3): x = 3 w0^2 (C - B) e3y e3z
-    assert M[0] == pytest.approx(3 * ORBIT.rate**2 * (1.73 - 1.51)
-                                 * np.sin(0.1) * np.cos(0.1))
-    assert M[1] == pytest.approx(0.0) and M[2] == pytest.approx(0.0)
-    # numpy and CasADi agree
-    Ms = gravity_gradient_torque(ORBIT.rate, ca.DM(J), ca.DM(e3))
-    np.testing.assert_allclose(np.array(Ms).ravel(), M, atol=1e-18)
+def test_field_rate_seen_by_body_matches_finite_difference():
+    model = orbit_model(CHIBIS_J)
+    x0 = np.r_[quat_from_axis_angle([1, 2, 3], 0.7), 0.02, -0.01, 0.03]
+    x = ca.MX.sym("x", 7)
+    t = ca.MX.sym("t")
+    F = ca.integrator("f", "cvodes", {"x": x, "t": t, "ode": model.dynamics(
+        x, ca.DM.zeros(3), ca.DM.zeros(3), t)}, 100.0, [100.001, 100.002],
+        {"abstol": 1e-13, "reltol": 1e-13})
+    xa = np.asarray(F(x0=x0)["xf"]).T
+    Ba = [np.asarray(model.field_body(xi, ti)[0]).ravel()
+          for xi, ti in ((x0, 100.0), (xa[1], 100.002))]
+    fd = (Ba[1] - Ba[0]) / 0.002
+    _, Bdot = model.field_body(xa[0], 100.001)
+    np.testing.assert_allclose(np.asarray(Bdot).ravel(), fd, rtol=1e-5,
+                               atol=1e-12)
 
 
-def test_magnetic_torque_and_bdot_saturation_and_failed_coil():
-    m = bdot_dipole(1e6, np.array([1e-5, -1e-7, 5e-6]), 3.2, [1, 1, 0])
-    np.testing.assert_allclose(m, [-3.2, 0.1, 0.0])
-    np.testing.assert_allclose(magnetic_torque([1.0, 0, 0], [0, 1.0, 0]),
-                               [0, 0, 1.0])
-
-
-def test_orbit_rejects_a_radius_in_km():
-    with pytest.raises(InvalidValueError, match="radius"):
-        CircularOrbit(radius=6850.0)
-
-
-def test_torque_free_motion_conserves_angular_momentum_and_norm():
-    # no field effect (coils off), no gravity: put the orbit far away
-    far = CircularOrbit(radius=4.2e8)
-    cfg = ChibisConfig(orbit=far)
-    x0 = initial_state(cfg, (10, 20, 30), (1.0, -2.0, 0.5), H0=(0.01, 0, 0))
-    r = simulate(cfg, x0, 200.0, n_out=50, rtol=1e-10, atol=1e-12)
-    J = np.diag(cfg.inertia)
-    # inertial angular momentum: R(q) (J w + H)
-    from ocp.attitude import quat_to_dcm
-    L = np.array([quat_to_dcm(q) @ (J @ w + h)
-                  for q, w, h in zip(r.q, r.w, r.H)])
-    # the orbit frame turns by w0 t about X2: take L to inertial axes
-    ang = far.rate * r.t
-    back = np.array([[[np.cos(a), 0, np.sin(a)], [0, 1, 0],
-                      [-np.sin(a), 0, np.cos(a)]] for a in ang])
-    Li = np.einsum("kij,kj->ki", back, L)
-    assert np.max(np.abs(Li - Li[0])) < 1e-7 * np.linalg.norm(Li[0]) + 1e-9
-
-
-def test_bdot_with_coil_1_off_damps_slowest_about_axis_3():
-    """Seed 002 Fig. 2: the third component is damped more slowly."""
-    cfg = ChibisConfig(bdot_gain=5e5, coils=(0, 1, 1))
-    r = simulate(cfg, initial_state(cfg, (5, 5, 5), (10, 10, 10)),
-                 2 * ORBIT.period, n_out=200)
-    final = np.abs(np.degrees(r.w_rel[-1]))
-    assert final[2] > final[0] and final[2] > final[1]
-    assert np.linalg.norm(r.w_rel[-1]) < 0.3 * np.linalg.norm(r.w_rel[0])
-
-
-def test_deployed_inertia_inferred_from_epsilon_and_six_degrees():
-    A, B, C = deployed_inertia(ORBIT)
-    eps = 0.1 * ORBIT.field_strength / (B * ORBIT.rate**2)
-    assert eps == pytest.approx(0.16)
-    assert np.degrees(pitch_offset_eq37(ORBIT, (A, B, C), 0.1)) == \
-        pytest.approx(6.0)
-    assert B > A > C  # stable orbital attitude with the boom (seed 002)
+@pytest.fixture(scope="module")
+def detumble_runs():
+    model = orbit_model(CHIBIS_J, radius=R_ORBIT, inclination=INC)
+    x0 = np.r_[1.0, 0, 0, 0, 0.05, -0.04, 0.03]
+    kw = dict(t_final=2 * 5642.0, gain=2e6, dipole_max=3.2, dt=2.0)
+    return (bdot_detumble(model, x0, **kw),
+            bdot_detumble(model, x0, failed_coils=(0,), **kw), model)
 
 
 @pytest.mark.slow
-def test_eq_3_7_pitch_offset_matches_the_3d_model():
-    """-Bdot with dipole scale k and a 0.05 N·m·s pitch wheel (sec. 3.2)."""
-    inertia = deployed_inertia(ORBIT)
-    for k in (0.05, 0.2):
-        cfg = ChibisConfig(inertia=inertia,
-                           bdot_gain=dipole_scale_gain(ORBIT, k))
-        r = simulate(cfg, initial_state(cfg, H0=(0, 0.05, 0)),
-                     10 * ORBIT.period, n_out=1000)
-        late = r.t > 5 * ORBIT.period
-        mean = np.degrees(r.angles[late, 0].mean())
-        assert mean == pytest.approx(
-            np.degrees(pitch_offset_eq37(ORBIT, inertia, k)), rel=0.06)
+def test_bdot_damps_the_rate_to_about_twice_the_orbit_rate(detumble_runs):
+    nominal, _, model = detumble_runs
+    rate = np.linalg.norm(nominal.w, axis=1)
+    assert rate[0] == pytest.approx(0.0707, abs=1e-4)
+    assert rate[-1] < 3 * model.w0  # −Bdot settles near 2 ω0
+    assert np.max(np.abs(nominal.dipole)) <= 3.2 + 1e-12
 
 
-def test_papers_linear_model_gives_the_0_35_boundary():
-    k = planar_model_critical_dipole(deployed_inertia(ORBIT), ORBIT,
-                                     0.6 * ORBIT.rate)
-    assert k == pytest.approx(0.35, abs=0.01)
+@pytest.mark.slow
+def test_bdot_with_one_coil_off_still_damps_but_slower(detumble_runs):
+    nominal, failed, model = detumble_runs
+    assert np.all(failed.dipole[:, 0] == 0.0)
+    i = int(3000 / 2.0)
+    assert (np.linalg.norm(failed.w[i]) > 1.5 * np.linalg.norm(nominal.w[i]))
+    assert np.linalg.norm(failed.w[-1]) < 3 * model.w0
 
 
-def test_planar_boom_oscillates_without_dipole_and_rotates_when_fast():
-    inertia = deployed_inertia(ORBIT)
-    assert not planar_boom_rotates(inertia, ORBIT, 0.0,
-                                   rate0=0.6 * ORBIT.rate)
-    # above the critical rate of eq. (3.3): sqrt(3 (A - C) / B) w0
-    A, B, C = inertia
-    fast = 1.05 * np.sqrt(3 * (A - C) / B) * ORBIT.rate
-    assert planar_boom_rotates(inertia, ORBIT, 0.0, rate0=fast)
+def test_bdot_rejects_bad_coil_index():
+    model = orbit_model(CHIBIS_J)
+    with pytest.raises(InvalidValueError, match="failed_coils"):
+        bdot_detumble(model, np.r_[1, 0, 0, 0, 0, 0, 0.0], t_final=10.0,
+                      gain=1e6, failed_coils=(3,))
+
+
+def test_bdot_run_plot(detumble_runs):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    fig = detumble_runs[0].plot()
+    assert len(fig.axes) == 2
+
+
+def test_seed002_wheel_law_gives_the_linear_closed_loop_exactly():
+    """Eq. (1.8): J ω̇_rel = -k_ω ω_rel - k_a S + M_gr (no field torque)."""
+    from ocp.attitude import quat_to_dcm
+    from ocp.environment import seed002_wheel_law
+
+    model = orbit_model(CHIBIS_J)
+    law = seed002_wheel_law(model, 0.02, 1e-4)
+    x = ca.SX.sym("x", 10)
+    t = ca.SX.sym("t")
+    xdot = model.wheel_dynamics(x, law(x, t), ca.DM.zeros(3),
+                                ca.DM.zeros(3), t)
+    A = quat_to_dcm(x[:4]).T
+    w_rel = x[4:7] - model.w0 * A[:, 1]
+    f = ca.Function("f", [x, t], [ca.jtimes(w_rel, x, xdot), w_rel])
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        q = rng.normal(size=4)
+        xv = np.r_[q / np.linalg.norm(q), 0.01 * rng.normal(size=3),
+                   0.02 * rng.normal(size=3)]
+        wdot, wr = (np.asarray(v).ravel() for v in f(xv, 50.0))
+        Av = quat_to_dcm(xv[:4]).T
+        S = np.array([Av[1, 2] - Av[2, 1], Av[2, 0] - Av[0, 2],
+                      Av[0, 1] - Av[1, 0]])
+        m_gr = gravity_gradient_torque(CHIBIS_J, Av[:, 2], model.w0)
+        np.testing.assert_allclose(CHIBIS_J @ wdot,
+                                   -0.02 * wr - 1e-4 * S + m_gr,
+                                   atol=1e-15)
+
+
+def test_seed002_wheel_law_aligns_body_with_orbit_frame():
+    from ocp.environment import seed002_wheel_law, simulate_wheel_law
+
+    model = orbit_model(CHIBIS_J)
+    law = seed002_wheel_law(model, k_omega=0.024, k_a=1e-4)
+    q0 = quat_from_axis_angle([1.0, -2.0, 0.5], np.deg2rad(20.0))
+    x0 = np.r_[q0, 0.0, model.w0, 0.0, np.zeros(3)]
+    t, X = simulate_wheel_law(model, law, x0, t_final=1500.0, dt=5.0)
+    err = 2 * np.arccos(np.clip(np.abs(X[:, 0]), 0, 1))
+    assert np.rad2deg(err[0]) == pytest.approx(20.0)
+    assert np.rad2deg(err[-1]) < 0.05
+    assert np.max(np.abs(X[:, 7:])) < 0.05  # Chibis-M pitch wheel 0.05

@@ -110,3 +110,14 @@ def test_bad_arguments_raise_naming_the_argument():
     with pytest.raises(InvalidValueError, match="natural_frequency"):
         quaternion_feedback_slew(np.eye(3), Q0, Q0, torque_max=1.0,
                                  natural_frequency=0.0, t_final=1.0)
+
+
+def test_eigenaxis_trajectory_plot_shows_wheels():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    qf = quat_from_axis_angle([1, 1, 0], np.deg2rad(90))
+    fig = eigenaxis_slew(J_METEOR, Q0, qf, wheels=arr).trajectory(50).plot()
+    assert len(fig.axes[3].get_lines()) == 4  # one momentum line per wheel
+    assert "eigenaxis" in fig.axes[0].get_title()

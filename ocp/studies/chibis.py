@@ -6,6 +6,7 @@ import numpy as np
 
 from ..chibis import (
     ChibisConfig,
+    CircularOrbit,
     MAX_DIPOLE,
     deployed_inertia,
     dipole_scale_gain,
@@ -15,7 +16,6 @@ from ..chibis import (
     planar_model_critical_dipole,
     simulate,
 )
-from ..environment import CircularOrbit
 from ..report import PAPER_COLUMNS, Figure, Section, StudyContext, Table, \
     paper_row
 
@@ -200,8 +200,9 @@ def failure_table(ctx: StudyContext, orbit: CircularOrbit, inertia) -> Table:
     line = np.degrees(np.arccos(np.abs(cos_tilt))).max()
     side = "inverted" if np.mean(cos_tilt) < 0 else "upright"
     rows.append(["all wheels failed", "yes", "gravity boom + -Bdot at "
-                 "0.1 A·m² (from 10°, 0.03°/s ≈ 0.5 ω0)", f"boom within {line:.1f}° of the vertical "
-                 f"({side}), yaw free"])
+                 "0.1 A·m² (from 10°, 0.03°/s ≈ 0.5 ω0)",
+                 f"boom within {line:.1f}° of the vertical ({side}), "
+                 "yaw free"])
 
     cfg = ChibisConfig(inertia=inertia, bdot_gain=dipole_scale_gain(
         orbit, 0.1), wheel_pairs=(0, 0, 0))

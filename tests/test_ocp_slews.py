@@ -1,0 +1,180 @@
+"""NLP slews of SPEC 4 against the eigenaxis law and Bilimoria & Wie (1993)."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from adcs_common import InvalidValueError, SolverNotFound  # noqa: E402
+from allocation import WheelArray  # noqa: E402
+from ocp import (  # noqa: E402
+    eigenaxis_slew,
+    min_energy_slew,
+    quat_from_axis_angle,
+    time_optimal_slew,
+)
+
+Q0 = np.array([1.0, 0.0, 0.0, 0.0])
+Q_180X = np.array([0.0, 1.0, 0.0, 0.0])
+J_METEOR = np.array([[120.0, 2.0, -1.5], [2.0, 95.0, 3.0],
+                     [-1.5, 3.0, 80.0]])
+
+#: K. D. Bilimoria and B. Wie, "Time-optimal three-axis reorientation of a
+#: rigid spacecraft", J. Guidance, Control, and Dynamics 16(3), 446-452,
+#: 1993: inertially symmetric body (J = I), |u_i| <= 1, rest-to-rest 180°
+#: about a body axis. Eigenaxis (bang-bang) time 2√π = 3.5449; the
+#: time-optimal manoeuvre, which is not an eigenaxis rotation, takes 3.2430
+#: (normalised units), about 8.5 % less.
+BILIMORIA_WIE_T = 3.2430
+EIGENAXIS_T = 2.0 * np.sqrt(np.pi)
+
+
+@pytest.fixture(scope="module")
+def bw_ms():
+    return time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=100)
+
+
+def test_bilimoria_wie_1993_time_optimal_180_deg(bw_ms):
+    r = bw_ms
+    assert r.success and r.status == "Solve_Succeeded"
+    assert r.T == pytest.approx(BILIMORIA_WIE_T, abs=2e-3)
+    assert r.T < 0.92 * EIGENAXIS_T
+    # the controls are bang-bang on every axis most of the time
+    assert np.mean(np.max(np.abs(r.torque), axis=1) > 0.999) > 0.8
+    # the RK4 solution simulated by CVODES lands on the target
+    assert r.extras["simulated_final_error"] < 1e-6
+    assert r.extras["simulated_final_rate"] < 1e-6
+
+
+@pytest.mark.slow
+def test_bilimoria_wie_1993_collocation_agrees():
+    r = time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=100,
+                          transcription="collocation")
+    assert r.success
+    assert r.T == pytest.approx(BILIMORIA_WIE_T, abs=2e-3)
+
+
+def test_unperturbed_eigenaxis_guess_is_a_stationary_point(bw_ms):
+    """SOLVER_NOTES: IPOPT stops at the eigenaxis time from that guess."""
+    r = time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=100,
+                          initial_guess="eigenaxis", verify=False)
+    assert r.success
+    assert r.T == pytest.approx(EIGENAXIS_T, rel=1e-5)
+    assert r.extras["initial_guess"] == "eigenaxis"
+    # the default perturbed guess leaves it
+    assert bw_ms.T < r.T - 0.25
+    assert bw_ms.extras["initial_guess"] == "perturbed_eigenaxis"
+    assert bw_ms.extras["perturbation"] > 0
+
+
+@pytest.mark.parametrize("axis, angle_deg", [
+    ([1.0, 0.0, 0.0], 90.0),
+    ([1.0, 1.0, 0.0], 90.0),
+    ([0.3, -0.5, 0.8], 150.0),
+])
+def test_time_optimal_never_slower_than_eigenaxis_wheel_limits(axis,
+                                                               angle_deg):
+    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    qf = quat_from_axis_angle(axis, np.deg2rad(angle_deg))
+    eig = eigenaxis_slew(J_METEOR, Q0, qf, wheels=arr)
+    r = time_optimal_slew(J_METEOR, Q0, qf, wheels=arr, N=60)
+    assert r.success
+    assert r.T <= eig.T * (1 + 1e-6)
+    # wheel-level limits hold, through the array (not a per-axis box)
+    assert r.peak_wheel_torque <= 0.2 * (1 + 1e-6)
+    assert r.peak_wheel_momentum <= 4.0 * (1 + 1e-6)
+    assert r.extras["simulated_final_error"] < 1e-5
+    # the body torque is the reaction -A m of the wheels
+    np.testing.assert_allclose(r.torque, -(arr.axes @ r.wheel_torque.T).T,
+                               atol=1e-12)
+
+
+def test_time_optimal_beats_eigenaxis_off_principal_axis():
+    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
+    eig = eigenaxis_slew(J_METEOR, Q0, qf, wheels=arr)
+    r = time_optimal_slew(J_METEOR, Q0, qf, wheels=arr, N=60)
+    # measured 44.6 s against 46.2 s (3.5 % faster)
+    assert r.T < 0.98 * eig.T
+
+
+def test_min_energy_slew_reaches_target_at_T_with_less_energy():
+    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
+    eig = eigenaxis_slew(J_METEOR, Q0, qf, wheels=arr)
+    T = 1.5 * eig.T
+    r = min_energy_slew(J_METEOR, Q0, qf, wheels=arr, T=T, N=60)
+    assert r.success
+    assert r.T == T and r.t[-1] == pytest.approx(T)
+    assert r.final_error < 1e-8
+    assert r.extras["simulated_final_error"] < 1e-5
+    assert r.extras["simulated_final_rate"] < 1e-8
+    assert r.energy < 0.3 * eig.trajectory().energy
+    assert r.peak_wheel_momentum <= 4.0 * (1 + 1e-6)
+
+
+def test_min_energy_single_axis_matches_the_cubic_optimum():
+    """J = I, 1 rad about z in T = 2: optimum θ̈ = θ_f (6 - 12 t/T)/T²,
+    energy ∫u² = 12 θ_f²/T³ = 1.5."""
+    qf = quat_from_axis_angle([0, 0, 1], 1.0)
+    r = min_energy_slew(np.eye(3), Q0, qf, torque_max=10.0, T=2.0, N=200)
+    assert r.success
+    assert r.energy == pytest.approx(1.5, rel=1e-3)
+
+
+def test_min_energy_below_minimum_time_reports_failure():
+    r = min_energy_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, T=3.0,
+                        N=40, verify=False)
+    assert not r.success
+    assert r.status != "Solve_Succeeded"
+
+
+def test_unknown_solver_raises_solver_not_found_listing_installed():
+    with pytest.raises(SolverNotFound, match="ipopt") as info:
+        time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0,
+                          solver="snopt-not-here")
+    assert "ipopt" in info.value.available
+
+
+def test_unknown_keyword_and_bad_values_are_rejected():
+    with pytest.raises(TypeError):
+        time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0,
+                          n_intervals=10)
+    with pytest.raises(InvalidValueError, match="transcription"):
+        time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0,
+                          transcription="pseudospectral")
+    with pytest.raises(InvalidValueError, match="N"):
+        time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=1)
+    with pytest.raises(InvalidValueError, match="T"):
+        min_energy_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, T=-1.0)
+    with pytest.raises(InvalidValueError, match="h0"):
+        time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0,
+                          h0=[0.0, 0.0, 0.0])
+
+
+def test_plot_helper_draws_four_panels(bw_ms):
+    fig = bw_ms.plot()
+    assert len(fig.axes) == 4
+    assert "time_optimal" in fig.axes[0].get_title()
+
+
+def test_sqpmethod_solves_the_min_energy_slew_like_ipopt():
+    qf = quat_from_axis_angle([0, 0, 1], 1.0)
+    kw = dict(torque_max=10.0, T=2.0, N=20, verify=False)
+    a = min_energy_slew(np.eye(3), Q0, qf, solver="sqpmethod", **kw)
+    b = min_energy_slew(np.eye(3), Q0, qf, solver="ipopt", **kw)
+    assert a.success and b.success
+    assert a.energy == pytest.approx(b.energy, rel=1e-6)
+    assert a.extras["solver"] == "sqpmethod"
+
+
+def test_benchmark_runs_one_configuration():
+    from benchmarks.slews import cases, run
+
+    res = run(cases()[0], "multiple_shooting", "ipopt", True, N=20,
+              repeats=1, max_iter=300)
+    assert res["status"] == "Solve_Succeeded"
+    assert res["T"] == pytest.approx(BILIMORIA_WIE_T, abs=0.02)
+    assert res["solve"] > 0
