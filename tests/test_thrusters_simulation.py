@@ -109,12 +109,27 @@ def test_table5_bounds_met_by_the_qp(reorient_qp):
     assert set(reorient_qp.status) == {"optimal"}
 
 
+def test_reorientation_with_disturbance_and_command_jitter():
+    res = reorientation_scenario(disturbance=(0.0003, 0.0, -0.0004),
+                                 valve_jitter=0.002, seed=3)
+    rows = rows_by_name(reorientation_table(res))
+    assert rows["hold error max [deg] (bound)"][2] <= 0.4   # PID: no bias
+    assert rows["propellant [g] (bound)"][2] < 8.0
+    # the Z torque needs the D1/D4 pair too
+    assert res.on_time[:, 0].sum() + res.on_time[:, 3].sum() > 0
+
+
+def test_residual_dv_from_command_jitter_is_the_papers_order(reorient):
+    dv = np.linalg.norm(reorient.velocity[-1])
+    assert 1e-5 < dv < 1e-3          # paper: 3.22e-4 m/s
+
+
 def test_reorientation_at_most_three_engines_and_no_net_thrust(reorient):
     fired = reorient.on_time > 0
     assert fired.sum(1).max() <= 3
     for i, j in reorient.unit.pairs:
         assert not np.any(fired[:, i] & fired[:, j])
-    # eq. (10) in the model; the truth has transients but equal pairs
+    # eq. (10) in the model; the truth adds command jitter only
     assert np.linalg.norm(reorient.velocity[-1]) < 1e-3
 
 
@@ -155,3 +170,5 @@ def test_bad_scenario_arguments():
         reorientation_scenario(dt=0.3, t_end=10.0)
     with pytest.raises(InvalidValueError, match="disturbance"):
         burn_scenario(disturbance=[np.nan, 0, 0])
+    with pytest.raises(InvalidValueError, match="valve_jitter"):
+        reorientation_scenario(valve_jitter=-1.0, t_end=10.0)

@@ -180,19 +180,29 @@ class ScenarioResult:
         return self.cycle_thrust @ self.unit.directions[1]
 
 
-def _euler_xyz(q):
-    """X-Y-Z (roll about X first) rotation angles of q [rad]."""
-    R = _rot(q)
-    ay = np.arcsin(np.clip(R[0, 2], -1, 1))
-    ax = np.arctan2(-R[1, 2], R[2, 2])
-    az = np.arctan2(-R[0, 1], R[0, 0])
-    return np.array([ax, ay, az])
+def _euler_xyz_many(qs):
+    """X-Y-Z rotation angles of quaternions (m, 4) [rad], (m, 3)."""
+    w, x, y, z = qs.T
+    r02 = 2 * (x * z + w * y)
+    r12 = 2 * (y * z - w * x)
+    r22 = 1 - 2 * (x * x + y * y)
+    r01 = 2 * (x * y - w * z)
+    r00 = 1 - 2 * (y * y + z * z)
+    return np.column_stack([np.arctan2(-r12, r22),
+                            np.arcsin(np.clip(r02, -1, 1)),
+                            np.arctan2(-r01, r00)])
 
 
 def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
               q_ref_fn, w_ref_fn, wheel_axes, wheel_gains, disturbance_fn,
-              mass, J, carry):
-    """Common loop: per cycle allocate, then integrate with transients."""
+              mass, J, carry, jitter=0.0, seed=0):
+    """Run the common loop: per cycle allocate, then integrate.
+
+    The truth applies the transient model to the commanded valve times,
+    each perturbed (when ``jitter`` > 0) by a Gaussian timing error of
+    standard deviation ``jitter`` [s] (command latency, seeded).
+    """
+    rng = np.random.default_rng(seed)
     body = _Body(J=np.asarray(J, dtype=float))
     n = unit.n
     steps_per_cycle = int(round(cycle / dt))
@@ -208,7 +218,7 @@ def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
     v = np.zeros(3)
     prop = 0.0
     mdot = unit.steady_thrust / (unit.isp * G0)   # per unit thrust [kg/N·s]
-    log_t, log_err, log_ang, log_H, log_v, log_m = [], [], [], [], [], []
+    log_t, log_err, log_H, log_v, log_m = [], [], [], [], []
     starts, on_times, thrusts, demands, statuses = [], [], [], [], []
     pulses = []                        # (start, on_time) still active
     for step in range(total_steps):
@@ -219,15 +229,19 @@ def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
                 k, demand, status = allocate(c, t, body)
                 k = carry.apply(k) if carry is not None else k
                 t_on = k * cycle
-                impulse = unit.pulse_impulse(t_on)
+                t_true = t_on
+                if jitter > 0:
+                    t_true = np.where(t_on > 0, np.maximum(
+                        t_on + jitter * rng.standard_normal(n), 0.0), 0.0)
+                impulse = unit.pulse_impulse(t_true)
                 starts.append(t)
                 on_times.append(t_on)
                 thrusts.append(impulse / cycle)
                 demands.append(demand)
                 statuses.append(status)
-                if np.any(t_on > 0):
-                    pulses.append((t, t_on, float(
-                        t_on.max() + unit.close_delay + unit.open_delay
+                if np.any(t_true > 0):
+                    pulses.append((t, t_true, float(
+                        t_true.max() + unit.close_delay + unit.open_delay
                         + 10 * (unit.tail_time + unit.rise_time))))
         # pulses whose tail-off is over (10 time constants) are dropped
         pulses = [p for p in pulses if t - p[0] < p[2]]
@@ -252,14 +266,17 @@ def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
         prop += used
         m -= used
         log_t.append(t + dt)
-        log_err.append(_error_vector(body.q, q_ref_fn(t + dt)))
-        log_ang.append(_euler_xyz(body.q))
+        log_err.append(body.q)
         log_H.append(body.Hw.copy())
         log_v.append(v.copy())
         log_m.append(m)
+    ts = np.array(log_t)
+    qs = np.array(log_err)
+    errors = np.array([_error_vector(q, q_ref_fn(tk))
+                       for q, tk in zip(qs, ts)])
     return ScenarioResult(
-        name=name, t=np.array(log_t), attitude_error=np.array(log_err),
-        angle=np.array(log_ang), wheel_momentum=np.array(log_H),
+        name=name, t=ts, attitude_error=errors,
+        angle=_euler_xyz_many(qs), wheel_momentum=np.array(log_H),
         velocity=np.array(log_v), cycle_start=np.array(starts),
         on_time=np.array(on_times), cycle_thrust=np.array(thrusts),
         demand=np.array(demands), status=statuses, propellant=prop,
@@ -274,7 +291,7 @@ def _check_allocation(allocation):
 
 def burn_scenario(allocation: str = "law", solver: str = "osqp",
                   K_unl: float = 1.0, unit: ThrusterSet | None = None,
-                  disturbance=BURN_DISTURBANCE, dt: float = 0.05,
+                  disturbance=BURN_DISTURBANCE, dt: float = 0.1,
                   settle: float = 60.0,
                   calibrate: bool = True) -> ScenarioResult:
     """Translation burn of Table 2 with wheel unloading (eq. 2 or the QP).
@@ -360,21 +377,28 @@ def slew_profile(t: float, t0: float = 70.0, t1: float = 240.0,
 
 def reorientation_scenario(allocation: str = "law", solver: str = "osqp",
                            unit: ThrusterSet | None = None,
-                           dt: float = 0.05, t_end: float = 600.0,
-                           omega_n: float = 0.15, zeta: float = 1.0,
-                           ) -> ScenarioResult:
+                           dt: float = 0.1, t_end: float = 600.0,
+                           omega_n: float = 0.15,
+                           valve_jitter: float = 0.002,
+                           disturbance=(0.0, 0.0, 0.0),
+                           seed: int = 0) -> ScenarioResult:
     """Hold, 170° slew about X, hold (Table 5): thrusters at T_T = 2 s.
 
     0-70 s hold, 70-240 s cycloidal slew of 170° about body X, hold to
-    600 s. Every cycle a PD attitude controller with feed-forward
+    600 s. Every cycle a PID attitude controller with feed-forward
     (:math:`M = J\\alpha_{ref} + \\omega \\times J\\omega - K_p\\phi -
-    K_d(\\omega - \\omega_{ref})`, :math:`K_p = J\\omega_n^2`,
-    :math:`K_d = 2\\zeta\\omega_n J`) demands (M_X, M_Z); they go through
+    K_d(\\omega - \\omega_{ref}) - K_i\\int\\phi`, :math:`K_p =
+    3J\\omega_n^2`, :math:`K_d = 3J\\omega_n`, :math:`K_i = J\\omega_n^3`:
+    triple pole at :math:`-\\omega_n`) demands (M_X, M_Z); they go through
     `reorientation_law` (``allocation="law"``) or the weighted
     `DutyCycleAllocator` (``"qp"``, P_T = 0, bound 0.05 N·m·s on the
     cycle's momentum increment); `MinOnTimeCarry` applies the min
     on-time. A Y-axis wheel (the thrusters make no Y torque) holds the
-    Y attitude and absorbs the gyroscopic coupling. No disturbance.
+    Y attitude and absorbs the gyroscopic coupling. The seed ran on a
+    real-time prototype with actual command delays: here each valve time
+    is off by a Gaussian error of ``valve_jitter`` seconds (seeded by
+    ``seed``), the source of the residual Δv; ``disturbance`` is a
+    constant body torque [N·m] (none by default).
 
     Returns
     -------
@@ -386,9 +410,16 @@ def reorientation_scenario(allocation: str = "law", solver: str = "osqp",
     # K_p at the typical hold pulse (40 ms in a 2 s cycle)
     cal = base.calibrated(T, 0.02)
     J = INERTIA
-    Kp = J.diagonal() * omega_n ** 2
-    Kd = 2 * zeta * omega_n * J.diagonal()
+    # PID with the closed-loop poles at -omega_n (triple) per axis
+    Kp = 3 * J.diagonal() * omega_n ** 2
+    Kd = 3 * J.diagonal() * omega_n
+    Ki = J.diagonal() * omega_n ** 3
+    integ = np.zeros(3)
     axis = np.array([1.0, 0.0, 0.0])
+    dist = as_finite_array(disturbance, "disturbance", (3,))
+    if not np.isfinite(valve_jitter) or valve_jitter < 0:
+        raise InvalidValueError(
+            f"valve_jitter must be >= 0 [s], got {valve_jitter!r}")
     alloc = (DutyCycleAllocator(cal, T, 0.05, solver=solver,
                                 tracking="weighted")
              if allocation == "qp" else None)
@@ -403,8 +434,9 @@ def reorientation_scenario(allocation: str = "law", solver: str = "osqp",
         th, rate, acc = slew_profile(t + T / 2)      # mid-cycle reference
         err = _error_vector(body.q, q_ref(t))
         w_err = body.w - w_ref(t)
+        integ[:] = np.clip(integ + err * T, -0.05, 0.05)   # anti-windup
         M3 = (J @ (axis * acc) + np.cross(body.w, J @ body.w + body.Hw)
-              - Kp * err - Kd * w_err)
+              - Kp * err - Kd * w_err - Ki * integ)
         M = M3[[0, 2]]
         if alloc is None:
             res = reorientation_law(cal, 0.0, M)
@@ -417,7 +449,8 @@ def reorientation_scenario(allocation: str = "law", solver: str = "osqp",
         "reorientation", cal, T, n_cycles, t_end, dt, allocate, q_ref,
         w_ref, (False, True, False),
         (J.diagonal() * 0.09, J.diagonal() * 0.54, 0.02),
-        lambda t: np.zeros(3), MASS, J, MinOnTimeCarry(cal, T))
+        lambda t: dist, MASS, J, MinOnTimeCarry(cal, T),
+        jitter=float(valve_jitter), seed=seed)
 
 
 # ----------------------------------------------------------------------
