@@ -83,6 +83,17 @@ def test_table2_momentum_bound_kept_by_unloading(burn):
     assert np.max(np.abs(burn.wheel_momentum[-1])) <= TABLE2["H_max"]
 
 
+def test_burn_qp_with_disturbance_feedforward_keeps_momentum_lower(burn):
+    qp = burn_scenario(allocation="qp", settle=0.0)
+    law_rows = rows_by_name(burn_table(burn))
+    qp_rows = rows_by_name(burn_table(qp))
+    key = "same, steady state (t > 80 s) [N·m·s]"
+    assert qp_rows[key][2] < 0.5 * law_rows[key][2]
+    assert qp_rows[key][2] <= 0.5 * TABLE2["H_max"]
+    assert set(qp.status) == {"optimal"}
+    assert qp_rows["dV error [%]"][2] <= TABLE3["dV_err_pct"]
+
+
 def test_burn_mass_and_propellant_consistent(burn):
     assert burn.mass[-1] == pytest.approx(MASS - burn.propellant)
     impulse = burn.cycle_thrust.sum() * burn.cycle
