@@ -274,6 +274,14 @@ def test_unknown_solver_lists_installed_and_extra():
     assert isinstance(err.value, ValueError)
 
 
+def test_installed_but_not_offered_backend_says_so():
+    import qpsolvers
+    if "proxqp" not in qpsolvers.available_solvers:
+        pytest.skip("proxqp not installed")
+    with pytest.raises(SolverNotFound, match="installed but not offered"):
+        DutyCycleAllocator(UNIT, 10.0, H_MAX, solver="proxqp")
+
+
 def test_unknown_kwarg_rejected():
     with pytest.raises(TypeError):
         DutyCycleAllocator(UNIT, 10.0, H_MAX, sovler="osqp")
