@@ -174,6 +174,14 @@ def test_plot_writes_file(tmp_path, burn, reorient):
         assert path.stat().st_size > 10000
 
 
+def test_main_prints_both_tables(capsys, tmp_path):
+    from thrusters.simulation import main
+    main(["--plots", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert "Table 3" in out and "Table 5" in out
+    assert (tmp_path / "thrusters_burn.png").exists()
+
+
 def test_bad_scenario_arguments():
     with pytest.raises(InvalidValueError, match="allocation"):
         burn_scenario(allocation="magic")

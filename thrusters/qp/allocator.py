@@ -91,7 +91,10 @@ class DutyCycleAllocator:
     eq. (2) (``P_T != 0``, ``M = -K_{unl} H / T_T``) and eqs. (8)-(9)
     (``P_T = 0``): where they stay inside [0, 1] the hard-tracking QP
     returns the same duties; where they must clip, the QP returns the
-    best cycle that keeps the momentum bound.
+    best cycle that keeps the momentum bound. The duties it returns are
+    continuous; pass them through `MinOnTimeCarry` to respect the valves'
+    minimum on-time without losing impulse (the remainder is carried to
+    the next cycle).
 
     Parameters
     ----------
