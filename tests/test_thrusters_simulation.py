@@ -174,9 +174,13 @@ def test_plot_writes_file(tmp_path, burn, reorient):
         assert path.stat().st_size > 10000
 
 
-def test_main_prints_both_tables(capsys, tmp_path):
-    from thrusters.simulation import main
-    main(["--plots", str(tmp_path)])
+def test_main_prints_both_tables(capsys, tmp_path, monkeypatch, burn,
+                                 reorient):
+    import thrusters.simulation as sim
+    # reuse the module's runs (main's own runs are the same calls)
+    monkeypatch.setattr(sim, "burn_scenario", lambda **kw: burn)
+    monkeypatch.setattr(sim, "reorientation_scenario", lambda **kw: reorient)
+    sim.main(["--plots", str(tmp_path)])
     out = capsys.readouterr().out
     assert "Table 3" in out and "Table 5" in out
     assert (tmp_path / "thrusters_burn.png").exists()
