@@ -352,11 +352,41 @@ def test_casadi_function_for_codegen_matches_allocator():
                                solver="daqp")
     f = alloc.casadi_function()
     th = alloc.theta(0.0, (0.003, -0.001), (0.005, 0.0, 0.002))
-    x, viol = f(th)
+    x, viol = f(th, np.ones(6))
     assert float(viol) < 1e-9
     np.testing.assert_allclose(np.array(x).ravel()[:-1],
                                alloc.solve_theta(th).duty, atol=1e-8)
-    assert f.name_in() == ["theta"]
+    assert f.name_in() == ["theta", "kmax"]
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_set_pressure_equals_a_unit_built_at_that_pressure(solver):
+    unit = six_thruster_unit(thrust_offset=0.1)
+    low = 7.0 * 98066.5
+    built = DutyCycleAllocator(unit.with_pressure(low), 10.0, H_MAX,
+                               solver="daqp")
+    moved = DutyCycleAllocator(unit, 10.0, H_MAX, solver=solver)
+    moved.set_pressure(low)
+    assert moved.pressure == low
+    for P_T, M, H in [(0.6, (-0.0005, 0.0003), (0.005, 0, -0.003)),
+                      (0.0, (0.0008, -0.0005), (0.0, 0.0, 0.0))]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            a = built.solve(P_T, M, H)
+            b = moved.solve(P_T, M, H)
+        assert a.status == b.status == "optimal"
+        np.testing.assert_allclose(b.duty, a.duty, atol=TOL)
+        np.testing.assert_allclose(b.achieved, a.achieved, atol=1e-9)
+    # a demand the lower pressure cannot meet (> 3 x 0.4 N at 7 kgf/cm²)
+    assert moved.solve(1.3).status == "infeasible"
+
+
+def test_set_pressure_rejects_bad_values():
+    alloc = DutyCycleAllocator(UNIT, 10.0, H_MAX)
+    with pytest.raises(InvalidValueError, match="pressure"):
+        alloc.set_pressure(-1.0)
+    with pytest.raises(InvalidValueError, match="pressure"):
+        alloc.set_pressure(np.nan)
 
 
 ALLOC_N = DutyCycleAllocator(UNIT, 10.0, H_MAX, tracking="weighted",

@@ -155,7 +155,10 @@ class DutyCycleAllocator:
         self._A = qp.A
         self._lu0 = np.concatenate([qp.l0, qp.u0])
         self._LU = np.vstack([qp.Lm, qp.Um])
-        self._lb, self._ub = qp.lb, qp.ub
+        self._lb, self._ub = qp.lb, qp.ub.copy()
+        self._steady = unit.steady_thrust
+        self._scale = np.ones(unit.n)
+        self._pressure = unit.pressure
         self._theta = np.zeros(N_THETA)
         self.build_time = time.perf_counter() - t0
 
@@ -188,9 +191,37 @@ class DutyCycleAllocator:
                 as_finite_array(value, name)
         return th.copy()
 
+    def set_pressure(self, pressure: float) -> None:
+        """Use the inlet pressure p_in [Pa] for the next cycles (eq. 1).
+
+        Thrusts scale by :math:`s_i = (a_i p + b_i)/(a_i p_0 + b_i)`. The
+        QP is solved in impulse units :math:`\\tilde k_i = s_i k_i` (the
+        built matrices and the propellant cost stay valid), with the upper
+        bounds :math:`\\tilde k_i \\le s_i`; no rebuild is needed.
+        """
+        p = as_finite_array(pressure, "pressure", ())
+        if p < 0:
+            raise InvalidValueError(
+                f"pressure must be non-negative [Pa], got {float(p)}")
+        u = self.unit
+        scale = (u.pressure_slope * float(p) + u.thrust_offset) / self._steady
+        if np.any(scale <= 0):
+            raise InvalidValueError(
+                f"pressure = {float(p)} Pa gives no thrust (eq. 1) for "
+                f"engine(s) {[u.names[i] for i in np.flatnonzero(scale <= 0)]}")
+        self._scale = scale
+        self._pressure = float(p)
+        self._ub[:-1] = scale
+        self.backend.set_upper(self._ub)
+
+    @property
+    def pressure(self) -> float:
+        """Inlet pressure the allocator currently uses [Pa]."""
+        return self._pressure
+
     def solve(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
               tau_dist=(0.0, 0.0, 0.0)) -> AllocationResult:
-        """Allocate one cycle.
+        """Allocate one cycle (at the pressure of `set_pressure`).
 
         Parameters
         ----------
@@ -226,13 +257,13 @@ class DutyCycleAllocator:
         if x is None or residual > RESIDUAL_TOL:
             status = ("infeasible" if status == "infeasible"
                       or not self._feasible(th) else "failed")
-            k = np.zeros(self.unit.n)
+            kt = np.zeros(self.unit.n)
             slack = 0.0
         else:
-            k = x[:-1].clip(0.0, 1.0)
+            kt = x[:-1].clip(0.0, self._ub[:-1])     # impulse units
             slack = max(float(x[-1]), 0.0)
             status = "optimal" if slack <= SLACK_TOL else "bound_relaxed"
-        return self._result(k, th, status, slack, residual, solve_time)
+        return self._result(kt, th, status, slack, residual, solve_time)
 
     def casadi_function(self, plugin: str = "qrqp",
                         options: dict | None = None):
@@ -241,8 +272,9 @@ class DutyCycleAllocator:
         Returns
         -------
         casadi.Function
-            ``duty_qp(theta[9]) -> (x[n+1], violation)`` with
+            ``duty_qp(theta[9], kmax[n]) -> (x[n+1], violation)`` with
             ``theta = (P_T, M_X, M_Z, H[3], tau_dist[3])`` (see `theta`),
+            ``kmax`` ones at the build pressure (see `set_pressure`),
             ``x = (k, s)``; ``Function.generate`` gives self-contained C
             with ``plugin="qrqp"``. Check ``violation`` (qrqp can report
             success on a violated point).
@@ -263,12 +295,12 @@ class DutyCycleAllocator:
         return res.duty
 
     # ------------------------------------------------------------------
-    def _result(self, k, th, status, slack, residual, solve_time):
-        out = self._out @ k                 # tracked (3), torque (3), kg
+    def _result(self, kt, th, status, slack, residual, solve_time):
+        out = self._out @ kt                # tracked (3), torque (3), kg
         achieved = out[:3]
         demand = th[:3].copy()
         return AllocationResult(
-            duty=k, status=status,
+            duty=(kt / self._scale).clip(0.0, 1.0), status=status,
             found=status in ("optimal", "bound_relaxed"), demand=demand,
             achieved=achieved, tracking_error=achieved - demand,
             momentum_after=th[3:6] + self.cycle * (out[3:6] + th[6:9]),
@@ -281,7 +313,7 @@ class DutyCycleAllocator:
         qp = self.qp
         _, l, u = qp.vectors(th)
         eq = slice(0, qp.n_eq)
-        ub = np.minimum(qp.ub, 1e9)
+        ub = np.minimum(self._ub, 1e9)
         res = linprog(np.zeros(qp.nx), A_eq=qp.A[eq], b_eq=l[eq],
                       bounds=list(zip(qp.lb, ub)), method="highs")
         return res.status == 0

@@ -32,6 +32,10 @@ class Backend:
         self._sense[nx:nx + qp.n_eq] = 5          # equality rows
         self._nx = nx
 
+    def set_upper(self, ub: np.ndarray) -> None:
+        """Change the variables' upper bounds (n+1,) for the next solves."""
+        self._bu[:self._nx] = ub
+
     def solve(self, theta: np.ndarray):
         """Return ``(x, status, None)``."""
         q, l, u = self.qp.vectors(theta)
