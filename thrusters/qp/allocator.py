@@ -206,9 +206,10 @@ class DutyCycleAllocator:
         u = self.unit
         scale = (u.pressure_slope * float(p) + u.thrust_offset) / self._steady
         if np.any(scale <= 0):
+            dead = [u.names[i] for i in np.flatnonzero(scale <= 0)]
             raise InvalidValueError(
                 f"pressure = {float(p)} Pa gives no thrust (eq. 1) for "
-                f"engine(s) {[u.names[i] for i in np.flatnonzero(scale <= 0)]}")
+                f"engine(s) {dead}")
         self._scale = scale
         self._pressure = float(p)
         self._ub[:-1] = scale
