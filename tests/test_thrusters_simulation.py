@@ -67,6 +67,18 @@ def test_without_kp_correction_thrust_misses_by_the_transient_loss():
         2 * TABLE3["thrust_dev_max"])
 
 
+@pytest.mark.parametrize("allocation", ["law", "qp"])
+def test_blowdown_pressure_read_each_cycle(allocation):
+    # 10 % pressure drop over the burn: the laws read p_in each cycle
+    res = burn_scenario(allocation=allocation, pressure_drop=0.10,
+                        settle=0.0)
+    rows = rows_by_name(burn_table(res))
+    assert rows["dV error [%]"][2] <= TABLE3["dV_err_pct"]
+    # thrust error per cycle: the pressure falls 0.3 % within a cycle
+    assert rows["thrust deviation max [%]"][2] < 0.3
+    assert rows["thrust deviation max [%]"][2] > 0.05
+
+
 def test_table3_attitude_errors_same_order_as_the_papers(burn):
     rows = rows_by_name(burn_table(burn))
     # our wheel loop and disturbance direction are assumptions: within 2x
@@ -193,5 +205,7 @@ def test_bad_scenario_arguments():
         reorientation_scenario(dt=0.3, t_end=10.0)
     with pytest.raises(InvalidValueError, match="disturbance"):
         burn_scenario(disturbance=[np.nan, 0, 0])
+    with pytest.raises(InvalidValueError, match="pressure_drop"):
+        burn_scenario(pressure_drop=1.5)
     with pytest.raises(InvalidValueError, match="valve_jitter"):
         reorientation_scenario(valve_jitter=-1.0, t_end=10.0)

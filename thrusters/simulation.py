@@ -195,12 +195,14 @@ def _euler_xyz_many(qs):
 
 def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
               q_ref_fn, w_ref_fn, wheel_axes, wheel_gains, disturbance_fn,
-              mass, J, carry, jitter=0.0, seed=0):
+              mass, J, carry, jitter=0.0, seed=0, pressure_fn=None):
     """Run the common loop: per cycle allocate, then integrate.
 
     The truth applies the transient model to the commanded valve times,
     each perturbed (when ``jitter`` > 0) by a Gaussian timing error of
-    standard deviation ``jitter`` [s] (command latency, seeded).
+    standard deviation ``jitter`` [s] (command latency, seeded), with the
+    steady thrust of eq. (1) at the inlet pressure ``pressure_fn`` gives
+    at mid-cycle (the unit's pressure when None).
     """
     rng = np.random.default_rng(seed)
     body = _Body(J=np.asarray(J, dtype=float))
@@ -217,7 +219,7 @@ def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
     m = mass
     v = np.zeros(3)
     prop = 0.0
-    mdot = unit.steady_thrust / (unit.isp * G0)   # per unit thrust [kg/N·s]
+    per_impulse = 1.0 / (unit.isp * G0)           # [kg/(N·s)]
     log_t, log_err, log_H, log_v, log_m = [], [], [], [], []
     starts, on_times, thrusts, demands, statuses = [], [], [], [], []
     pulses = []                        # (start, on_time) still active
@@ -233,7 +235,10 @@ def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
                 if jitter > 0:
                     t_true = np.where(t_on > 0, np.maximum(
                         t_on + jitter * rng.standard_normal(n), 0.0), 0.0)
-                impulse = unit.pulse_impulse(t_true)
+                P_ss = (unit.steady_thrust if pressure_fn is None else
+                        unit.pressure_slope * pressure_fn(t + cycle / 2)
+                        + unit.thrust_offset)
+                impulse = unit.pulse_impulse(t_true, P_ss)
                 starts.append(t)
                 on_times.append(t_on)
                 thrusts.append(impulse / cycle)
@@ -242,14 +247,14 @@ def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
                 if np.any(t_true > 0):
                     pulses.append((t, t_true, float(
                         t_true.max() + unit.close_delay + unit.open_delay
-                        + 10 * (unit.tail_time + unit.rise_time))))
+                        + 10 * (unit.tail_time + unit.rise_time)), P_ss))
         # pulses whose tail-off is over (10 time constants) are dropped
         pulses = [p for p in pulses if t - p[0] < p[2]]
         # thrust impulse of each engine over [t, t + dt]
         dI = np.zeros(n)
-        for t0, t_on, _ in pulses:
-            dI += (unit.cumulative_impulse(t + dt - t0, t_on)
-                   - unit.cumulative_impulse(t - t0, t_on))
+        for t0, t_on, _, P_ss in pulses:
+            dI += (unit.cumulative_impulse(t + dt - t0, t_on, P_ss)
+                   - unit.cumulative_impulse(t - t0, t_on, P_ss))
         F_body = dirs @ dI / dt
         tau_thr = arms @ dI / dt
         tau = tau_thr + disturbance_fn(t)
@@ -262,7 +267,7 @@ def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
         u_w = np.where(wheel_axes, np.clip(-tau_c, -u_max, u_max), 0.0)
         body.step(dt, tau, u_w)
         v = v + _rot(body.q) @ F_body * dt / m
-        used = float(dI @ (mdot / unit.steady_thrust))
+        used = float(dI.sum()) * per_impulse
         prop += used
         m -= used
         log_t.append(t + dt)
@@ -292,8 +297,8 @@ def _check_allocation(allocation):
 def burn_scenario(allocation: str = "law", solver: str = "osqp",
                   K_unl: float = 1.0, unit: ThrusterSet | None = None,
                   disturbance=BURN_DISTURBANCE, dt: float = 0.1,
-                  settle: float = 60.0,
-                  calibrate: bool = True) -> ScenarioResult:
+                  settle: float = 60.0, calibrate: bool = True,
+                  pressure_drop: float = 0.0) -> ScenarioResult:
     """Translation burn of Table 2 with wheel unloading (eq. 2 or the QP).
 
     The spacecraft (54 kg, J = diag(3.0, 2.5, 3.5) kg·m²) fires group 1
@@ -312,6 +317,11 @@ def burn_scenario(allocation: str = "law", solver: str = "osqp",
     the mass decreases with the propellant used. ``calibrate=False``
     keeps K_p = 1 (no transient correction): the per-cycle thrust then
     misses P_T by the transients' impulse loss, about 0.3 %.
+    ``pressure_drop`` (fraction, e.g. 0.1) lets the inlet pressure fall
+    linearly over the burn (blowdown); each cycle the allocator reads the
+    pressure at the cycle start (eq. 1: ``unit.with_pressure`` for the
+    law, `DutyCycleAllocator.set_pressure` for the QP) while the truth
+    fires at the mid-cycle pressure.
 
     Returns
     -------
@@ -330,11 +340,24 @@ def burn_scenario(allocation: str = "law", solver: str = "osqp",
                                 tracking="weighted")
              if allocation == "qp" else None)
 
+    drop = float(pressure_drop)
+    if not (np.isfinite(drop) and 0.0 <= drop < 1.0):
+        raise InvalidValueError(
+            f"pressure_drop must lie in [0, 1), got {pressure_drop!r}")
+
+    def pressure(t):
+        return cal.pressure * (1.0 - drop * min(t, TABLE2["T_imp"])
+                               / TABLE2["T_imp"])
+
     def allocate(c, t, body):
         H = body.Hw.copy()
+        p_meas = pressure(t)
         if alloc is None:
-            res = unloading_law(cal, P_T, H, T, K_unl)
+            unit_now = cal if drop == 0 else cal.with_pressure(p_meas)
+            res = unloading_law(unit_now, P_T, H, T, K_unl)
             return res.duty, res.demand, res.status
+        if drop:
+            alloc.set_pressure(p_meas)
         if state["H_prev"] is not None:
             # H+ = H + T (tau_thr + tau_dist): estimate tau_dist
             tau_thr = cal.torque_matrix() @ state["k_prev"]
@@ -354,7 +377,8 @@ def burn_scenario(allocation: str = "law", solver: str = "osqp",
         "burn", cal, T, n_cycles, TABLE2["T_imp"] + settle, dt, allocate,
         lambda t: zero, lambda t: np.zeros(3), (True, True, True),
         (INERTIA.diagonal() * 0.09, INERTIA.diagonal() * 0.54, 0.02),
-        disturbance_fn, MASS, INERTIA, MinOnTimeCarry(cal, T))
+        disturbance_fn, MASS, INERTIA, MinOnTimeCarry(cal, T),
+        pressure_fn=pressure if drop else None)
 
 
 def slew_profile(t: float, t0: float = 70.0, t1: float = 240.0,
