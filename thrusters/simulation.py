@@ -655,7 +655,7 @@ def plot_scenario(result: ScenarioResult, path) -> None:
 def main(argv=None) -> None:
     """Print Tables 3 and 5 beside ours; ``--plots DIR`` saves the plots.
 
-    Run as ``python -m thrusters.simulation [--allocation law|qp]
+    Run as ``python -m thrusters [--allocation law|qp] [--solver NAME]
     [--plots DIR]``.
     """
     import argparse
