@@ -114,8 +114,8 @@ class CodegenBackend(Backend):
 
     ``casadi.Function.generate`` writes self-contained C for code-
     generatable plugins (qrqp); it is compiled once with the system C
-    compiler (``-O2 -shared -fPIC``) in a temporary folder and called
-    through ``Function.buffer()``.
+    compiler (``-O2 -shared -fPIC``) in a temporary folder (removed once
+    the library is loaded) and called through ``Function.buffer()``.
     """
 
     def __init__(self, qp: DutyCycleQP, plugin: str, options: dict) -> None:
@@ -137,5 +137,8 @@ class CodegenBackend(Backend):
         subprocess.run([compiler(), "-O2", "-shared", "-fPIC", src, "-o",
                         lib, "-lm"], check=True, capture_output=True)
         self.function = ca.external("duty_qp", lib)
-        self.library = lib
         self._bind()
+        # the library is loaded (dlopen): the temporary folder can go
+        import shutil
+
+        shutil.rmtree(folder, ignore_errors=True)
