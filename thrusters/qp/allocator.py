@@ -149,13 +149,27 @@ class DutyCycleAllocator:
                                  Mt[TORQUE_AXES[1]]])
         self._torque = Mt
         self._prop = self.cycle * unit.propellant_rate()
-        self._out = np.vstack([self._track, Mt, self._prop[None]])
+        # every reported quantity is affine in z = (k, theta):
+        # rows: achieved (3), tracking error (3), H after (3), kg (1)
+        n = unit.n
+        W = np.zeros((10, n + N_THETA))
+        W[0:3, :n] = self._track
+        W[3:6, :n] = self._track
+        W[3:6, n:n + 3] = -np.eye(3)
+        W[6:9, :n] = self.cycle * Mt
+        W[6:9, n + 3:n + 6] = np.eye(3)
+        W[6:9, n + 6:n + 9] = self.cycle * np.eye(3)
+        W[9, :n] = self._prop
+        self._W = W
         qp = self.qp
-        self._m = qp.A.shape[0]
-        self._A = qp.A
-        self._lu0 = np.concatenate([qp.l0, qp.u0])
-        self._LU = np.vstack([qp.Lm, qp.Um])
         self._lb, self._ub = qp.lb, qp.ub.copy()
+        # residual rows r = R x + r0 + Rth theta: (l - Ax, Ax - u,
+        # lb - x, x - ub), whose max is the largest violation
+        eye = np.eye(qp.nx)
+        self._R = np.vstack([-qp.A, qp.A, -eye, eye])
+        self._Rth = np.vstack([qp.Lm, -qp.Um, np.zeros((2 * qp.nx,
+                                                         N_THETA))])
+        self._set_r0()
         self._steady = unit.steady_thrust
         self._scale = np.ones(unit.n)
         self._pressure = unit.pressure
@@ -213,7 +227,12 @@ class DutyCycleAllocator:
         self._scale = scale
         self._pressure = float(p)
         self._ub[:-1] = scale
+        self._set_r0()
         self.backend.set_upper(self._ub)
+
+    def _set_r0(self) -> None:
+        qp = self.qp
+        self._r0 = np.concatenate([qp.l0, -qp.u0, qp.lb, -self._ub])
 
     @property
     def pressure(self) -> float:
@@ -243,18 +262,19 @@ class DutyCycleAllocator:
         return self.solve_theta(th)
 
     def solve_theta(self, th: np.ndarray) -> AllocationResult:
-        """`solve` with a ready parameter vector (9,) (no validation)."""
+        """`solve` with a ready parameter vector (9,) (no validation).
+
+        ``th`` is not copied (the result's ``demand`` is a view of it):
+        pass a fresh array, as `theta` returns.
+        """
         t0 = time.perf_counter()
         x, status, residual = self.backend.solve(th)
         solve_time = time.perf_counter() - t0
         if x is None:
             residual = np.inf
         elif residual is None:
-            lu = self._lu0 + self._LU @ th
-            Ax = self._A @ x
-            residual = float(np.concatenate(
-                (lu[:self._m] - Ax, Ax - lu[self._m:], self._lb - x,
-                 x - self._ub)).max())
+            residual = float((self._R @ x + self._Rth @ th
+                              + self._r0).max())
         if x is None or residual > RESIDUAL_TOL:
             status = ("infeasible" if status == "infeasible"
                       or not self._feasible(th) else "failed")
@@ -297,16 +317,16 @@ class DutyCycleAllocator:
 
     # ------------------------------------------------------------------
     def _result(self, kt, th, status, slack, residual, solve_time):
-        out = self._out @ kt                # tracked (3), torque (3), kg
-        achieved = out[:3]
-        demand = th[:3].copy()
+        y = self._W @ np.concatenate((kt, th))
+        # kt lies in [0, scale]: the duty kt / scale lies in [0, 1]
+        duty = kt if self._pressure == self.unit.pressure else np.minimum(
+            kt / self._scale, 1.0)
         return AllocationResult(
-            duty=(kt / self._scale).clip(0.0, 1.0), status=status,
-            found=status in ("optimal", "bound_relaxed"), demand=demand,
-            achieved=achieved, tracking_error=achieved - demand,
-            momentum_after=th[3:6] + self.cycle * (out[3:6] + th[6:9]),
+            duty=duty, status=status,
+            found=status in ("optimal", "bound_relaxed"), demand=th[:3],
+            achieved=y[0:3], tracking_error=y[3:6], momentum_after=y[6:9],
             momentum_excess=slack * self.h_max, residual=residual,
-            propellant=float(out[6]), solve_time=solve_time,
+            propellant=float(y[9]), solve_time=solve_time,
             solver=self.solver)
 
     def _feasible(self, th: np.ndarray) -> bool:
