@@ -27,7 +27,18 @@ from thrusters import (
 
 UNIT = six_thruster_unit()
 H_MAX = 0.012
+#: Every backend the package offers; those not installed skip visibly.
+OFFERED = ("osqp", "daqp", "casadi:qrqp", "casadi:osqp", "casadi-c:qrqp",
+           "qpsolvers:clarabel", "qpsolvers:daqp", "qpsolvers:piqp",
+           "qpsolvers:quadprog")
 SOLVERS = available_solvers()
+
+
+def require(solver):
+    """Skip (visibly) when ``solver`` is not available here."""
+    if solver not in SOLVERS:
+        pytest.skip(f"{solver} is not installed (pip install "
+                    f"\"adcs-toolbox[solvers]\", or a C compiler)")
 #: One tolerance for every backend, on the duties (the issue's 1e-6).
 TOL = 1e-6
 
@@ -121,9 +132,10 @@ CASES = {
 }
 
 
-@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("solver", OFFERED)
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_every_backend_matches_exact_reference(solver, case):
+    require(solver)
     T, tracking, bound, P_T, M, H, tau = CASES[case]
     alloc = DutyCycleAllocator(UNIT, T, H_MAX, solver=solver,
                                tracking=tracking, bound=bound)
@@ -274,6 +286,14 @@ def test_unknown_solver_lists_installed_and_extra():
     assert isinstance(err.value, ValueError)
 
 
+def test_installed_but_not_offered_backend_says_so():
+    import qpsolvers
+    if "proxqp" not in qpsolvers.available_solvers:
+        pytest.skip("proxqp not installed")
+    with pytest.raises(SolverNotFound, match="installed but not offered"):
+        DutyCycleAllocator(UNIT, 10.0, H_MAX, solver="proxqp")
+
+
 def test_unknown_kwarg_rejected():
     with pytest.raises(TypeError):
         DutyCycleAllocator(UNIT, 10.0, H_MAX, sovler="osqp")
@@ -344,11 +364,42 @@ def test_casadi_function_for_codegen_matches_allocator():
                                solver="daqp")
     f = alloc.casadi_function()
     th = alloc.theta(0.0, (0.003, -0.001), (0.005, 0.0, 0.002))
-    x, viol = f(th)
+    x, viol = f(th, np.ones(6))
     assert float(viol) < 1e-9
     np.testing.assert_allclose(np.array(x).ravel()[:-1],
                                alloc.solve_theta(th).duty, atol=1e-8)
-    assert f.name_in() == ["theta"]
+    assert f.name_in() == ["theta", "kmax"]
+
+
+@pytest.mark.parametrize("solver", OFFERED)
+def test_set_pressure_equals_a_unit_built_at_that_pressure(solver):
+    require(solver)
+    unit = six_thruster_unit(thrust_offset=0.1)
+    low = 7.0 * 98066.5
+    built = DutyCycleAllocator(unit.with_pressure(low), 10.0, H_MAX,
+                               solver="daqp")
+    moved = DutyCycleAllocator(unit, 10.0, H_MAX, solver=solver)
+    moved.set_pressure(low)
+    assert moved.pressure == low
+    for P_T, M, H in [(0.6, (-0.0005, 0.0003), (0.005, 0, -0.003)),
+                      (0.0, (0.0008, -0.0005), (0.0, 0.0, 0.0))]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            a = built.solve(P_T, M, H)
+            b = moved.solve(P_T, M, H)
+        assert a.status == b.status == "optimal"
+        np.testing.assert_allclose(b.duty, a.duty, atol=TOL)
+        np.testing.assert_allclose(b.achieved, a.achieved, atol=1e-9)
+    # a demand the lower pressure cannot meet (> 3 x 0.4 N at 7 kgf/cm²)
+    assert moved.solve(1.3).status == "infeasible"
+
+
+def test_set_pressure_rejects_bad_values():
+    alloc = DutyCycleAllocator(UNIT, 10.0, H_MAX)
+    with pytest.raises(InvalidValueError, match="pressure"):
+        alloc.set_pressure(-1.0)
+    with pytest.raises(InvalidValueError, match="pressure"):
+        alloc.set_pressure(np.nan)
 
 
 ALLOC_N = DutyCycleAllocator(UNIT, 10.0, H_MAX, tracking="weighted",
@@ -364,3 +415,8 @@ def test_property_norm_bound_keeps_momentum_in_the_circle(P_T, mx, mz, hx,
     assert res.status == "optimal"      # |H| < h_max cos(pi/12) at start
     # the 12-gon is inscribed: inside it means inside the circle
     assert np.hypot(*res.momentum_after[[0, 2]]) <= H_MAX + 1e-9
+
+
+def test_offered_list_matches_available_here():
+    # every name the package lists is one the tests cover
+    assert set(SOLVERS) <= set(OFFERED)

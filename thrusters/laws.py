@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +22,17 @@ THRUST_AXIS = 1
 TORQUE_AXES = (0, 2)
 
 _CLIP_TOL = 1e-12
+#: Per-unit matrices of the laws, computed once (a ThrusterSet is frozen).
+_CACHE: "weakref.WeakKeyDictionary[ThrusterSet, dict]" = (
+    weakref.WeakKeyDictionary())
+
+
+def _cached(unit: ThrusterSet) -> dict:
+    entry = _CACHE.get(unit)
+    if entry is None:
+        entry = {}
+        _CACHE[unit] = entry
+    return entry
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,10 +86,15 @@ class LawResult:
 
 def _tracking_matrix(unit: ThrusterSet) -> np.ndarray:
     """Rows (thrust along +Y, M_X, M_Z) per unit duty, (3, n)."""
-    F = unit.force_matrix()
-    M = unit.torque_matrix()
-    return np.vstack([F[THRUST_AXIS], M[TORQUE_AXES[0]],
-                      M[TORQUE_AXES[1]]])
+    entry = _cached(unit)
+    C = entry.get("track")
+    if C is None:
+        F = unit.force_matrix()
+        M = unit.torque_matrix()
+        C = np.vstack([F[THRUST_AXIS], M[TORQUE_AXES[0]],
+                       M[TORQUE_AXES[1]]])
+        entry["track"] = C
+    return C
 
 
 def _finish(unit, k_raw, demand, mode, law) -> LawResult:
@@ -163,14 +180,19 @@ def unloading_law(unit: ThrusterSet, P_T: float, H, T_T: float,
         raise InvalidValueError(
             f"H must have shape (3,) or (2,), got {Hv.shape}")
     demand = np.array([P_T, -K * hx / T, -K * hz / T])
-    idx = _group(unit, np.sign(P_T))
-    C = _tracking_matrix(unit)[:, idx]
-    if np.linalg.matrix_rank(C) < 3:
-        raise RankError("unit: the firing group's thrust/torque matrix is "
-                        "singular (engines collinear?)", int(
-                            np.linalg.matrix_rank(C)), 3)
+    key = "group+" if P_T > 0 else "group-"
+    entry = _cached(unit)
+    if key not in entry:
+        idx = _group(unit, np.sign(P_T))
+        C = _tracking_matrix(unit)[:, idx]
+        if np.linalg.matrix_rank(C) < 3:
+            raise RankError("unit: the firing group's thrust/torque matrix "
+                            "is singular (engines collinear?)", int(
+                                np.linalg.matrix_rank(C)), 3)
+        entry[key] = (idx, np.linalg.inv(C))
+    idx, Ci = entry[key]
     k_raw = np.zeros(unit.n)
-    k_raw[idx] = np.linalg.solve(C, demand)
+    k_raw[idx] = Ci @ demand
     return _finish(unit, k_raw, demand, _mode(P_T), "unloading (eq. 2)")
 
 
@@ -190,12 +212,20 @@ def pair_forces(unit: ThrusterSet, P_T: float, M) -> np.ndarray:
             f"{len(unit.pairs)} (ThrusterSet.pairs)")
     P_T = as_finite_scalar(P_T, "P_T")
     Mv = as_finite_array(M, "M", (2,))
-    first = [i if unit.directions[THRUST_AXIS, i] > 0 else j
-             for i, j in unit.pairs]
-    arms = unit.arms
-    C = np.vstack([np.ones(3), arms[TORQUE_AXES[0], first],
-                   arms[TORQUE_AXES[1], first]])
-    return np.linalg.solve(C, np.array([P_T, Mv[0], Mv[1]]))
+    entry = _cached(unit)
+    Ci = entry.get("pairs_inv")
+    if Ci is None:
+        first = [i if unit.directions[THRUST_AXIS, i] > 0 else j
+                 for i, j in unit.pairs]
+        arms = unit.arms
+        C = np.vstack([np.ones(3), arms[TORQUE_AXES[0], first],
+                       arms[TORQUE_AXES[1], first]])
+        if np.linalg.matrix_rank(C) < 3:
+            raise RankError("unit: eq. (8) is singular (pairs collinear?)",
+                            int(np.linalg.matrix_rank(C)), 3)
+        Ci = np.linalg.inv(C)
+        entry["pairs_inv"] = Ci
+    return Ci @ np.array([P_T, Mv[0], Mv[1]])
 
 
 def reorientation_law(unit: ThrusterSet, P_T: float, M) -> LawResult:

@@ -180,19 +180,31 @@ class ScenarioResult:
         return self.cycle_thrust @ self.unit.directions[1]
 
 
-def _euler_xyz(q):
-    """X-Y-Z (roll about X first) rotation angles of q [rad]."""
-    R = _rot(q)
-    ay = np.arcsin(np.clip(R[0, 2], -1, 1))
-    ax = np.arctan2(-R[1, 2], R[2, 2])
-    az = np.arctan2(-R[0, 1], R[0, 0])
-    return np.array([ax, ay, az])
+def _euler_xyz_many(qs):
+    """X-Y-Z rotation angles of quaternions (m, 4) [rad], (m, 3)."""
+    w, x, y, z = qs.T
+    r02 = 2 * (x * z + w * y)
+    r12 = 2 * (y * z - w * x)
+    r22 = 1 - 2 * (x * x + y * y)
+    r01 = 2 * (x * y - w * z)
+    r00 = 1 - 2 * (y * y + z * z)
+    return np.column_stack([np.arctan2(-r12, r22),
+                            np.arcsin(np.clip(r02, -1, 1)),
+                            np.arctan2(-r01, r00)])
 
 
 def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
               q_ref_fn, w_ref_fn, wheel_axes, wheel_gains, disturbance_fn,
-              mass, J, carry):
-    """Common loop: per cycle allocate, then integrate with transients."""
+              mass, J, carry, jitter=0.0, seed=0, pressure_fn=None):
+    """Run the common loop: per cycle allocate, then integrate.
+
+    The truth applies the transient model to the commanded valve times,
+    each perturbed (when ``jitter`` > 0) by a Gaussian timing error of
+    standard deviation ``jitter`` [s] (command latency, seeded), with the
+    steady thrust of eq. (1) at the inlet pressure ``pressure_fn`` gives
+    at mid-cycle (the unit's pressure when None).
+    """
+    rng = np.random.default_rng(seed)
     body = _Body(J=np.asarray(J, dtype=float))
     n = unit.n
     steps_per_cycle = int(round(cycle / dt))
@@ -207,8 +219,8 @@ def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
     m = mass
     v = np.zeros(3)
     prop = 0.0
-    mdot = unit.steady_thrust / (unit.isp * G0)   # per unit thrust [kg/N·s]
-    log_t, log_err, log_ang, log_H, log_v, log_m = [], [], [], [], [], []
+    per_impulse = 1.0 / (unit.isp * G0)           # [kg/(N·s)]
+    log_t, log_err, log_H, log_v, log_m = [], [], [], [], []
     starts, on_times, thrusts, demands, statuses = [], [], [], [], []
     pulses = []                        # (start, on_time) still active
     for step in range(total_steps):
@@ -219,23 +231,30 @@ def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
                 k, demand, status = allocate(c, t, body)
                 k = carry.apply(k) if carry is not None else k
                 t_on = k * cycle
-                impulse = unit.pulse_impulse(t_on)
+                t_true = t_on
+                if jitter > 0:
+                    t_true = np.where(t_on > 0, np.maximum(
+                        t_on + jitter * rng.standard_normal(n), 0.0), 0.0)
+                P_ss = (unit.steady_thrust if pressure_fn is None else
+                        unit.pressure_slope * pressure_fn(t + cycle / 2)
+                        + unit.thrust_offset)
+                impulse = unit.pulse_impulse(t_true, P_ss)
                 starts.append(t)
                 on_times.append(t_on)
                 thrusts.append(impulse / cycle)
                 demands.append(demand)
                 statuses.append(status)
-                if np.any(t_on > 0):
-                    pulses.append((t, t_on, float(
-                        t_on.max() + unit.close_delay + unit.open_delay
-                        + 10 * (unit.tail_time + unit.rise_time))))
+                if np.any(t_true > 0):
+                    pulses.append((t, t_true, float(
+                        t_true.max() + unit.close_delay + unit.open_delay
+                        + 10 * (unit.tail_time + unit.rise_time)), P_ss))
         # pulses whose tail-off is over (10 time constants) are dropped
         pulses = [p for p in pulses if t - p[0] < p[2]]
         # thrust impulse of each engine over [t, t + dt]
         dI = np.zeros(n)
-        for t0, t_on, _ in pulses:
-            dI += (unit.cumulative_impulse(t + dt - t0, t_on)
-                   - unit.cumulative_impulse(t - t0, t_on))
+        for t0, t_on, _, P_ss in pulses:
+            dI += (unit.cumulative_impulse(t + dt - t0, t_on, P_ss)
+                   - unit.cumulative_impulse(t - t0, t_on, P_ss))
         F_body = dirs @ dI / dt
         tau_thr = arms @ dI / dt
         tau = tau_thr + disturbance_fn(t)
@@ -248,18 +267,21 @@ def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
         u_w = np.where(wheel_axes, np.clip(-tau_c, -u_max, u_max), 0.0)
         body.step(dt, tau, u_w)
         v = v + _rot(body.q) @ F_body * dt / m
-        used = float(dI @ (mdot / unit.steady_thrust))
+        used = float(dI.sum()) * per_impulse
         prop += used
         m -= used
         log_t.append(t + dt)
-        log_err.append(_error_vector(body.q, q_ref_fn(t + dt)))
-        log_ang.append(_euler_xyz(body.q))
+        log_err.append(body.q)
         log_H.append(body.Hw.copy())
         log_v.append(v.copy())
         log_m.append(m)
+    ts = np.array(log_t)
+    qs = np.array(log_err)
+    errors = np.array([_error_vector(q, q_ref_fn(tk))
+                       for q, tk in zip(qs, ts)])
     return ScenarioResult(
-        name=name, t=np.array(log_t), attitude_error=np.array(log_err),
-        angle=np.array(log_ang), wheel_momentum=np.array(log_H),
+        name=name, t=ts, attitude_error=errors,
+        angle=_euler_xyz_many(qs), wheel_momentum=np.array(log_H),
         velocity=np.array(log_v), cycle_start=np.array(starts),
         on_time=np.array(on_times), cycle_thrust=np.array(thrusts),
         demand=np.array(demands), status=statuses, propellant=prop,
@@ -274,9 +296,9 @@ def _check_allocation(allocation):
 
 def burn_scenario(allocation: str = "law", solver: str = "osqp",
                   K_unl: float = 1.0, unit: ThrusterSet | None = None,
-                  disturbance=BURN_DISTURBANCE, dt: float = 0.05,
-                  settle: float = 60.0,
-                  calibrate: bool = True) -> ScenarioResult:
+                  disturbance=BURN_DISTURBANCE, dt: float = 0.1,
+                  settle: float = 60.0, calibrate: bool = True,
+                  pressure_drop: float = 0.0) -> ScenarioResult:
     """Translation burn of Table 2 with wheel unloading (eq. 2 or the QP).
 
     The spacecraft (54 kg, J = diag(3.0, 2.5, 3.5) kg·m²) fires group 1
@@ -286,14 +308,20 @@ def burn_scenario(allocation: str = "law", solver: str = "osqp",
     (0.0012 N·m, `BURN_DISTURBANCE`). Each cycle, the wheel momentum H at
     the cycle start sets the unloading torque ``-K_unl H / T_T``:
     ``allocation="law"`` uses `unloading_law`; ``"qp"`` the weighted
-    `DutyCycleAllocator` with the bound |H| <= 0.012 N·m·s and a
-    disturbance estimate from the last cycle's momentum change. The
+    `DutyCycleAllocator` with the bound |H| <= 0.012 N·m·s, a disturbance
+    estimate from the last cycles' momentum change, and that estimate
+    cancelled in the torque demand (feed-forward). The
     allocator's K_p comes from the transient model at the nominal duty
     (`ThrusterSet.calibrated`); the truth applies the transient model
     (`ThrusterSet.cumulative_impulse`) to the commanded valve times, and
     the mass decreases with the propellant used. ``calibrate=False``
     keeps K_p = 1 (no transient correction): the per-cycle thrust then
     misses P_T by the transients' impulse loss, about 0.3 %.
+    ``pressure_drop`` (fraction, e.g. 0.1) lets the inlet pressure fall
+    linearly over the burn (blowdown); each cycle the allocator reads the
+    pressure at the cycle start (eq. 1: ``unit.with_pressure`` for the
+    law, `DutyCycleAllocator.set_pressure` for the QP) while the truth
+    fires at the mid-cycle pressure.
 
     Returns
     -------
@@ -312,17 +340,31 @@ def burn_scenario(allocation: str = "law", solver: str = "osqp",
                                 tracking="weighted")
              if allocation == "qp" else None)
 
+    drop = float(pressure_drop)
+    if not (np.isfinite(drop) and 0.0 <= drop < 1.0):
+        raise InvalidValueError(
+            f"pressure_drop must lie in [0, 1), got {pressure_drop!r}")
+
+    def pressure(t):
+        return cal.pressure * (1.0 - drop * min(t, TABLE2["T_imp"])
+                               / TABLE2["T_imp"])
+
     def allocate(c, t, body):
         H = body.Hw.copy()
+        p_meas = pressure(t)
         if alloc is None:
-            res = unloading_law(cal, P_T, H, T, K_unl)
+            unit_now = cal if drop == 0 else cal.with_pressure(p_meas)
+            res = unloading_law(unit_now, P_T, H, T, K_unl)
             return res.duty, res.demand, res.status
+        if drop:
+            alloc.set_pressure(p_meas)
         if state["H_prev"] is not None:
             # H+ = H + T (tau_thr + tau_dist): estimate tau_dist
             tau_thr = cal.torque_matrix() @ state["k_prev"]
             est = (H - state["H_prev"]) / T - tau_thr
             state["tau_est"] = 0.5 * state["tau_est"] + 0.5 * est
-        M = -K_unl * H[[0, 2]] / T
+        # unload H and cancel the estimated disturbance (feed-forward)
+        M = -K_unl * H[[0, 2]] / T - state["tau_est"][[0, 2]]
         res = alloc.solve(P_T, M, H, state["tau_est"])
         state["H_prev"], state["k_prev"] = H, res.duty
         return res.duty, res.demand, res.status
@@ -335,7 +377,8 @@ def burn_scenario(allocation: str = "law", solver: str = "osqp",
         "burn", cal, T, n_cycles, TABLE2["T_imp"] + settle, dt, allocate,
         lambda t: zero, lambda t: np.zeros(3), (True, True, True),
         (INERTIA.diagonal() * 0.09, INERTIA.diagonal() * 0.54, 0.02),
-        disturbance_fn, MASS, INERTIA, MinOnTimeCarry(cal, T))
+        disturbance_fn, MASS, INERTIA, MinOnTimeCarry(cal, T),
+        pressure_fn=pressure if drop else None)
 
 
 def slew_profile(t: float, t0: float = 70.0, t1: float = 240.0,
@@ -360,21 +403,28 @@ def slew_profile(t: float, t0: float = 70.0, t1: float = 240.0,
 
 def reorientation_scenario(allocation: str = "law", solver: str = "osqp",
                            unit: ThrusterSet | None = None,
-                           dt: float = 0.05, t_end: float = 600.0,
-                           omega_n: float = 0.15, zeta: float = 1.0,
-                           ) -> ScenarioResult:
+                           dt: float = 0.1, t_end: float = 600.0,
+                           omega_n: float = 0.15,
+                           valve_jitter: float = 0.002,
+                           disturbance=(0.0, 0.0, 0.0),
+                           seed: int = 0) -> ScenarioResult:
     """Hold, 170° slew about X, hold (Table 5): thrusters at T_T = 2 s.
 
     0-70 s hold, 70-240 s cycloidal slew of 170° about body X, hold to
-    600 s. Every cycle a PD attitude controller with feed-forward
+    600 s. Every cycle a PID attitude controller with feed-forward
     (:math:`M = J\\alpha_{ref} + \\omega \\times J\\omega - K_p\\phi -
-    K_d(\\omega - \\omega_{ref})`, :math:`K_p = J\\omega_n^2`,
-    :math:`K_d = 2\\zeta\\omega_n J`) demands (M_X, M_Z); they go through
+    K_d(\\omega - \\omega_{ref}) - K_i\\int\\phi`, :math:`K_p =
+    3J\\omega_n^2`, :math:`K_d = 3J\\omega_n`, :math:`K_i = J\\omega_n^3`:
+    triple pole at :math:`-\\omega_n`) demands (M_X, M_Z); they go through
     `reorientation_law` (``allocation="law"``) or the weighted
     `DutyCycleAllocator` (``"qp"``, P_T = 0, bound 0.05 N·m·s on the
     cycle's momentum increment); `MinOnTimeCarry` applies the min
     on-time. A Y-axis wheel (the thrusters make no Y torque) holds the
-    Y attitude and absorbs the gyroscopic coupling. No disturbance.
+    Y attitude and absorbs the gyroscopic coupling. The seed ran on a
+    real-time prototype with actual command delays: here each valve time
+    is off by a Gaussian error of ``valve_jitter`` seconds (seeded by
+    ``seed``), the source of the residual Δv; ``disturbance`` is a
+    constant body torque [N·m] (none by default).
 
     Returns
     -------
@@ -386,9 +436,16 @@ def reorientation_scenario(allocation: str = "law", solver: str = "osqp",
     # K_p at the typical hold pulse (40 ms in a 2 s cycle)
     cal = base.calibrated(T, 0.02)
     J = INERTIA
-    Kp = J.diagonal() * omega_n ** 2
-    Kd = 2 * zeta * omega_n * J.diagonal()
+    # PID with the closed-loop poles at -omega_n (triple) per axis
+    Kp = 3 * J.diagonal() * omega_n ** 2
+    Kd = 3 * J.diagonal() * omega_n
+    Ki = J.diagonal() * omega_n ** 3
+    integ = np.zeros(3)
     axis = np.array([1.0, 0.0, 0.0])
+    dist = as_finite_array(disturbance, "disturbance", (3,))
+    if not np.isfinite(valve_jitter) or valve_jitter < 0:
+        raise InvalidValueError(
+            f"valve_jitter must be >= 0 [s], got {valve_jitter!r}")
     alloc = (DutyCycleAllocator(cal, T, 0.05, solver=solver,
                                 tracking="weighted")
              if allocation == "qp" else None)
@@ -403,8 +460,9 @@ def reorientation_scenario(allocation: str = "law", solver: str = "osqp",
         th, rate, acc = slew_profile(t + T / 2)      # mid-cycle reference
         err = _error_vector(body.q, q_ref(t))
         w_err = body.w - w_ref(t)
+        integ[:] = np.clip(integ + err * T, -0.05, 0.05)   # anti-windup
         M3 = (J @ (axis * acc) + np.cross(body.w, J @ body.w + body.Hw)
-              - Kp * err - Kd * w_err)
+              - Kp * err - Kd * w_err - Ki * integ)
         M = M3[[0, 2]]
         if alloc is None:
             res = reorientation_law(cal, 0.0, M)
@@ -417,7 +475,8 @@ def reorientation_scenario(allocation: str = "law", solver: str = "osqp",
         "reorientation", cal, T, n_cycles, t_end, dt, allocate, q_ref,
         w_ref, (False, True, False),
         (J.diagonal() * 0.09, J.diagonal() * 0.54, 0.02),
-        lambda t: np.zeros(3), MASS, J, MinOnTimeCarry(cal, T))
+        lambda t: dist, MASS, J, MinOnTimeCarry(cal, T),
+        jitter=float(valve_jitter), seed=seed)
 
 
 # ----------------------------------------------------------------------
@@ -434,7 +493,9 @@ def burn_table(result: ScenarioResult) -> list[tuple]:
     error about body X (for small errors these are the deviations of the
     thrust vector's yaw and pitch angles); statistics over the burn.
     Thrust deviation: per-cycle true mean thrust (transients included)
-    minus P_T. Δv error: |Δv| at the end minus P_T T_imp / m0.
+    minus P_T. Δv error: |Δv| at the end minus P_T T_imp / m0. Wheel
+    momentum: at cycle starts (where the laws act), and its peak within
+    the cycles, over the whole burn and after the first 8 cycles.
     """
     P_T = TABLE2["P_T"]
     dev = np.abs(result.net_thrust - P_T)
@@ -463,6 +524,11 @@ def burn_table(result: ScenarioResult) -> list[tuple]:
         _row("dV [m/s]", TABLE2["dV"], dv),
         _row("max |H_X|, |H_Z| at cycle starts [N·m·s]", TABLE2["H_max"],
              _cycle_start_momentum(result)),
+        _row("max |H_X|, |H_Z| during the burn [N·m·s]", TABLE2["H_max"],
+             np.abs(result.wheel_momentum[burn][:, [0, 2]]).max()),
+        _row("same, steady state (t > 80 s) [N·m·s]", TABLE2["H_max"],
+             np.abs(result.wheel_momentum[burn & (result.t > 80.0)][
+                 :, [0, 2]]).max()),
     ]
 
 
@@ -585,3 +651,36 @@ def plot_scenario(result: ScenarioResult, path) -> None:
     fig.savefig(path)
     plt.close(fig)
 
+
+def main(argv=None) -> None:
+    """Print Tables 3 and 5 beside ours; ``--plots DIR`` saves the plots.
+
+    Run as ``python -m thrusters [--allocation law|qp] [--solver NAME]
+    [--plots DIR]``.
+    """
+    import argparse
+    from pathlib import Path
+
+    ap = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
+    ap.add_argument("--allocation", choices=("law", "qp"), default="law")
+    ap.add_argument("--solver", default="osqp")
+    ap.add_argument("--plots", default=None)
+    args = ap.parse_args(argv)
+    burn = burn_scenario(allocation=args.allocation, solver=args.solver)
+    print(format_table(burn_table(burn),
+                       f"Seed 004 Table 3 (burn, {args.allocation})"))
+    print()
+    reo = reorientation_scenario(allocation=args.allocation,
+                                 solver=args.solver)
+    print(format_table(reorientation_table(reo),
+                       f"Seed 004 Table 5 (reorientation, "
+                       f"{args.allocation})"))
+    if args.plots:
+        out = Path(args.plots)
+        out.mkdir(parents=True, exist_ok=True)
+        plot_scenario(burn, out / "thrusters_burn.png")
+        plot_scenario(reo, out / "thrusters_reorientation.png")
+
+
+if __name__ == "__main__":
+    main()

@@ -282,7 +282,8 @@ class ThrusterSet:
         rise = 1.0 - np.exp(-D / self.rise_time)
         return P * (D + (self.tail_time - self.rise_time) * rise)
 
-    def cumulative_impulse(self, t, on_time, steady_thrust=None):
+    def cumulative_impulse(self, t: float, on_time,
+                           steady_thrust=None) -> np.ndarray:
         """Impulse delivered from the cycle start up to time ``t`` [N·s].
 
         Closed-form integral of `thrust_profile` (same first-order model
@@ -359,7 +360,8 @@ class ThrusterSet:
         """The set with K_p from `correction_coefficient` (firing test)."""
         return self.with_correction(self.correction_coefficient(cycle, duty))
 
-    def thrust_profile(self, times, on_time, steady_thrust=None):
+    def thrust_profile(self, times, on_time,
+                       steady_thrust=None) -> np.ndarray:
         """Instantaneous thrust of each engine during a pulse, (n, m) [N].
 
         Parameters

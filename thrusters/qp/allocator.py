@@ -91,7 +91,10 @@ class DutyCycleAllocator:
     eq. (2) (``P_T != 0``, ``M = -K_{unl} H / T_T``) and eqs. (8)-(9)
     (``P_T = 0``): where they stay inside [0, 1] the hard-tracking QP
     returns the same duties; where they must clip, the QP returns the
-    best cycle that keeps the momentum bound.
+    best cycle that keeps the momentum bound. The duties it returns are
+    continuous; pass them through `MinOnTimeCarry` to respect the valves'
+    minimum on-time without losing impulse (the remainder is carried to
+    the next cycle).
 
     Parameters
     ----------
@@ -146,13 +149,30 @@ class DutyCycleAllocator:
                                  Mt[TORQUE_AXES[1]]])
         self._torque = Mt
         self._prop = self.cycle * unit.propellant_rate()
-        self._out = np.vstack([self._track, Mt, self._prop[None]])
+        # every reported quantity is affine in z = (k, theta):
+        # rows: achieved (3), tracking error (3), H after (3), kg (1)
+        n = unit.n
+        W = np.zeros((10, n + N_THETA))
+        W[0:3, :n] = self._track
+        W[3:6, :n] = self._track
+        W[3:6, n:n + 3] = -np.eye(3)
+        W[6:9, :n] = self.cycle * Mt
+        W[6:9, n + 3:n + 6] = np.eye(3)
+        W[6:9, n + 6:n + 9] = self.cycle * np.eye(3)
+        W[9, :n] = self._prop
+        self._W = W
         qp = self.qp
-        self._m = qp.A.shape[0]
-        self._A = qp.A
-        self._lu0 = np.concatenate([qp.l0, qp.u0])
-        self._LU = np.vstack([qp.Lm, qp.Um])
-        self._lb, self._ub = qp.lb, qp.ub
+        self._lb, self._ub = qp.lb, qp.ub.copy()
+        # residual rows r = R x + r0 + Rth theta: (l - Ax, Ax - u,
+        # lb - x, x - ub), whose max is the largest violation
+        eye = np.eye(qp.nx)
+        self._R = np.vstack([-qp.A, qp.A, -eye, eye])
+        self._Rth = np.vstack([qp.Lm, -qp.Um, np.zeros((2 * qp.nx,
+                                                         N_THETA))])
+        self._set_r0()
+        self._steady = unit.steady_thrust
+        self._scale = np.ones(unit.n)
+        self._pressure = unit.pressure
         self._theta = np.zeros(N_THETA)
         self.build_time = time.perf_counter() - t0
 
@@ -185,9 +205,43 @@ class DutyCycleAllocator:
                 as_finite_array(value, name)
         return th.copy()
 
+    def set_pressure(self, pressure: float) -> None:
+        """Use the inlet pressure p_in [Pa] for the next cycles (eq. 1).
+
+        Thrusts scale by :math:`s_i = (a_i p + b_i)/(a_i p_0 + b_i)`. The
+        QP is solved in impulse units :math:`\\tilde k_i = s_i k_i` (the
+        built matrices and the propellant cost stay valid), with the upper
+        bounds :math:`\\tilde k_i \\le s_i`; no rebuild is needed.
+        """
+        p = as_finite_array(pressure, "pressure", ())
+        if p < 0:
+            raise InvalidValueError(
+                f"pressure must be non-negative [Pa], got {float(p)}")
+        u = self.unit
+        scale = (u.pressure_slope * float(p) + u.thrust_offset) / self._steady
+        if np.any(scale <= 0):
+            dead = [u.names[i] for i in np.flatnonzero(scale <= 0)]
+            raise InvalidValueError(
+                f"pressure = {float(p)} Pa gives no thrust (eq. 1) for "
+                f"engine(s) {dead}")
+        self._scale = scale
+        self._pressure = float(p)
+        self._ub[:-1] = scale
+        self._set_r0()
+        self.backend.set_upper(self._ub)
+
+    def _set_r0(self) -> None:
+        qp = self.qp
+        self._r0 = np.concatenate([qp.l0, -qp.u0, qp.lb, -self._ub])
+
+    @property
+    def pressure(self) -> float:
+        """Inlet pressure the allocator currently uses [Pa]."""
+        return self._pressure
+
     def solve(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
               tau_dist=(0.0, 0.0, 0.0)) -> AllocationResult:
-        """Allocate one cycle.
+        """Allocate one cycle (at the pressure of `set_pressure`).
 
         Parameters
         ----------
@@ -208,28 +262,29 @@ class DutyCycleAllocator:
         return self.solve_theta(th)
 
     def solve_theta(self, th: np.ndarray) -> AllocationResult:
-        """`solve` with a ready parameter vector (9,) (no validation)."""
+        """`solve` with a ready parameter vector (9,) (no validation).
+
+        ``th`` is not copied (the result's ``demand`` is a view of it):
+        pass a fresh array, as `theta` returns.
+        """
         t0 = time.perf_counter()
         x, status, residual = self.backend.solve(th)
         solve_time = time.perf_counter() - t0
         if x is None:
             residual = np.inf
         elif residual is None:
-            lu = self._lu0 + self._LU @ th
-            Ax = self._A @ x
-            residual = float(np.concatenate(
-                (lu[:self._m] - Ax, Ax - lu[self._m:], self._lb - x,
-                 x - self._ub)).max())
+            residual = float((self._R @ x + self._Rth @ th
+                              + self._r0).max())
         if x is None or residual > RESIDUAL_TOL:
             status = ("infeasible" if status == "infeasible"
                       or not self._feasible(th) else "failed")
-            k = np.zeros(self.unit.n)
+            kt = np.zeros(self.unit.n)
             slack = 0.0
         else:
-            k = x[:-1].clip(0.0, 1.0)
+            kt = x[:-1].clip(0.0, self._ub[:-1])     # impulse units
             slack = max(float(x[-1]), 0.0)
             status = "optimal" if slack <= SLACK_TOL else "bound_relaxed"
-        return self._result(k, th, status, slack, residual, solve_time)
+        return self._result(kt, th, status, slack, residual, solve_time)
 
     def casadi_function(self, plugin: str = "qrqp",
                         options: dict | None = None):
@@ -238,8 +293,9 @@ class DutyCycleAllocator:
         Returns
         -------
         casadi.Function
-            ``duty_qp(theta[9]) -> (x[n+1], violation)`` with
+            ``duty_qp(theta[9], kmax[n]) -> (x[n+1], violation)`` with
             ``theta = (P_T, M_X, M_Z, H[3], tau_dist[3])`` (see `theta`),
+            ``kmax`` ones at the build pressure (see `set_pressure`),
             ``x = (k, s)``; ``Function.generate`` gives self-contained C
             with ``plugin="qrqp"``. Check ``violation`` (qrqp can report
             success on a violated point).
@@ -260,17 +316,17 @@ class DutyCycleAllocator:
         return res.duty
 
     # ------------------------------------------------------------------
-    def _result(self, k, th, status, slack, residual, solve_time):
-        out = self._out @ k                 # tracked (3), torque (3), kg
-        achieved = out[:3]
-        demand = th[:3].copy()
+    def _result(self, kt, th, status, slack, residual, solve_time):
+        y = self._W @ np.concatenate((kt, th))
+        # kt lies in [0, scale]: the duty kt / scale lies in [0, 1]
+        duty = kt if self._pressure == self.unit.pressure else np.minimum(
+            kt / self._scale, 1.0)
         return AllocationResult(
-            duty=k, status=status,
-            found=status in ("optimal", "bound_relaxed"), demand=demand,
-            achieved=achieved, tracking_error=achieved - demand,
-            momentum_after=th[3:6] + self.cycle * (out[3:6] + th[6:9]),
+            duty=duty, status=status,
+            found=status in ("optimal", "bound_relaxed"), demand=th[:3],
+            achieved=y[0:3], tracking_error=y[3:6], momentum_after=y[6:9],
             momentum_excess=slack * self.h_max, residual=residual,
-            propellant=float(out[6]), solve_time=solve_time,
+            propellant=float(y[9]), solve_time=solve_time,
             solver=self.solver)
 
     def _feasible(self, th: np.ndarray) -> bool:
@@ -278,7 +334,7 @@ class DutyCycleAllocator:
         qp = self.qp
         _, l, u = qp.vectors(th)
         eq = slice(0, qp.n_eq)
-        ub = np.minimum(qp.ub, 1e9)
+        ub = np.minimum(self._ub, 1e9)
         res = linprog(np.zeros(qp.nx), A_eq=qp.A[eq], b_eq=l[eq],
                       bounds=list(zip(qp.lb, ub)), method="highs")
         return res.status == 0

@@ -109,8 +109,10 @@ def build_qp(unit: ThrusterSet, cycle: float, h_max: float,
     Cost: propellant per cycle :math:`\\sum_i k_i T_T P_i/(I_{sp} g_0)`
     (scaled to a maximum coefficient of ``propellant_weight``), a small
     ``regularization`` :math:`\\tfrac\\epsilon2\\|k\\|^2` (unique
-    solutions), the slack penalty ``slack_weight * s + s²/2`` (exact
-    penalty: the bound is met whenever it can be) and, with
+    solutions), the slack penalty ``slack_weight * s + s²/2`` (an exact
+    penalty while the bound's multiplier stays below ``slack_weight``:
+    with the default weights the bound is met whenever it can be, as the
+    property tests check on random demands) and, with
     ``tracking="weighted"``, :math:`\\tfrac w2\\|(M_{thr}k - M)/M_{ref}\\|^2`.
 
     Constraints: thrust along +Y equal to P_T (always hard: it is the

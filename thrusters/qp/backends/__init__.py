@@ -88,6 +88,14 @@ def available_solvers() -> tuple[str, ...]:
     return tuple(names)
 
 
+def _installed_elsewhere(plugin: str) -> bool:
+    try:
+        import qpsolvers
+    except ImportError:
+        return False
+    return plugin in qpsolvers.available_solvers
+
+
 def resolve(name: str) -> tuple[str, str]:
     """``(family, plugin)`` of a solver name, or raise `SolverNotFound`."""
     if not isinstance(name, str):
@@ -112,7 +120,12 @@ def resolve(name: str) -> tuple[str, str]:
         "qpsolvers": lambda: plugin in _qpsolvers_names(),
     }[family]()
     if not ok:
-        raise SolverNotFound(name, available_solvers(), INSTALL_HINT)
+        hint = INSTALL_HINT
+        if family == "qpsolvers" and _installed_elsewhere(plugin):
+            hint = (f"{plugin!r} is installed but not offered for this QP "
+                    "(it failed the reference tests; see "
+                    "thrusters.qp.backends.QPSOLVERS_NAMES)")
+        raise SolverNotFound(name, available_solvers(), hint)
     return family, plugin
 
 

@@ -15,12 +15,14 @@ _INFEASIBLE = (-1,)
 
 
 class Backend:
-    """``daqp.solve`` with the bounds and rows stacked once."""
+    """A persistent ``daqp.Model``: set up once, update f and bounds.
+
+    Each cycle warm-starts from the previous active set.
+    """
 
     def __init__(self, qp: DutyCycleQP, plugin: str, options: dict) -> None:
         import daqp
 
-        self._solve = daqp.solve
         self.qp = qp
         self.settings = {**DEFAULTS, **options}
         self._H = np.ascontiguousarray(qp.P)
@@ -31,16 +33,33 @@ class Backend:
         self._sense = np.zeros(nx + m, dtype=np.int32)
         self._sense[nx:nx + qp.n_eq] = 5          # equality rows
         self._nx = nx
+        q, l, u = qp.vectors(np.zeros(qp.Lm.shape[1]))
+        self._bu[nx:] = u
+        self._bl[nx:] = l
+        self._model = daqp.Model()
+        flag = self._model.setup(self._H, q, self._A, self._bu, self._bl,
+                                 self._sense)
+        if isinstance(flag, tuple):
+            flag = flag[0]
+        if flag < 0:
+            from adcs_common.exceptions import SolverError
+            raise SolverError(f"daqp setup failed with exit flag {flag}",
+                              solver="daqp")
+        self._model.settings = dict(self.settings)
+
+    def set_upper(self, ub: np.ndarray) -> None:
+        """Change the variables' upper bounds (n+1,) for the next solves."""
+        self._bu[:self._nx] = ub
 
     def solve(self, theta: np.ndarray):
         """Return ``(x, status, None)``."""
         q, l, u = self.qp.vectors(theta)
         self._bu[self._nx:] = u
         self._bl[self._nx:] = l
-        x, _, flag, _ = self._solve(self._H, q, self._A, self._bu,
-                                    self._bl, self._sense, **self.settings)
+        self._model.update(f=q, bupper=self._bu, blower=self._bl)
+        x, _, flag, _ = self._model.solve()
         if flag == 1 or flag == 2:                  # optimal / soft optimal
-            return np.asarray(x, dtype=float), "solved", None
+            return np.array(x, dtype=float), "solved", None
         if flag in _INFEASIBLE:
             return None, "infeasible", None
         return None, "failed", None

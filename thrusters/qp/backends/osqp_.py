@@ -38,9 +38,13 @@ class Backend:
             int(osqp.SolverStatus.OSQP_PRIMAL_INFEASIBLE_INACCURATE)}
         self.settings = settings
 
+    def set_upper(self, ub: np.ndarray) -> None:
+        """Change the variables' upper bounds (n+1,) for the next solves."""
+        self._ub = np.array(ub, dtype=float)
+
     def _full(self, l, u):
-        return (np.concatenate([l, self.qp.lb]),
-                np.concatenate([u, self.qp.ub]))
+        ub = getattr(self, "_ub", self.qp.ub)
+        return (np.concatenate([l, self.qp.lb]), np.concatenate([u, ub]))
 
     def solve(self, theta: np.ndarray):
         """Return ``(x, status, None)``, status solved/infeasible/failed."""
