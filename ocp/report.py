@@ -21,8 +21,10 @@ STUDIES: dict[str, tuple[str, str]] = {
                  "scale-factor errors (seed 001)"),
     "thrusters": ("thrusters", "Six-thruster unit in pulse-cycle mode "
                   "(seed 004)"),
+    "seed003": ("seed003", "Seed 003 four-wheel nonlinear model"),
     "chibis": ("chibis", "Chibis-M: coil and wheel failures, gravity boom "
                "(seed 002)"),
+    "slews": ("slews", "Slews: NLP vs eigenaxis vs quaternion feedback"),
 }
 
 
