@@ -189,6 +189,10 @@ class AttitudeMPC:
         Bound on each body-rate component |ω_j| [rad/s].
     max_iter : int
         Iteration limit of the NLP solver (ignored with ``rti``).
+    expand : bool
+        Expand the NLP to SX (faster in Python; ``False`` gives ~5x
+        smaller generated C, as RK4 and its derivatives stay functions
+        called per interval).
     solver_options : dict, optional
         Options of the CasADi nlpsol, merged over the defaults and
         forwarded untouched.
@@ -206,6 +210,7 @@ class AttitudeMPC:
                  qp_solver: str = "qrqp", rti: bool = False,
                  weights: MPCWeights | None = None,
                  rate_max: float | None = None, max_iter: int = 50,
+                 expand: bool = True,
                  solver_options: dict | None = None) -> None:
         if not isinstance(model, SpacecraftModel) or model.wheels is None:
             raise InvalidValueError(
@@ -252,6 +257,7 @@ class AttitudeMPC:
             self.rate_max = as_finite_scalar(rate_max, "rate_max")
             check_positive(self.rate_max, "rate_max")
         self.max_iter = 1 if self.rti else int(max_iter)
+        self.expand = bool(expand)
         #: Levenberg–Marquardt term added to the Gauss–Newton Hessian: the
         #: GN Hessian is singular (no cost on |q| or on x_0), and qrqp then
         #: declares convergence on points violating the QP's constraints.
@@ -407,11 +413,11 @@ class AttitudeMPC:
 
     def _default_options(self, z, p, r, g) -> dict:
         if self.solver == "ipopt":
-            return {"expand": True, "print_time": False,
+            return {"expand": self.expand, "print_time": False,
                     "ipopt": {"print_level": 0, "sb": "yes",
                               "max_iter": self.max_iter, "tol": 1e-8}}
         if self.solver == "fatrop":
-            return {"expand": True, "print_time": False,
+            return {"expand": self.expand, "print_time": False,
                     "structure_detection": "auto",
                     "equality": [True] * self._ng,
                     "fatrop": {"print_level": 0,
@@ -429,7 +435,7 @@ class AttitudeMPC:
             qp_opts.update(print_iter=False, print_header=False,
                            print_info=False)
         opts: dict[str, Any] = {
-            "expand": True, "hess_lag": hess, "qpsol": self.qp_solver,
+            "expand": self.expand, "hess_lag": hess, "qpsol": self.qp_solver,
             "qpsol_options": qp_opts, "print_header": False,
             "print_iteration": False, "print_status": False,
             "print_time": False, "error_on_fail": False,
