@@ -48,6 +48,18 @@ def _export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bench(args: argparse.Namespace) -> int:
+    from .bench import run_bench
+
+    problems = [s.strip() for s in args.problems.split(",") if s.strip()]
+    backends = ([s.strip() for s in args.backends.split(",") if s.strip()]
+                or None)
+    run_bench(args.out, problems=problems, backends=backends,
+              repetitions=args.repetitions, quick=args.quick,
+              progress=not args.no_progress)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``adcs``."""
     parser = argparse.ArgumentParser(
@@ -89,6 +101,23 @@ def build_parser() -> argparse.ArgumentParser:
                      help="build and run the driver, print timings")
     exp.set_defaults(func=_export)
 
+    ben = sub.add_parser("bench", help="time and check every installed "
+                         "QP/NLP backend on the allocation and slew "
+                         "problems")
+    ben.add_argument("--out", default="adcs-bench",
+                     help="output folder for JSON and PNG")
+    ben.add_argument("--problems", default="wheels,thrusters,slew",
+                     help="comma-separated: wheels, thrusters, slew")
+    ben.add_argument("--backends", default="",
+                     help="comma-separated backend names (default: all "
+                     "installed)")
+    ben.add_argument("--repetitions", type=int, default=None,
+                     help="solves per backend (default 200, 20 quick)")
+    ben.add_argument("--quick", action="store_true",
+                     help="small settings (CI, a first look)")
+    ben.add_argument("--no-progress", action="store_true",
+                     help="do not print progress")
+    ben.set_defaults(func=_bench)
     return parser
 
 
