@@ -182,7 +182,11 @@ class AttitudeMPC:
         Conic plugin of ``"sqpmethod"`` (default ``"qrqp"``).
     rti : bool
         Real-time iteration: one full SQP step per sample (``"sqpmethod"``
-        only).
+        only). When that step leaves the applied command or the next
+        state outside the bounds (qrqp can return such a step on
+        degenerate active sets), the step falls back to the full SQP from
+        the same warm start (status ``"rti_fallback:..."``); the exported
+        step Function does the same.
     weights : MPCWeights, optional
         Cost weights.
     rate_max : float, optional
@@ -257,6 +261,7 @@ class AttitudeMPC:
             self.rate_max = as_finite_scalar(rate_max, "rate_max")
             check_positive(self.rate_max, "rate_max")
         self.max_iter = 1 if self.rti else int(max_iter)
+        self.fallback_max_iter = int(max_iter)
         self.expand = bool(expand)
         #: Levenberg–Marquardt term added to the Gauss–Newton Hessian: the
         #: GN Hessian is singular (no cost on |q| or on x_0), and qrqp then
@@ -363,6 +368,14 @@ class AttitudeMPC:
         opts = self._default_options(z, p, r, gv)
         opts = _merge(opts, user_options)
         self.nlpsol = ca.nlpsol("mpc_nlp", plugin, nlp, opts)
+        #: RTI only: the full SQP, run from the same warm start when the
+        #: single step leaves the applied command or x_1 outside the
+        #: bounds (qrqp can return such a step on degenerate active sets).
+        self.fallback = None
+        if self.rti:
+            full = _merge(opts, {"max_iter": self.fallback_max_iter,
+                                 "max_iter_ls": 3})
+            self.fallback = ca.nlpsol("mpc_nlp_full", plugin, nlp, full)
         self._residuals = ca.Function("mpc_residuals", [z, p], [f, gv])
 
         # the step Function: shift warm start, solve, report
@@ -402,11 +415,26 @@ class AttitudeMPC:
         sh = self.shift_function(x_par, z_prev, lam_x_prev, lam_g_prev)
         sol = self.nlpsol(x0=sh[0], p=p, lbx=self.lbz, ubx=self.ubz,
                           lbg=0, ubg=0, lam_x0=sh[1], lam_g0=sh[2])
-        chk = self.check_function(sol["x"], p)
+        zo, lxo, lgo = sol["x"], sol["lam_x"], sol["lam_g"]
+        if self.fallback is not None:
+            # evaluated only when the RTI step fails its check
+            a = [ca.MX.sym(n, s.sparsity()) for n, s in
+                 (("z0", z_prev), ("lx0", lam_x_prev), ("lg0", lam_g_prev),
+                  ("p", p), ("z", z_prev), ("lx", lam_x_prev),
+                  ("lg", lam_g_prev))]
+            fb = self.fallback(x0=a[0], p=a[3], lbx=self.lbz, ubx=self.ubz,
+                               lbg=0, ubg=0, lam_x0=a[1], lam_g0=a[2])
+            full = ca.Function("mpc_full", a,
+                               [fb["x"], fb["lam_x"], fb["lam_g"]])
+            keep = ca.Function("mpc_keep", a, [a[4], a[5], a[6]])
+            pick = ca.Function.if_else("mpc_pick", full, keep)
+            bad = self.check_function(zo, p)[2] > BOUND_TOL
+            zo, lxo, lgo = pick(bad, sh[0], sh[1], sh[2], p, zo, lxo, lgo)
+        chk = self.check_function(zo, p)
         self.step_function = ca.Function(
             "mpc_step",
             [x_par, qf, tau, z_prev, lam_x_prev, lam_g_prev],
-            [sol["x"][us[0]], sol["x"], sol["lam_x"], sol["lam_g"], *chk],
+            [zo[us[0]], zo, lxo, lgo, *chk],
             ["x", "qf", "tau", "z_prev", "lam_x_prev", "lam_g_prev"],
             ["u", "z", "lam_x", "lam_g", "cost", "violation",
              "first_violation", "defect"])
@@ -515,9 +543,24 @@ class AttitudeMPC:
                                      self.check_function(z, p))
         status = str(stats.get("return_status", "unknown"))
         iters = int(stats.get("iter_count", -1))
+        if self.fallback is not None and viol1 > BOUND_TOL:
+            sol = self.fallback(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz,
+                                lbg=0, ubg=0, lam_x0=lx0, lam_g0=lg0)
+            solve_time = time.perf_counter() - t0
+            stats = self.fallback.stats()
+            z = np.asarray(sol["x"]).ravel()
+            lam_x = np.asarray(sol["lam_x"]).ravel()
+            lam_g = np.asarray(sol["lam_g"]).ravel()
+            u = z[self._us[0]].copy()
+            cost, viol, viol1, defect = (float(o) for o in
+                                         self.check_function(z, p))
+            status = ("rti_fallback:"
+                      + str(stats.get("return_status", "unknown")))
+            iters = 1 + int(stats.get("iter_count", -1))
         result = MPCStep(u=u, plan=z, cost=cost, violation=viol,
-                         first_violation=viol1, defect=defect, solve_time=solve_time,
-                         iterations=iters, status=status)
+                         first_violation=viol1, defect=defect,
+                         solve_time=solve_time, iterations=iters,
+                         status=status)
         if check:
             bad = not (np.isfinite(cost) and np.all(np.isfinite(z)))
             # RTI: only the applied command and the state it leads to are
