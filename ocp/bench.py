@@ -129,8 +129,8 @@ def kkt_residual(P, q, C, cl, cu, x, active_tol: float = 1e-7) -> float:
     if rows.size == 0:
         stat = float(np.max(np.abs(grad)))
     else:
-        lb = np.where(eq[rows] | up[rows], -np.inf, -np.inf)
-        lb = np.where(up[rows] & ~lo[rows], 0.0, lb)
+        # grad + Cᵀy = 0: y <= 0 on an active lower bound, >= 0 on upper
+        lb = np.where(up[rows] & ~lo[rows], 0.0, -np.inf)
         ub = np.where(lo[rows] & ~up[rows], 0.0, np.inf)
         sol = lsq_linear(C[rows].T, -grad, bounds=(lb, ub), tol=1e-14)
         stat = float(np.max(np.abs(C[rows].T @ sol.x + grad)))
