@@ -8,6 +8,8 @@ against an exact reference, so that a fast wrong answer shows as wrong:
   ``M = A m`` with ``m`` near the torque box corners (bounds active);
 * ``thrusters``: the duty-cycle QP (`thrusters.DutyCycleAllocator`,
   weighted tracking, momentum box) on random cycles;
+* control row ``osqp@loose`` (OSQP at eps 1e-3, no polishing) in both
+  QPs: fast, and its wrong answers must show in the ``wrong`` column;
 * ``slew``: the MPC slew NLP (`ocp.mpc.AttitudeMPC`, horizon 20) from rest,
   cold-started, by every NLP solver name.
 
@@ -46,6 +48,22 @@ __all__ = [
 PROBLEMS = ("wheels", "thrusters", "slew")
 #: An answer whose KKT residual or error exceeds this is "wrong".
 TOL = 1e-6
+#: ``"<backend>@loose"``: OSQP at its own default tolerances, without
+#: polishing: a fast solver whose answers the certificate must catch.
+LOOSE_OSQP = {"eps_abs": 1e-3, "eps_rel": 1e-3, "polishing": False}
+#: Control rows added to the default QP backend lists.
+CONTROLS = ("osqp@loose",)
+
+
+def _split(name: str) -> tuple[str, dict]:
+    """Backend name and solver options of ``"name"`` / ``"name@loose"``."""
+    base, _, variant = name.partition("@")
+    if variant == "loose" and base == "osqp":
+        return base, dict(LOOSE_OSQP)
+    if variant:
+        raise InvalidValueError(
+            f"backend {name!r}: the only variant is 'osqp@loose'")
+    return base, {}
 
 
 @dataclass(frozen=True)
@@ -132,7 +150,9 @@ def kkt_residual(P, q, C, cl, cu, x, active_tol: float = 1e-7) -> float:
         # grad + Cᵀy = 0: y <= 0 on an active lower bound, >= 0 on upper
         lb = np.where(up[rows] & ~lo[rows], 0.0, -np.inf)
         ub = np.where(lo[rows] & ~up[rows], 0.0, np.inf)
-        sol = lsq_linear(C[rows].T, -grad, bounds=(lb, ub), tol=1e-14)
+        with warnings.catch_warnings():   # scipy's trf on far-off points
+            warnings.simplefilter("ignore", RuntimeWarning)
+            sol = lsq_linear(C[rows].T, -grad, bounds=(lb, ub), tol=1e-14)
         stat = float(np.max(np.abs(C[rows].T @ sol.x + grad)))
     return max(primal, stat / (1.0 + np.linalg.norm(grad)))
 
@@ -171,7 +191,8 @@ def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
     rng = np.random.default_rng(seed)
     demands = [A @ (0.97 * arr.m_max * rng.uniform(-1, 1, n))
                for _ in range(reps)]
-    names = list(backends) if backends else list(available_solvers())
+    names = (list(backends) if backends
+             else list(available_solvers()) + list(CONTROLS))
     P = 2.0 * np.eye(n)
     C = np.vstack([A, np.eye(n)])
 
@@ -192,9 +213,10 @@ def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
         refs.append(m)
     rows = []
     for name in names:
+        base, opts = _split(name)
         try:
-            alloc = QPAllocator(arr, solver=name)
-        except AdcsError as exc:
+            alloc = QPAllocator(arr, solver=base, solver_options=opts)
+        except (AdcsError, TypeError, ValueError) as exc:
             show(f"[wheels] {name}: not available ({exc})")
             continue
         times, err, kkt, fails, wrong = [], 0.0, 0.0, 0, 0
@@ -248,7 +270,8 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
                     rng.uniform(-1, 1) * h_max],
               np.r_[rng.normal(scale=5e-4), 0.0, rng.normal(scale=5e-4)])
              for _ in range(reps)]
-    names = list(backends) if backends else list(available_solvers())
+    names = (list(backends) if backends
+             else list(available_solvers()) + list(CONTROLS))
     kw = dict(tracking="weighted", bound="box")
     ref_name = next((s for s in ("quadprog", "clarabel", "daqp")
                      if s in available_solvers()), names[0])
@@ -279,9 +302,11 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
         refs.append(point(r))
     rows = []
     for name in names:
+        base, opts = _split(name)
         try:
-            alloc = DutyCycleAllocator(unit, 2.0, h_max, solver=name, **kw)
-        except AdcsError as exc:
+            alloc = DutyCycleAllocator(unit, 2.0, h_max, solver=base,
+                                       solver_options=opts, **kw)
+        except (AdcsError, TypeError, ValueError) as exc:
             show(f"[thrusters] {name}: not available ({exc})")
             continue
         times, err, kkt, fails, wrong = [], 0.0, 0.0, 0, 0

@@ -58,3 +58,16 @@ def test_format_table_has_one_line_per_row():
     rows = run_bench(problems=["wheels"], backends=["quadprog", "daqp"],
                      repetitions=3, progress=False)
     assert format_table(rows).count("\n") == len(rows) + 1
+
+
+def test_fast_wrong_answers_are_reported_wrong():
+    from ocp.bench import bench_thrusters
+
+    rows = {r.backend: r for r in bench_thrusters(
+        ["quadprog", "osqp@loose"], reps=12, seed=3)}
+    assert rows["quadprog"].ok
+    loose = rows["osqp@loose"]
+    # OSQP at eps 1e-3 without polishing: points off the optimum (the
+    # KKT certificate catches them even when the duties look close)
+    assert loose.wrong > 0
+    assert loose.max_kkt > 1e-3
