@@ -12,7 +12,8 @@ Exported functions (names are the C symbols):
 * ``min_norm(M[3]) -> m[N]``: seed 001 eq. (5), the closed form;
 * ``wheel_qp(M[3], h[N]) -> (m[N], alpha, violation)``: the bounded wheel
   QP (`allocation.conic_allocator_function`, torque and momentum bounds);
-* ``duty_qp(theta[9]) -> (x[7], violation)``: the thruster duty-cycle QP
+* ``duty_qp(theta[9], kmax[6]) -> (x[7], violation)``: the thruster
+  duty-cycle QP
   (`thrusters.build_qp` data; ``theta = (P_T, M_X, M_Z, H[3], τ[3])``);
 * ``dynamics(x, u, tau) -> xdot`` and ``rk4(x, u, tau, dt) -> xf``: the
   spacecraft model (`ocp.rigid_spacecraft`);
@@ -127,9 +128,11 @@ def duty_qp_function(unit, cycle: float, h_max: float, *,
     Returns
     -------
     casadi.Function
-        ``duty_qp(theta[9]) -> (x[n+1], violation)``: duties and slack,
-        and the largest scaled constraint violation (check it: qrqp can
-        report success on a violated point).
+        ``duty_qp(theta[9], kmax[n]) -> (x[n+1], violation)``: duties and
+        slack, and the largest scaled constraint violation (check it: qrqp
+        can report success on a violated point); ``kmax`` scales each
+        thruster's upper duty (ones at the build pressure, see
+        `DutyCycleAllocator.set_pressure`).
     """
     from thrusters import build_qp
     from thrusters.qp.backends.casadi_conic_ import conic_function
@@ -184,7 +187,8 @@ def default_functions(*, wheels: WheelArray, inertia=None,
         f = duty_qp_function(thrusters, cycle, thruster_h_max)
         fns["duty_qp"] = f
         samples["duty_qp"] = [np.array([0.0, 0.01, -0.02, 0.004, 0.0,
-                                        -0.003, 1e-4, 0.0, 0.0])]
+                                        -0.003, 1e-4, 0.0, 0.0]),
+                              np.ones(thrusters.n)]
     fns["dynamics"] = model.dynamics
     x = model.state(quat_from_axis_angle([1, 2, 3], 0.7),
                     0.01 * rng.normal(size=3), 0.3 * h)

@@ -24,7 +24,8 @@ STUDIES: dict[str, tuple[str, str]] = {
     "seed003": ("seed003", "Seed 003 four-wheel nonlinear model"),
     "chibis": ("chibis", "Chibis-M: coil and wheel failures, gravity boom "
                "(seed 002)"),
-    "slews": ("slews", "Slews: NLP vs eigenaxis vs quaternion feedback"),
+    "slews": ("slews", "Slews: NLPs and MPC vs eigenaxis and quaternion "
+              "feedback"),
 }
 
 
