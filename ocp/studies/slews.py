@@ -96,9 +96,10 @@ def run(ctx: StudyContext) -> Section:
             gains.append(100 * (1 - opt / eig))
     section = Section(
         "slews", "6. Slews: NLPs and MPC vs the closed-form laws",
-        "Rest-to-rest slews with wheel-level limits: the eigenaxis bang–coast–bang law (flight software), quaternion "
-        "PD feedback with minimum-norm allocation, the NLPs (IPOPT, "
-        "multiple shooting), and the MPC in closed loop. Assumed Meteor-M "
+        "Rest-to-rest slews with wheel-level limits: the eigenaxis "
+        "bang–coast–bang law (flight software), quaternion PD feedback "
+        "with minimum-norm allocation, the NLPs (IPOPT, multiple "
+        "shooting), and the MPC in closed loop. Assumed Meteor-M "
         "inertia diag(3000, 2700, 2000) kg·m² with 25 N·m·s / 0.2 N·m "
         "wheels.", tables,
         [Figure(fig_name, "Slew time against angle")])
