@@ -187,7 +187,8 @@ def trade_maps(ctx: StudyContext) -> tuple[Figure, str]:
     best_util = -opt.fun / 4.0
     fig, ax = plt.subplots(figsize=(6, 4.5))
     cs = ax.contourf(np.rad2deg(deltas), np.rad2deg(gammas), util, 20)
-    fig.colorbar(cs, ax=ax, label="utilisation r / ΣH*")
+    fig.colorbar(cs, ax=ax, label="utilisation r / ΣH* (inscribed radius r "
+                 "= 4 × this for H* = 1)")
     ax.plot(55, 45, "r*", ms=12, label="Meteor-M (55°, 45°)")
     ax.plot(*best, "wx", ms=10,
             label=f"optimum ({best[0]:.2f}°, {best[1]:.2f}°)")
