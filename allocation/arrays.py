@@ -332,9 +332,3 @@ def perpendicular_frames(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     e2 = np.cross(h.T, e1.T).T
     return e1, e2
 
-
-def check_rank(axes: np.ndarray, name: str = "axes") -> None:
-    """Raise `RankError` unless ``axes`` (3, N) has rank 3."""
-    r = int(np.linalg.matrix_rank(axes, tol=_RANK_TOL))
-    if r < 3:
-        raise RankError(f"{name} has rank {r} < 3", rank=r, required=3)

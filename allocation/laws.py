@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from adcs_common.exceptions import InvalidValueError, ShapeError
-from adcs_common.validation import as_finite_array, as_vector, check_positive
+from adcs_common.validation import as_vector, check_positive
 
 from .arrays import WheelArray
 
@@ -206,5 +206,4 @@ def allocate_min_norm(array: WheelArray, torque) -> np.ndarray:
 
     Convenience for ``min_norm_law(array).allocate(torque)``.
     """
-    torque = as_finite_array(torque, "torque")
     return min_norm_law(array).allocate(torque)

@@ -204,3 +204,11 @@ def test_motor_rejects_bad_parameters():
         WheelMotor(resistance=-1.0)
     with pytest.raises(InvalidValueError, match="regen_efficiency"):
         WheelMotor(regen_efficiency=1.5)
+
+
+def test_allocate_min_norm_convenience(pyramid):
+    from allocation import allocate_min_norm
+    np.testing.assert_allclose(allocate_min_norm(pyramid, DEMANDS),
+                               min_norm_gains(pyramid) @ DEMANDS)
+    with pytest.raises(ShapeError):
+        allocate_min_norm(pyramid, [1.0, 2.0])
