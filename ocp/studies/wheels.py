@@ -9,6 +9,7 @@ from allocation import (
     PAPER_EQ9_GAINS_PRINTED,
     QPAllocator,
     WheelArray,
+    available_solvers,
     min_norm_gains,
 )
 from allocation.envelope import envelope
@@ -138,10 +139,15 @@ def reach_headline(arr: WheelArray, results) -> Table:
 
 
 def reach_results(arr: WheelArray, n_directions: int) -> list:
-    """`reach_table` for min-norm, weighted and the bounded QP."""
+    """`reach_table` for min-norm, weighted and the bounded QP.
+
+    The QP uses daqp (an active-set solver, exact and fast in the
+    bisection) when the ``solvers`` extra is installed, else osqp.
+    """
+    solver = "daqp" if "daqp" in available_solvers() else "osqp"
     return reach_table(
-        arr, {"QP (daqp, bounded)": lambda a: QPAllocator(a, solver="daqp")},
-        n_directions=n_directions)
+        arr, {f"QP ({solver}, bounded)": lambda a: QPAllocator(
+            a, solver=solver)}, n_directions=n_directions)
 
 
 def reach_rows(results) -> Table:
