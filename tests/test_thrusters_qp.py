@@ -526,3 +526,19 @@ def test_duty_fast_follows_set_pressure():
     with pytest.raises(InfeasibleError):
         alloc.duty_fast(1.3)    # > 3 x 0.4 N at 7 kgf/cm²
     assert alloc.fast_fallbacks == 1
+
+
+def test_duty_function_without_jit_gives_the_same_answer():
+    from thrusters.qp.backends.casadi_conic_ import duty_function
+
+    alloc = DutyCycleAllocator(UNIT, 2.0, H_MAX, solver="daqp",
+                               tracking="weighted")
+    th = alloc.theta(0.0, (0.003, -0.001), (0.005, 0.0, 0.002))
+    duty, _, check = duty_function(alloc.qp, jit=False)(th, np.ones(6))
+    assert float(check) <= 1.0
+    np.testing.assert_allclose(np.array(duty).ravel(), alloc.duty_fast(
+        0.0, (0.003, -0.001), (0.005, 0.0, 0.002)), atol=1e-12)
+    # a NaN parameter gives check = inf, never a NaN duty accepted
+    th[0] = np.nan
+    duty, _, check = duty_function(alloc.qp, jit=False)(th, np.ones(6))
+    assert float(check) == np.inf

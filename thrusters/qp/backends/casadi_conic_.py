@@ -67,7 +67,7 @@ def conic_function(qp: DutyCycleQP, plugin: str,
 
 def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
                   options: dict | None = None, viol_tol: float = 1e-6,
-                  kkt_tol: float = 1e-9) -> ca.Function:
+                  kkt_tol: float = 1e-9, jit: bool = True) -> ca.Function:
     """``duty_fast(theta[9], kmax[n]) -> (duty[n], slack, check)``.
 
     The whole allocation of one cycle as one Function (one
@@ -82,6 +82,11 @@ def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
     """
     opts = {**DEFAULTS.get(plugin, {"error_on_fail": False}),
             **(options or {})}
+    # the arithmetic around the conic compiled to C when a compiler is
+    # there (CasADi's SX virtual machine costs ~3 µs more per call)
+    jit = ({"jit": True, "compiler": "shell",
+            "jit_options": {"flags": ["-O2"], "verbose": False}}
+           if jit and compiler() is not None else {})
     H = ca.DM(qp.P)
     Asp = ca.DM(qp.A)
     solver = ca.conic("duty_fast_conic", plugin,
@@ -100,7 +105,7 @@ def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
     l = ca.DM(_inf(qp.l0)) + ca.DM(qp.Lm) @ th0
     u = ca.DM(_inf(qp.u0)) + ca.DM(qp.Um) @ th0
     ubx = ca.vertcat(km, ca.DM(qp.ub[n]))
-    pre = ca.Function("duty_fast_pre", [th, km], [q, l, u, ubx])
+    pre = ca.Function("duty_fast_pre", [th, km], [q, l, u, ubx], jit)
     # certify the conic's point by its KKT conditions (DAQP through
     # CasADi can stop ~1.5e-6 off the optimum on a feasible point, e.g. a
     # duty at 1.5e-6 whose lower bound carries a multiplier: a residual
@@ -133,7 +138,7 @@ def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
     check = ca.if_else(ca.fabs(total) < np.inf, score, np.inf)
     duty = ca.fmin(ca.fmax(x[:n], 0), km) / km
     post = ca.Function("duty_fast_post", [x, la, lx, th, km],
-                       [duty, x[n], check])
+                       [duty, x[n], check], jit)
     theta = ca.MX.sym("theta", nth)
     kmax = ca.MX.sym("kmax", n)
     qm, lm, um, ubxm = pre(theta, kmax)
@@ -159,8 +164,12 @@ class FastDuty:
     def __init__(self, qp: DutyCycleQP, kmax: np.ndarray,
                  plugin: str = FAST_PLUGIN, options: dict | None = None,
                  viol_tol: float = 1e-6, kkt_tol: float = 1e-9) -> None:
-        self.function = duty_function(qp, plugin, options, viol_tol,
-                                      kkt_tol)
+        try:
+            self.function = duty_function(qp, plugin, options, viol_tol,
+                                          kkt_tol)
+        except RuntimeError:         # the JIT compilation failed
+            self.function = duty_function(qp, plugin, options, viol_tol,
+                                          kkt_tol, jit=False)
         n = qp.nx - 1
         self.theta = np.zeros(qp.Lm.shape[1])
         self.kmax = np.array(kmax, dtype=float)
