@@ -1,8 +1,9 @@
 """Per-cycle allocation time of the thruster laws and QP backends.
 
 Prints the median time per cycle [µs] of the closed forms (seed 004
-eqs. 2 and 8-9) and of every installed duty-cycle QP backend, with the
-ratio to the closed form measured in the same run. Run:
+eqs. 2 and 8-9), of the allocator's certified fast path
+(`DutyCycleAllocator.duty_fast`) and of every installed duty-cycle QP
+backend, with the ratio to the closed form measured in the same run. Run:
 
     python benchmarks/thrusters.py [--repeat N]     (or: python -m
     benchmarks.thrusters from the repository root)
@@ -90,6 +91,17 @@ def main(argv=None):
         return G @ y
     rows.append(("closed form eq. 8, precomputed gains (F = G y)",
                  median_us(gains, dem, args.repeat)))
+    # fast path: one Function.buffer trigger (CasADi daqp + KKT
+    # certificate), falls back to solve() when the certificate fails
+    fast = DutyCycleAllocator(unit, T, 0.012, solver="daqp",
+                              tracking="weighted")
+    rows.append(("QP fast path: DutyCycleAllocator.duty_fast", median_us(
+        lambda d: fast.duty_fast(d[0], d[1], d[2]), dem, args.repeat)))
+    out = np.zeros(unit.n)
+    rows.append(("QP fast path: duty_fast(..., out=buffer)", median_us(
+        lambda d: fast.duty_fast(d[0], d[1], d[2], out=out), dem,
+        args.repeat)))
+    n_fast_calls = 2 * (min(20, len(dem)) + args.repeat * len(dem))
     for solver in available_solvers():
         alloc = DutyCycleAllocator(unit, T, 0.012, solver=solver,
                                    tracking="weighted")
@@ -104,6 +116,8 @@ def main(argv=None):
     for name, (med, low) in rows:
         print(f"{name:<{w}}  {med:>10.1f}  {low:>8.1f}  "
               f"{med / ref[0]:>13.2f}")
+    print(f"duty_fast fell back to solve() on {fast.fast_fallbacks} of "
+          f"{n_fast_calls} calls")
     return rows
 
 

@@ -420,3 +420,125 @@ def test_property_norm_bound_keeps_momentum_in_the_circle(P_T, mx, mz, hx,
 def test_offered_list_matches_available_here():
     # every name the package lists is one the tests cover
     assert set(SOLVERS) <= set(OFFERED)
+
+
+# fast path (duty_fast): one buffer trigger, checked, falls back --------------
+FAST_CONFIGS = [(2.0, "weighted", "box"), (2.0, "weighted", "norm"),
+                (10.0, "hard", "box")]
+
+
+def random_cycles(rng, n):
+    """Random demands: burns and holds, momentum inside the bound."""
+    for i in range(n):
+        P_T = 0.0 if i % 2 else rng.uniform(0.0, 1.0)
+        yield (P_T, rng.uniform(-0.004, 0.004, 2),
+               np.array([rng.uniform(-0.01, 0.01), 0.0,
+                         rng.uniform(-0.01, 0.01)]),
+               rng.uniform(-1e-5, 1e-5, 3))
+
+
+@pytest.mark.parametrize("T,tracking,bound", FAST_CONFIGS)
+def test_duty_fast_matches_exact_reference_on_random_cycles(T, tracking,
+                                                            bound):
+    alloc = DutyCycleAllocator(UNIT, T, H_MAX, solver="daqp",
+                               tracking=tracking, bound=bound, n_facets=12)
+    rng = np.random.default_rng(7)
+    checked = 0
+    for P_T, M, H, tau in random_cycles(rng, 60):
+        try:
+            slow = alloc.duty(P_T, M, H, tau)
+        except InfeasibleError:
+            with pytest.raises(InfeasibleError):
+                alloc.duty_fast(P_T, M, H, tau)
+            continue
+        fast = alloc.duty_fast(P_T, M, H, tau)
+        x_ref = reference(alloc.qp, alloc.theta(P_T, M, H, tau))
+        np.testing.assert_allclose(fast, x_ref[:-1], atol=TOL)
+        np.testing.assert_allclose(fast, slow, atol=TOL)
+        assert np.all((fast >= 0) & (fast <= 1))
+        checked += 1
+    assert checked >= 30
+    if tracking == "hard":              # no fast Function: always solve()
+        assert alloc.fast_fallbacks == 60
+    else:                               # the buffer answered every cycle
+        assert alloc.fast_fallbacks == 60 - checked
+
+
+def test_duty_fast_falls_back_when_the_check_fails():
+    from thrusters.qp.backends.casadi_conic_ import FastDuty
+
+    alloc = DutyCycleAllocator(UNIT, 2.0, H_MAX, solver="daqp",
+                               tracking="weighted")
+    # DAQP's default primal_tol leaves points off by up to ~3e-5: the
+    # check must catch them and solve() answer instead
+    alloc._fast = FastDuty(alloc.qp, np.ones(6),
+                           options={"daqp": {"primal_tol": 1e-6}})
+    rng = np.random.default_rng(3)
+    for P_T, M, H, tau in random_cycles(rng, 40):
+        try:
+            fast = alloc.duty_fast(P_T, M, H, tau)
+        except InfeasibleError:
+            continue
+        x_ref = reference(alloc.qp, alloc.theta(P_T, M, H, tau))
+        np.testing.assert_allclose(fast, x_ref[:-1], atol=TOL)
+    assert alloc.fast_fallbacks > 0
+
+
+def test_duty_fast_never_returns_nan_or_a_bad_demand():
+    alloc = DutyCycleAllocator(UNIT, 10.0, H_MAX, solver="daqp",
+                               tracking="weighted")
+    with pytest.raises(InvalidValueError, match="P_T"):
+        alloc.duty_fast(np.nan)
+    with pytest.raises(InvalidValueError, match="H"):
+        alloc.duty_fast(0.0, (0.0, 0.0), (np.inf, 0.0, 0.0))
+    with pytest.raises(ShapeError):
+        alloc.duty_fast(0.0, (0.0, 0.0, 0.0))
+    with pytest.raises(InfeasibleError):
+        alloc.duty_fast(5.0)            # beyond the thrusters
+    assert alloc.fast_fallbacks == 4
+    # the next good cycle goes through the buffer again, exactly
+    out = np.full(6, np.nan)
+    got = alloc.duty_fast(0.739, (-0.0008, 0.0005), (0.008, 0.0, -0.005),
+                          out=out)
+    assert got is out
+    np.testing.assert_allclose(out, alloc.duty(0.739, (-0.0008, 0.0005),
+                                               (0.008, 0.0, -0.005)),
+                               atol=TOL)
+    assert alloc.fast_fallbacks == 4
+
+
+def test_duty_fast_follows_set_pressure():
+    unit = six_thruster_unit(thrust_offset=0.1)
+    alloc = DutyCycleAllocator(unit, 10.0, H_MAX, solver="daqp",
+                               tracking="weighted")
+    alloc.duty_fast(0.0)                 # Function built before the move
+    alloc.set_pressure(7.0 * 98066.5)
+    assert alloc._fast.kmax.min() < 1.0  # the buffer got the move
+    for P_T, M, H in [(0.6, (-0.0005, 0.0003), (0.005, 0, -0.003)),
+                      (0.0, (0.0008, -0.0005), (0.0, 0.0, 0.0))]:
+        res = alloc.solve(P_T, M, H)
+        assert res.status == "optimal"
+        fast = alloc.duty_fast(P_T, M, H)
+        np.testing.assert_allclose(fast, res.duty, atol=TOL)
+        np.testing.assert_allclose(
+            fast, reference(alloc.qp, alloc.theta(P_T, M, H))[:-1]
+            / alloc._scale, atol=TOL)
+    with pytest.raises(InfeasibleError):
+        alloc.duty_fast(1.3)    # > 3 x 0.4 N at 7 kgf/cm²
+    assert alloc.fast_fallbacks == 1
+
+
+def test_duty_function_without_jit_gives_the_same_answer():
+    from thrusters.qp.backends.casadi_conic_ import duty_function
+
+    alloc = DutyCycleAllocator(UNIT, 2.0, H_MAX, solver="daqp",
+                               tracking="weighted")
+    th = alloc.theta(0.0, (0.003, -0.001), (0.005, 0.0, 0.002))
+    duty, _, check = duty_function(alloc.qp, jit=False)(th, np.ones(6))
+    assert float(check) <= 1.0
+    np.testing.assert_allclose(np.array(duty).ravel(), alloc.duty_fast(
+        0.0, (0.003, -0.001), (0.005, 0.0, 0.002)), atol=1e-12)
+    # a NaN parameter gives check = inf, never a NaN duty accepted
+    th[0] = np.nan
+    duty, _, check = duty_function(alloc.qp, jit=False)(th, np.ones(6))
+    assert float(check) == np.inf

@@ -174,6 +174,9 @@ class DutyCycleAllocator:
         self._scale = np.ones(unit.n)
         self._pressure = unit.pressure
         self._theta = np.zeros(N_THETA)
+        self._fast = None            # built by the first duty_fast call
+        #: Cycles `duty_fast` handed to `solve` (check failed or no plugin).
+        self.fast_fallbacks = 0
         self.build_time = time.perf_counter() - t0
 
     # ------------------------------------------------------------------
@@ -228,6 +231,8 @@ class DutyCycleAllocator:
         self._pressure = float(p)
         self._ub[:-1] = scale
         self._set_r0()
+        if self._fast:
+            self._fast.kmax[:] = scale
         self.backend.set_upper(self._ub)
 
     def _set_r0(self) -> None:
@@ -306,7 +311,7 @@ class DutyCycleAllocator:
 
     def duty(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
              tau_dist=(0.0, 0.0, 0.0)) -> np.ndarray:
-        """Duty fractions only (fast path; raises unless found)."""
+        """Duty fractions only (raises unless found; see `duty_fast`)."""
         res = self.solve(P_T, M, H, tau_dist)
         if not res.found:
             from adcs_common.exceptions import InfeasibleError
@@ -314,6 +319,93 @@ class DutyCycleAllocator:
                 f"duty-cycle QP: status {res.status!r} for demand "
                 f"{res.demand}", problem=self.qp, result=res)
         return res.duty
+
+    def duty_fast(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
+                  tau_dist=(0.0, 0.0, 0.0), out: np.ndarray | None = None
+                  ) -> np.ndarray:
+        """Duty fractions of one cycle, fast path (same answer as `duty`).
+
+        One `casadi.Function.buffer` trigger runs the whole allocation
+        (`backends.casadi_conic_.duty_function`: CasADi's 'daqp' conic with
+        primal_tol 1e-10, whatever ``solver`` the allocator was built
+        with, then a KKT certificate of its point (constraint violation
+        <= `RESIDUAL_TOL`, complementarity and stationarity <= 1e-9), a
+        NaN check and the duties in [0, 1]), with no result object. The
+        certificate is enforced: when it fails, is NaN, or an argument is
+        not finite or has the wrong type, the cycle goes through `solve` (the
+        allocator's backend, the full checks and statuses; counted in
+        ``fast_fallbacks``), so it never returns a wrong or NaN duty
+        silently. The Function is built by the first call (a few ms).
+        With ``tracking="hard"`` there is no fast Function (see
+        `_make_fast`): every cycle goes through `solve`.
+
+        Parameters
+        ----------
+        P_T, M, H, tau_dist
+            As in `solve`.
+        out : numpy.ndarray, shape (n,), optional
+            Write the duties there (no allocation) and return it;
+            otherwise a new array is returned.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+            Duty fractions in [0, 1] (at the pressure of `set_pressure`).
+
+        Raises
+        ------
+        InfeasibleError
+            Status neither ``"optimal"`` nor ``"bound_relaxed"`` (as
+            `duty`).
+        ShapeError, InvalidValueError
+            A bad argument (as `solve`).
+        """
+        f = self._fast
+        if f is None:
+            f = self._make_fast()
+        if f:
+            th = f.theta
+            try:
+                th[0] = P_T
+                th[1:3] = M
+                th[3:6] = H
+                th[6:9] = tau_dist
+            except (TypeError, ValueError):
+                pass                  # solve names the bad argument
+            else:
+                chk = f.check
+                chk[0] = np.nan       # a failed evaluation leaves NaN
+                try:
+                    f.trigger()
+                except RuntimeError:  # CasADi raised: chk stays NaN
+                    pass
+                if chk[0] <= 1.0:     # certified; False for NaN
+                    if out is None:
+                        return f.duty.copy()
+                    out[:] = f.duty
+                    return out
+        self.fast_fallbacks += 1
+        duty = self.duty(P_T, M, H, tau_dist)
+        if out is None:
+            return duty
+        out[:] = duty
+        return out
+
+    def _make_fast(self):
+        """Build the fast path's Function, or False without the plugin."""
+        import casadi as ca
+
+        from .backends.casadi_conic_ import FAST_PLUGIN, FastDuty
+
+        # tracking="hard": CasADi's daqp takes the equality rows as
+        # two-sided inequalities, degenerate with the momentum rows, and
+        # its points fail the certificate on ~all cycles (58 of 60 random
+        # ones, off by ~1.5e-6): duty_fast is then `duty`
+        self._fast = (FastDuty(self.qp, self._ub[:-1],
+                               viol_tol=RESIDUAL_TOL)
+                      if ca.has_conic(FAST_PLUGIN)
+                      and self.tracking == "weighted" else False)
+        return self._fast
 
     # ------------------------------------------------------------------
     def _result(self, kt, th, status, slack, residual, solve_time):

@@ -17,7 +17,13 @@ DEFAULTS = {
     "osqp": {"osqp": {"eps_abs": 1e-6, "eps_rel": 1e-6, "polishing": True,
                       "max_iter": 20000, "verbose": False},
              "error_on_fail": False},
+    # DAQP's default primal_tol (1e-6) leaves equality rows off by up to
+    # ~3e-5 in duty on this QP; with 1e-10 the plugin is exact to the
+    # reference (max error 6e-12 on 300 random cycles, tests check it)
+    "daqp": {"daqp": {"primal_tol": 1e-10}, "error_on_fail": False},
 }
+#: Conic plugin of the allocator's fast path (`duty_function`).
+FAST_PLUGIN = "daqp"
 
 
 def _inf(v: np.ndarray) -> np.ndarray:
@@ -57,6 +63,125 @@ def conic_function(qp: DutyCycleQP, plugin: str,
                               ca.fmax(lbx - x, 0), ca.fmax(x - ubx, 0)))
     return ca.Function("duty_qp", [theta, kmax], [x, viol],
                        ["theta", "kmax"], ["x", "violation"])
+
+
+def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
+                  options: dict | None = None, viol_tol: float = 1e-6,
+                  kkt_tol: float = 1e-9, jit: bool = True) -> ca.Function:
+    """``duty_fast(theta[9], kmax[n]) -> (duty[n], slack, check)``.
+
+    The whole allocation of one cycle as one Function (one
+    `casadi.Function.buffer` trigger): the QP of `conic_function`, the
+    duties ``clip(k, 0, kmax) / kmax`` (in [0, 1] at any pressure), the
+    slack and ``check``, a KKT certificate of the conic's point:
+    ``max(violation / viol_tol, max(complementarity, stationarity) /
+    kkt_tol)`` (stationarity relative to the gradient and multipliers),
+    or ``inf`` when ``theta`` or the point holds a NaN or an infinity
+    (C's ``fmax`` drops NaNs, so the scores alone would hide them).
+    Accept the duties only when ``check <= 1``.
+    """
+    opts = {**DEFAULTS.get(plugin, {"error_on_fail": False}),
+            **(options or {})}
+    # the arithmetic around the conic compiled to C when a compiler is
+    # there (CasADi's SX virtual machine costs ~3 µs more per call)
+    jit = ({"jit": True, "compiler": "shell",
+            "jit_options": {"flags": ["-O2"], "verbose": False}}
+           if jit and compiler() is not None else {})
+    H = ca.DM(qp.P)
+    Asp = ca.DM(qp.A)
+    solver = ca.conic("duty_fast_conic", plugin,
+                      {"h": H.sparsity(), "a": Asp.sparsity()}, opts)
+    n = qp.nx - 1
+    nth = qp.Lm.shape[1]
+    # the arithmetic around the conic as two SX Functions (an MX graph of
+    # small operations costs ~3 µs more per call)
+    th = ca.SX.sym("theta", nth)
+    km = ca.SX.sym("kmax", n)
+    # a NaN or infinity in theta: solve at theta = 0 and report check=inf
+    # (the conic rejects NaN bounds with an exception)
+    ok_in = ca.fabs(ca.sum1(th)) < np.inf
+    th0 = ca.if_else(ok_in, th, ca.DM.zeros(nth))
+    q = ca.DM(qp.q0) + ca.DM(qp.Q) @ th0
+    l = ca.DM(_inf(qp.l0)) + ca.DM(qp.Lm) @ th0
+    u = ca.DM(_inf(qp.u0)) + ca.DM(qp.Um) @ th0
+    ubx = ca.vertcat(km, ca.DM(qp.ub[n]))
+    pre = ca.Function("duty_fast_pre", [th, km], [q, l, u, ubx], jit)
+    # certify the conic's point by its KKT conditions (DAQP through
+    # CasADi can stop ~1.5e-6 off the optimum on a feasible point, e.g. a
+    # duty at 1.5e-6 whose lower bound carries a multiplier: a residual
+    # check cannot see it, complementarity does). Convex QP: primal
+    # feasibility + stationarity + complementarity with sign-correct
+    # multipliers make the point the optimum.
+    nx, m = qp.nx, qp.A.shape[0]
+    x = ca.SX.sym("x", nx)
+    la = ca.SX.sym("lam_a", m)
+    lx = ca.SX.sym("lam_x", nx)
+    lbx = ca.DM(qp.lb)
+    A = ca.DM(qp.A)
+    Ax = A @ x
+    viol = ca.mmax(ca.vertcat(ca.fmax(l - Ax, 0), ca.fmax(Ax - u, 0),
+                              ca.fmax(lbx - x, 0), ca.fmax(x - ubx, 0)))
+    # a multiplier > 0 marks the upper bound active, < 0 the lower one:
+    # that bound must hold with equality (an infinite one, i.e. a wrong
+    # sign on a one-sided row, fails); equality rows have l == u
+    b_a = ca.if_else(la > 0, u, l, False)
+    b_x = ca.if_else(lx > 0, ubx, lbx, False)
+    comp = ca.mmax(ca.vertcat(
+        ca.if_else(la != 0, ca.fabs(Ax - b_a), 0, False),
+        ca.if_else(lx != 0, ca.fabs(x - b_x), 0, False)))
+    grad = ca.DM(qp.P) @ x + q
+    stat = ca.mmax(ca.fabs(grad + A.T @ la + lx)) / (
+        1.0 + ca.mmax(ca.fabs(grad)) + ca.mmax(ca.fabs(la))
+        + ca.mmax(ca.fabs(lx)))
+    score = ca.fmax(viol / viol_tol, ca.fmax(comp, stat) / kkt_tol)
+    total = ca.sum1(th) + ca.sum1(x) + ca.sum1(la) + ca.sum1(lx) + score
+    check = ca.if_else(ca.fabs(total) < np.inf, score, np.inf)
+    duty = ca.fmin(ca.fmax(x[:n], 0), km) / km
+    post = ca.Function("duty_fast_post", [x, la, lx, th, km],
+                       [duty, x[n], check], jit)
+    theta = ca.MX.sym("theta", nth)
+    kmax = ca.MX.sym("kmax", n)
+    qm, lm, um, ubxm = pre(theta, kmax)
+    sol = solver(h=H, g=qm, a=Asp, lba=lm, uba=um, lbx=lbx, ubx=ubxm)
+    duty_m, slack_m, check_m = post(sol["x"], sol["lam_a"], sol["lam_x"],
+                                    theta, kmax)
+    return ca.Function("duty_fast", [theta, kmax],
+                       [duty_m, slack_m, check_m],
+                       ["theta", "kmax"], ["duty", "slack", "check"])
+
+
+class FastDuty:
+    """`duty_function` bound to numpy work arrays through a buffer.
+
+    Attributes ``theta`` (9,) and ``kmax`` (n,) are the inputs, ``duty``
+    (n,), ``slack`` (1,) and ``check`` (1,) the outputs; `trigger`
+    evaluates in place (no argument conversion).
+    """
+
+    __slots__ = ("function", "theta", "kmax", "duty", "slack", "check",
+                 "trigger", "_buf")
+
+    def __init__(self, qp: DutyCycleQP, kmax: np.ndarray,
+                 plugin: str = FAST_PLUGIN, options: dict | None = None,
+                 viol_tol: float = 1e-6, kkt_tol: float = 1e-9) -> None:
+        try:
+            self.function = duty_function(qp, plugin, options, viol_tol,
+                                          kkt_tol)
+        except RuntimeError:         # the JIT compilation failed
+            self.function = duty_function(qp, plugin, options, viol_tol,
+                                          kkt_tol, jit=False)
+        n = qp.nx - 1
+        self.theta = np.zeros(qp.Lm.shape[1])
+        self.kmax = np.array(kmax, dtype=float)
+        self.duty = np.zeros(n)
+        self.slack = np.zeros(1)
+        self.check = np.zeros(1)
+        self._buf, self.trigger = self.function.buffer()
+        self._buf.set_arg(0, memoryview(self.theta))
+        self._buf.set_arg(1, memoryview(self.kmax))
+        self._buf.set_res(0, memoryview(self.duty))
+        self._buf.set_res(1, memoryview(self.slack))
+        self._buf.set_res(2, memoryview(self.check))
 
 
 class Backend:
