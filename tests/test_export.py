@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from allocation import WheelArray
-from ocp.export import CompilerNotFound, export_c, run_driver
+from adcs_common.exceptions import InvalidValueError
+from ocp.export import (
+    CompilerNotFound,
+    daqp_available,
+    export_c,
+    run_driver,
+)
 from thrusters import six_thruster_unit
 
 pytestmark = [
@@ -37,6 +43,32 @@ def test_files_written(exported):
                  "mpc_rti_step"):
         assert f"int {name}(" in text
     assert "mpc_rti_step" in r.readme.read_text()
+    # the wheel QP uses daqp when the casadi wheel ships it
+    plugin = "daqp" if daqp_available() else "qrqp"
+    assert r.extras["wheel_qp_plugin"] == plugin
+    assert ("daqp/api.h" in r.source.read_text()) == (plugin == "daqp")
+    if plugin == "daqp":
+        assert "libdaqpstat.a" in r.makefile.read_text()
+    assert "-O3" in r.makefile.read_text()
+
+
+def test_wheel_qp_qrqp_fallback_is_self_contained(tmp_path):
+    arr = WheelArray.pyramid(h_max=0.2, m_max=0.05)
+    res = export_c(tmp_path, wheels=arr, mpc_variants=(),
+                   wheel_qp_plugin="qrqp", build=True, repeats=50)
+    assert res.extras["wheel_qp_plugin"] == "qrqp"
+    assert "daqp" not in res.source.read_text()
+    assert "SOLVER_LIBS = -lm" in res.makefile.read_text()
+    f = res.functions["wheel_qp"]
+    ext = ca.external("wheel_qp", str(res.shared_library))
+    for _ in range(20):
+        args = _random_inputs("wheel_qp", f, res.samples)
+        for a, b in zip(f.call(args), ext.call(args)):
+            np.testing.assert_allclose(np.asarray(b), np.asarray(a),
+                                       atol=1e-10, rtol=0)
+    with pytest.raises(InvalidValueError, match="wheel_qp_plugin"):
+        export_c(tmp_path, wheels=arr, mpc_variants=(),
+                 wheel_qp_plugin="osqp")
 
 
 def _random_inputs(name, f, samples):
@@ -85,6 +117,7 @@ def test_driver_runs_and_times(exported):
     assert t["closed_loop:mpc_rti_step"]["final_error_deg"] < 1e-2
     # closed forms are sub-microsecond, the MPC step is milliseconds
     assert t["min_norm"]["median_us"] < 5.0
+    assert t["wheel_qp"]["median_us"] < 50.0
     assert t["closed_loop:mpc_rti_step"]["median_us"] < 50_000.0
 
 
