@@ -326,8 +326,9 @@ class DutyCycleAllocator:
         """Duty fractions of one cycle, fast path (same answer as `duty`).
 
         One `casadi.Function.buffer` trigger runs the whole allocation
-        (`backends.casadi_conic_.duty_function`: CasADi's 'daqp' conic with
-        primal_tol 1e-10, whatever ``solver`` the allocator was built
+        (`backends.casadi_conic_.duty_function`: the equality rows
+        eliminated in closed form, CasADi's 'daqp' conic with primal_tol
+        1e-10 on the rest, whatever ``solver`` the allocator was built
         with, then a KKT certificate of its point (constraint violation
         <= `RESIDUAL_TOL`, complementarity and stationarity <= 1e-9), a
         NaN check and the duties in [0, 1]), with no result object. The
@@ -336,8 +337,6 @@ class DutyCycleAllocator:
         allocator's backend, the full checks and statuses; counted in
         ``fast_fallbacks``), so it never returns a wrong or NaN duty
         silently. The Function is built by the first call (a few ms).
-        With ``tracking="hard"`` there is no fast Function (see
-        `_make_fast`): every cycle goes through `solve`.
 
         Parameters
         ----------
@@ -397,14 +396,9 @@ class DutyCycleAllocator:
 
         from .backends.casadi_conic_ import FAST_PLUGIN, FastDuty
 
-        # tracking="hard": CasADi's daqp takes the equality rows as
-        # two-sided inequalities, degenerate with the momentum rows, and
-        # its points fail the certificate on ~all cycles (58 of 60 random
-        # ones, off by ~1.5e-6): duty_fast is then `duty`
         self._fast = (FastDuty(self.qp, self._ub[:-1],
                                viol_tol=RESIDUAL_TOL)
-                      if ca.has_conic(FAST_PLUGIN)
-                      and self.tracking == "weighted" else False)
+                      if ca.has_conic(FAST_PLUGIN) else False)
         return self._fast
 
     # ------------------------------------------------------------------

@@ -65,20 +65,47 @@ def conic_function(qp: DutyCycleQP, plugin: str,
                        ["theta", "kmax"], ["x", "violation"])
 
 
+def _equality_reduction(qp: DutyCycleQP):
+    """Null-space elimination of the QP's equality rows.
+
+    The equality rows ``E k = e(theta)`` (thrust, and the torques with
+    ``tracking="hard"``; the slack is not in them) are solved exactly by
+    ``k = kp(theta) + Z z`` with ``kp = E^+ e(theta)`` and ``Z`` an
+    orthonormal basis of the null space of ``E`` (n, n - n_eq). Returns
+    ``(Ep, Z)``: ``kp = Ep @ (l0_eq + Lm_eq @ theta)``.
+    """
+    n = qp.nx - 1
+    E = qp.A[:qp.n_eq, :n]
+    if np.any(qp.A[:qp.n_eq, n] != 0.0):
+        raise ValueError("the slack appears in an equality row")
+    _, sv, Vt = np.linalg.svd(E)
+    rank = int(np.sum(sv > sv[0] * 1e-12))
+    if rank < qp.n_eq:
+        raise ValueError("dependent equality rows")
+    return np.linalg.pinv(E), Vt[rank:].T
+
+
 def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
                   options: dict | None = None, viol_tol: float = 1e-6,
                   kkt_tol: float = 1e-9, jit: bool = True) -> ca.Function:
     """``duty_fast(theta[9], kmax[n]) -> (duty[n], slack, check)``.
 
     The whole allocation of one cycle as one Function (one
-    `casadi.Function.buffer` trigger): the QP of `conic_function`, the
-    duties ``clip(k, 0, kmax) / kmax`` (in [0, 1] at any pressure), the
-    slack and ``check``, a KKT certificate of the conic's point:
-    ``max(violation / viol_tol, max(complementarity, stationarity) /
-    kkt_tol)`` (stationarity relative to the gradient and multipliers),
-    or ``inf`` when ``theta`` or the point holds a NaN or an infinity
-    (C's ``fmax`` drops NaNs, so the scores alone would hide them).
-    Accept the duties only when ``check <= 1``.
+    `casadi.Function.buffer` trigger). The equality rows are eliminated
+    first (`_equality_reduction`: ``k = kp(theta) + Z z``), so the conic
+    sees an inequality-only QP in ``(z, slack)``: DAQP takes equality rows
+    as two-sided inequalities that are degenerate with the momentum rows
+    and then stops ~1.5e-6 off the optimum on most hard-tracking cycles;
+    the reduced problem has no such rows. Outputs: the duties
+    ``clip(k, 0, kmax) / kmax`` (in [0, 1] at any pressure), the slack and
+    ``check``, the larger of the original QP's constraint violation over
+    ``viol_tol`` and the reduced QP's KKT residuals (complementarity and
+    stationarity relative to the gradient and multipliers) over
+    ``kkt_tol``; ``inf`` when ``theta`` or the point holds a NaN or an
+    infinity (C's ``fmax`` drops NaNs, so the scores alone would hide
+    them). Accept the duties only when ``check <= 1``: the reduced QP is
+    convex, so a point passing its KKT test is its optimum, and the
+    reduction is exact.
     """
     opts = {**DEFAULTS.get(plugin, {"error_on_fail": False}),
             **(options or {})}
@@ -87,14 +114,26 @@ def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
     jit = ({"jit": True, "compiler": "shell",
             "jit_options": {"flags": ["-O2"], "verbose": False}}
            if jit and compiler() is not None else {})
-    H = ca.DM(qp.P)
-    Asp = ca.DM(qp.A)
-    solver = ca.conic("duty_fast_conic", plugin,
-                      {"h": H.sparsity(), "a": Asp.sparsity()}, opts)
     n = qp.nx - 1
+    ne = qp.n_eq
     nth = qp.Lm.shape[1]
-    # the arithmetic around the conic as two SX Functions (an MX graph of
-    # small operations costs ~3 µs more per call)
+    Ep, Z = _equality_reduction(qp)
+    nz = Z.shape[1]
+    # x = xp(theta) + Tm @ y, y = (z, slack)
+    Tm = np.zeros((qp.nx, nz + 1))
+    Tm[:n, :nz] = Z
+    Tm[n, nz] = 1.0
+    A_in = qp.A[ne:]
+    Hr = Tm.T @ qp.P @ Tm
+    Ar = np.vstack([A_in @ Tm, Tm[:n]])          # rows: momentum, k bounds
+    Hd, Ad = ca.DM(Hr), ca.DM(Ar)
+    solver = ca.conic("duty_fast_conic", plugin,
+                      {"h": Hd.sparsity(), "a": Ad.sparsity()}, opts)
+    lby = np.zeros(nz + 1)
+    lby[:nz] = -np.inf
+    uby = np.full(nz + 1, np.inf)
+    uby[nz] = qp.ub[n]
+
     th = ca.SX.sym("theta", nth)
     km = ca.SX.sym("kmax", n)
     # a NaN or infinity in theta: solve at theta = 0 and report check=inf
@@ -104,47 +143,57 @@ def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
     q = ca.DM(qp.q0) + ca.DM(qp.Q) @ th0
     l = ca.DM(_inf(qp.l0)) + ca.DM(qp.Lm) @ th0
     u = ca.DM(_inf(qp.u0)) + ca.DM(qp.Um) @ th0
-    ubx = ca.vertcat(km, ca.DM(qp.ub[n]))
-    pre = ca.Function("duty_fast_pre", [th, km], [q, l, u, ubx], jit)
-    # certify the conic's point by its KKT conditions (DAQP through
-    # CasADi can stop ~1.5e-6 off the optimum on a feasible point, e.g. a
-    # duty at 1.5e-6 whose lower bound carries a multiplier: a residual
-    # check cannot see it, complementarity does). Convex QP: primal
-    # feasibility + stationarity + complementarity with sign-correct
-    # multipliers make the point the optimum.
-    nx, m = qp.nx, qp.A.shape[0]
-    x = ca.SX.sym("x", nx)
-    la = ca.SX.sym("lam_a", m)
-    lx = ca.SX.sym("lam_x", nx)
-    lbx = ca.DM(qp.lb)
-    A = ca.DM(qp.A)
-    Ax = A @ x
-    viol = ca.mmax(ca.vertcat(ca.fmax(l - Ax, 0), ca.fmax(Ax - u, 0),
-                              ca.fmax(lbx - x, 0), ca.fmax(x - ubx, 0)))
+    kp = ca.DM(Ep) @ l[:ne]
+    xp = ca.vertcat(kp, 0)
+    gr = ca.DM(Tm.T) @ (ca.DM(qp.P) @ xp + q)
+    Axp = ca.DM(A_in) @ xp
+    lr = ca.vertcat(l[ne:] - Axp, -kp)
+    ur = ca.vertcat(u[ne:] - Axp, km - kp)
+    pre = ca.Function("duty_fast_pre", [th, km], [gr, lr, ur, xp], jit)
+
+    # certificate of the conic's point y by the reduced QP's KKT
+    # conditions (convex QP: primal feasibility + stationarity +
+    # complementarity with sign-correct multipliers make it the optimum)
+    y = ca.SX.sym("y", nz + 1)
+    la = ca.SX.sym("lam_a", Ar.shape[0])
+    ly = ca.SX.sym("lam_x", nz + 1)
+    xps = ca.SX.sym("xp", qp.nx)
+    gs = ca.SX.sym("g", nz + 1)
+    ls = ca.SX.sym("lr", Ar.shape[0])
+    us = ca.SX.sym("ur", Ar.shape[0])
+    x = xps + ca.DM(Tm) @ y
+    Ay = Ad @ y
     # a multiplier > 0 marks the upper bound active, < 0 the lower one:
     # that bound must hold with equality (an infinite one, i.e. a wrong
-    # sign on a one-sided row, fails); equality rows have l == u
-    b_a = ca.if_else(la > 0, u, l, False)
-    b_x = ca.if_else(lx > 0, ubx, lbx, False)
+    # sign on a one-sided row, fails)
+    b_a = ca.if_else(la > 0, us, ls, False)
+    b_y = ca.if_else(ly > 0, ca.DM(uby), ca.DM(lby), False)
     comp = ca.mmax(ca.vertcat(
-        ca.if_else(la != 0, ca.fabs(Ax - b_a), 0, False),
-        ca.if_else(lx != 0, ca.fabs(x - b_x), 0, False)))
-    grad = ca.DM(qp.P) @ x + q
-    stat = ca.mmax(ca.fabs(grad + A.T @ la + lx)) / (
+        ca.if_else(la != 0, ca.fabs(Ay - b_a), 0, False),
+        ca.if_else(ly != 0, ca.fabs(y - b_y), 0, False)))
+    grad = Hd @ y + gs
+    stat = ca.mmax(ca.fabs(grad + Ad.T @ la + ly)) / (
         1.0 + ca.mmax(ca.fabs(grad)) + ca.mmax(ca.fabs(la))
-        + ca.mmax(ca.fabs(lx)))
+        + ca.mmax(ca.fabs(ly)))
+    # violation measured on the original QP, equality rows included
+    A = ca.DM(qp.A)
+    Ax = A @ x
+    ubx = ca.vertcat(km, ca.DM(qp.ub[n]))
+    viol = ca.mmax(ca.vertcat(ca.fmax(l - Ax, 0), ca.fmax(Ax - u, 0),
+                              ca.fmax(ca.DM(qp.lb) - x, 0),
+                              ca.fmax(x - ubx, 0)))
     score = ca.fmax(viol / viol_tol, ca.fmax(comp, stat) / kkt_tol)
-    total = ca.sum1(th) + ca.sum1(x) + ca.sum1(la) + ca.sum1(lx) + score
+    total = ca.sum1(th) + ca.sum1(y) + ca.sum1(la) + ca.sum1(ly) + score
     check = ca.if_else(ca.fabs(total) < np.inf, score, np.inf)
     duty = ca.fmin(ca.fmax(x[:n], 0), km) / km
-    post = ca.Function("duty_fast_post", [x, la, lx, th, km],
-                       [duty, x[n], check], jit)
+    post = ca.Function("duty_fast_post", [y, la, ly, xps, gs, ls, us, th,
+                                          km], [duty, x[n], check], jit)
     theta = ca.MX.sym("theta", nth)
     kmax = ca.MX.sym("kmax", n)
-    qm, lm, um, ubxm = pre(theta, kmax)
-    sol = solver(h=H, g=qm, a=Asp, lba=lm, uba=um, lbx=lbx, ubx=ubxm)
+    gm, lm, um, xpm = pre(theta, kmax)
+    sol = solver(h=Hd, g=gm, a=Ad, lba=lm, uba=um, lbx=lby, ubx=uby)
     duty_m, slack_m, check_m = post(sol["x"], sol["lam_a"], sol["lam_x"],
-                                    theta, kmax)
+                                    xpm, gm, lm, um, theta, kmax)
     return ca.Function("duty_fast", [theta, kmax],
                        [duty_m, slack_m, check_m],
                        ["theta", "kmax"], ["duty", "slack", "check"])
