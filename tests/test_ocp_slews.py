@@ -116,8 +116,10 @@ def test_min_energy_slew_reaches_target_at_T_with_less_energy():
 
 
 def test_min_energy_single_axis_matches_the_cubic_optimum():
-    """J = I, 1 rad about z in T = 2: optimum θ̈ = θ_f (6 - 12 t/T)/T²,
-    energy ∫u² = 12 θ_f²/T³ = 1.5."""
+    """J = I, 1 rad about z in T = 2: the cubic optimum, energy 1.5.
+
+    θ̈ = θ_f (6 - 12 t/T)/T², energy ∫u² = 12 θ_f²/T³ = 1.5.
+    """
     qf = quat_from_axis_angle([0, 0, 1], 1.0)
     r = min_energy_slew(np.eye(3), Q0, qf, torque_max=10.0, T=2.0, N=200)
     assert r.success

@@ -124,9 +124,9 @@ def test_momentum_bound_after_the_step(solver):
 
 def test_wheel_beyond_its_momentum_limit_is_driven_back():
     arr = small_pyramid()
-    res = QPAllocator(arr, solver="daqp", saturation="least_squares"
-                      ).allocate([0.0, 0.0, 0.0], wheel_momentum=[5.0, 0, 0, 0],
-                                 dt=1.0)
+    alloc = QPAllocator(arr, solver="daqp", saturation="least_squares")
+    res = alloc.allocate([0.0, 0.0, 0.0], wheel_momentum=[5.0, 0, 0, 0],
+                         dt=1.0)
     assert res.torques[0] == -0.2
     # the other three wheels cancel its torque: the zero demand is still met
     assert res.status == "optimal"

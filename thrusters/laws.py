@@ -124,7 +124,9 @@ def _mode(P_T: float) -> str:
 
 def unloading_law(unit: ThrusterSet, P_T: float, H, T_T: float,
                   K_unl: float = 1.0) -> LawResult:
-    """Translation with wheel unloading, seed 004 eq. (2) (reconstructed).
+    """Duties for a translation with wheel unloading, seed 004 eq. (2).
+
+    (Reconstructed form, SPEC section 2.)
 
     One group fires (group 1, +Y, when ``P_T > 0``; group 2, -Y, when
     ``P_T < 0``). Its three duty coefficients solve

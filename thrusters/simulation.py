@@ -299,7 +299,9 @@ def burn_scenario(allocation: str = "law", solver: str = "osqp",
                   disturbance=BURN_DISTURBANCE, dt: float = 0.1,
                   settle: float = 60.0, calibrate: bool = True,
                   pressure_drop: float = 0.0) -> ScenarioResult:
-    """Translation burn of Table 2 with wheel unloading (eq. 2 or the QP).
+    """Simulate the translation burn of Table 2 with wheel unloading.
+
+    Unloading by eq. 2 or by the QP.
 
     The spacecraft (54 kg, J = diag(3.0, 2.5, 3.5) kg·m²) fires group 1
     for T_imp = 340 s in T_T = 10 s cycles at P_T = 0.739 N; three

@@ -74,7 +74,7 @@ def six_unit_geometry_sym(R, L):
 
 
 def six_unit_function() -> ca.Function:
-    """The seed-004 six-thruster unit as a casadi Function.
+    """Build the seed-004 six-thruster unit as a casadi Function.
 
     Returns
     -------

@@ -232,11 +232,11 @@ class ThrusterSet:
 
     # ------------------------------------------------------------------
     def with_pressure(self, pressure: float) -> "ThrusterSet":
-        """The same set at another inlet pressure [Pa]."""
+        """Return the same set at another inlet pressure [Pa]."""
         return replace(self, pressure=pressure)
 
     def with_correction(self, correction) -> "ThrusterSet":
-        """The same set with other correction coefficients K_p (n,) [1]."""
+        """Return the set with other correction coefficients K_p (n,) [1]."""
         return replace(self, correction=correction)
 
     def check_cycle(self, cycle: float, name: str = "cycle") -> float:
@@ -317,7 +317,7 @@ class ThrusterSet:
         return P * np.where(D > 0, rising + np.where(t > c, tail, 0.0), 0.0)
 
     def mean_thrust(self, duty, cycle: float) -> np.ndarray:
-        """True mean thrust of each engine over a cycle, (n,) [N].
+        """Return the true mean thrust of each engine over a cycle, (n,) [N].
 
         ``pulse_impulse(duty * cycle) / cycle``; compare with the linear
         cycle model ``duty * cycle_thrust``.
@@ -357,7 +357,7 @@ class ThrusterSet:
         return self.pulse_impulse(k * T) / (self.steady_thrust * k * T)
 
     def calibrated(self, cycle: float, duty=1.0) -> "ThrusterSet":
-        """The set with K_p from `correction_coefficient` (firing test)."""
+        """Return the set with K_p from `correction_coefficient` (firing)."""
         return self.with_correction(self.correction_coefficient(cycle, duty))
 
     def thrust_profile(self, times, on_time,
@@ -395,7 +395,7 @@ def six_thruster_unit(R: float = 0.25, L: float = 0.3, thrust: float = 0.5,
                       thrust_offset=0.0,
                       center_of_mass: Sequence[float] = (0.0, 0.0, 0.0),
                       correction=1.0, **kwargs) -> ThrusterSet:
-    """The six-thruster unit of seed 004 (engines ordered D1..D6).
+    """Build the six-thruster unit of seed 004 (engines ordered D1..D6).
 
     Two groups of three engines on a circle of radius ``R`` in planes
     ``y = -L`` (group 1, D1-D3, thrust along +Y) and ``y = +L`` (group 2,

@@ -273,7 +273,7 @@ class Backend:
 
 
 def compiler() -> str | None:
-    """A C compiler on PATH (``cc``, ``gcc`` or ``clang``), or None."""
+    """Return a C compiler on PATH (``cc``, ``gcc`` or ``clang``), or None."""
     import shutil
 
     for name in ("cc", "gcc", "clang"):
