@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linprog
 
-from adcs_common.exceptions import InvalidValueError
+from adcs_common.exceptions import InvalidValueError, ShapeError
 from adcs_common.validation import as_finite_array
 
 from ..laws import THRUST_AXIS, TORQUE_AXES
@@ -73,6 +73,18 @@ class AllocationResult:
     propellant: float
     solve_time: float
     solver: str
+
+
+def _fill_theta(th: np.ndarray, P_T, M, H, tau_dist) -> bool:
+    """Write (P_T, M, H, tau_dist) into ``th`` (9,); False if they misfit."""
+    try:
+        th[0] = P_T
+        th[1:3] = M
+        th[3:6] = H
+        th[6:9] = tau_dist
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 class DutyCycleAllocator:
@@ -191,17 +203,12 @@ class DutyCycleAllocator:
             names it).
         """
         th = self._theta
-        try:
-            th[0] = P_T
-            th[1:3] = M
-            th[3:6] = H
-            th[6:9] = tau_dist
-        except (TypeError, ValueError):
+        if not _fill_theta(th, P_T, M, H, tau_dist):
             for value, name, shape in ((P_T, "P_T", ()), (M, "M", (2,)),
                                        (H, "H", (3,)),
                                        (tau_dist, "tau_dist", (3,))):
                 as_finite_array(value, name, shape)
-            raise
+            raise ShapeError("P_T, M, H, tau_dist do not fit (9,)")
         if not np.isfinite(th).all():
             for value, name in ((P_T, "P_T"), (M, "M"), (H, "H"),
                                 (tau_dist, "tau_dist")):
@@ -363,15 +370,8 @@ class DutyCycleAllocator:
         if f is None:
             f = self._make_fast()
         if f:
-            th = f.theta
-            try:
-                th[0] = P_T
-                th[1:3] = M
-                th[3:6] = H
-                th[6:9] = tau_dist
-            except (TypeError, ValueError):
-                pass                  # solve names the bad argument
-            else:
+            # a bad argument: solve names it
+            if _fill_theta(f.theta, P_T, M, H, tau_dist):
                 chk = f.check
                 chk[0] = np.nan       # a failed evaluation leaves NaN
                 try:
