@@ -20,17 +20,22 @@ import casadi as ca
 import numpy as np
 
 from adcs_common.exceptions import InvalidValueError, ShapeError
-from adcs_common.validation import as_finite_array, as_vector
-
-from adcs_common.validation import as_finite_scalar
+from adcs_common.validation import (
+    as_finite_array,
+    as_finite_scalar,
+    as_vector,
+)
 
 from .attitude import quat_from_axis_angle, quat_mul, quat_rate, quat_to_dcm
 from .environment import (
     EARTH_DIPOLE,
+    bdot_dipole,
     dipole_field_orbit,
     gravity_gradient_torque,
     orbit_rate,
+    seed002_wheel_law_expr,
 )
+
 
 @dataclass(frozen=True)
 class CircularOrbit:
@@ -211,15 +216,12 @@ def closed_loop_ode(orbit: CircularOrbit, inertia) -> ca.Function:
     B_orbit = orbit.field(u)
     B = A @ B_orbit
     B_dot = A @ (ca.jacobian(B_orbit, u) * w0) - ca.cross(w_rel, B)
-    dipole = coils * ca.fmin(ca.fmax(-k_bdot * B_dot, -m_max), m_max) \
-        + m_const
+    dipole = bdot_dipole(B_dot, k_bdot, m_max, coils) + m_const
     e3 = A @ ca.DM([0.0, 0.0, 1.0])
     torque = gravity_gradient_torque(J, e3, w0) + ca.cross(dipole, B)
-    S = ca.vertcat(A[1, 2] - A[2, 1], A[2, 0] - A[0, 2], A[0, 1] - A[1, 0])
-    # eq. (1.8) as `environment.seed002_wheel_law` reads it, gains symbolic
+    # eq. (1.8), the same expression as `seed002_wheel_law`, gains symbolic
     Jd = ca.DM(J)
-    law = -ca.cross(w, H) + k_w * w_rel + k_a * S - ca.cross(w, Jd @ w) \
-        - Jd @ ca.cross(w_orb, w_rel)
+    law = seed002_wheel_law_expr(J, w0, A, w, H, k_w, k_a)
     law = ca.if_else(k_w + k_a > 0, law, ca.DM.zeros(3))
     spin_on = ca.fabs(H) < spin_limit
     h_dot = pairs * (law + spin * spin_on)

@@ -242,14 +242,27 @@ def seed002_wheel_law(model: OrbitModel, k_omega: float,
     t = ca.SX.sym("t")
     q, w, H = x[:4], x[4:7], x[7:10]
     A = quat_to_dcm(q).T  # body <- orbit
-    w_orb = model.w0 * A[:, 1]
-    w_rel = w - w_orb
-    S = ca.vertcat(A[1, 2] - A[2, 1], A[2, 0] - A[0, 2], A[0, 1] - A[1, 0])
-    J = ca.DM(model.inertia)
-    hdot = (-ca.cross(w, H) + k_omega * w_rel + k_a * S
-            - ca.cross(w, J @ w) - J @ ca.cross(w_orb, w_rel))
+    hdot = seed002_wheel_law_expr(model.inertia, model.w0, A, w, H,
+                                  k_omega, k_a)
     return ca.Function("seed002_wheel_law", [x, t], [hdot], ["x", "t"],
                        ["hdot"])
+
+
+def seed002_wheel_law_expr(inertia, w0: float, A, w, H, k_omega, k_a):
+    """Right-hand side of eq. (1.8), the wheel momentum rate Ḣ (3,).
+
+    The expression `seed002_wheel_law` wraps (and `ocp.chibis` uses with
+    symbolic gains): ``A`` the direction-cosine matrix body ← orbit (3, 3),
+    ``w`` the absolute body rate [rad/s], ``H`` the wheel momentum
+    [N·m·s], gains numbers or casadi symbols. Returns a casadi SX (3,)
+    [N·m].
+    """
+    w_orb = w0 * A[:, 1]
+    w_rel = w - w_orb
+    S = ca.vertcat(A[1, 2] - A[2, 1], A[2, 0] - A[0, 2], A[0, 1] - A[1, 0])
+    J = ca.DM(inertia)
+    return (-ca.cross(w, H) + k_omega * w_rel + k_a * S
+            - ca.cross(w, J @ w) - J @ ca.cross(w_orb, w_rel))
 
 
 @dataclass(frozen=True, eq=False)
@@ -293,6 +306,17 @@ class BdotRun:
         axes[1].set_ylabel("dipole [A·m²]")
         axes[1].set_xlabel("t [s]")
         return fig
+
+
+def bdot_dipole(Bdot, gain, dipole_max, coils):
+    """Return the −Bdot dipole, coil by coil: ``coils * sat(-gain Bdot)``.
+
+    ``Bdot`` the field rate seen by the body [T/s] (3,), ``gain`` k
+    [A·m²·s/T], ``dipole_max`` the saturation per coil [A·m²], ``coils``
+    1 for a working and 0 for a failed coil (3,). Numbers or casadi
+    symbols; `bdot_detumble` and `ocp.chibis` share it.
+    """
+    return coils * ca.fmin(ca.fmax(-gain * Bdot, -dipole_max), dipole_max)
 
 
 def bdot_detumble(model: OrbitModel, x0, *, t_final: float,
@@ -343,7 +367,7 @@ def bdot_detumble(model: OrbitModel, x0, *, t_final: float,
     x = ca.MX.sym("x", 7)
     t = ca.MX.sym("t")
     _, Bdot = model.field_body(x, t)
-    m = ca.fmin(ca.fmax(-k * Bdot, -ca.DM(mmax)), ca.DM(mmax)) * ca.DM(on)
+    m = bdot_dipole(Bdot, k, ca.DM(mmax), ca.DM(on))
     tt = ca.MX.sym("tt")
     xs = ca.MX.sym("xs", 7)
     p = ca.MX.sym("p", 4)  # dipole (3), start time of the interval

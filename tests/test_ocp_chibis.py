@@ -97,3 +97,39 @@ def test_planar_boom_oscillates_without_dipole_and_rotates_when_fast():
     A, B, C = inertia
     fast = 1.05 * np.sqrt(3 * (A - C) / B) * ORBIT.rate
     assert planar_boom_rotates(inertia, ORBIT, 0.0, rate0=fast)
+
+
+def test_closed_loop_ode_equals_orbit_model_with_bdot_and_wheel_law():
+    """One closed loop, two builders, the same right-hand side.
+
+    `closed_loop_ode` (continuous −Bdot, eq. 1.8 wheel law with symbolic
+    gains) against `orbit_model` with the same laws applied to its
+    ``field_body`` and ``seed002_wheel_law``.
+    """
+    import casadi as ca
+
+    from ocp.chibis import _params, closed_loop_ode
+    from ocp.environment import bdot_dipole, orbit_model, seed002_wheel_law
+
+    J = (1.02, 1.51, 1.73)
+    cfg = ChibisConfig(inertia=J, bdot_gain=3e5, max_dipole=0.5,
+                       coils=(1, 0, 1), wheel_gains=(0.02, 0.003))
+    f = closed_loop_ode(ORBIT, J)
+    model = orbit_model(np.diag(J), radius=ORBIT.radius,
+                        inclination=ORBIT.inclination)
+    law = seed002_wheel_law(model, 0.02, 0.003)
+    rng = np.random.default_rng(4)
+    for _ in range(5):
+        x = initial_state(cfg, rng.uniform(-40, 40, 3), rng.uniform(-2, 2, 3),
+                          u0=rng.uniform(0, 2 * np.pi),
+                          H0=rng.uniform(-0.01, 0.01, 3))
+        t = x[10] / ORBIT.rate            # u = u0 + w0 t with u0 = 0
+        xe = x[:10]
+        xdot = np.array(f(x, _params(cfg))).ravel()
+        _, Bdot = model.field_body(xe[:7], t)
+        m = bdot_dipole(Bdot, 3e5, 0.5, ca.DM([1, 0, 1]))
+        hdot = law(xe, t)
+        ref = np.array(model.wheel_dynamics(xe, hdot, m, np.zeros(3),
+                                            t)).ravel()
+        np.testing.assert_allclose(xdot[:10], ref, rtol=1e-9, atol=1e-15)
+        assert xdot[10] == pytest.approx(ORBIT.rate)
