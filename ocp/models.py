@@ -1,4 +1,4 @@
-"""Rigid spacecraft with reaction wheels or an ideal torque box (SPEC 3).
+"""Rigid spacecraft with reaction wheels, a torque box or thrusters (SPEC 3).
 
 State ``x = (q, ω, H_w)``: attitude quaternion ``q`` (4, scalar-first,
 body to reference), body rate ``ω`` (3) [rad/s] and the wheel momenta
@@ -14,6 +14,14 @@ acting on the rotors. Dynamics (SPEC 3):
 inertia excluded (their momentum is in ``H_w``). Without wheels the state
 is ``(q, ω)`` and ``u`` is a body torque (3) [N·m] bounded per axis (an
 ideal torque box): :math:`J\\dot ω = -ω\\times Jω + u + τ_{ext}`.
+
+A thruster set (`thrusters.ThrusterSet`, e.g. seed 004's six-engine unit)
+adds its duty fractions ``k`` (n_t) in [0, 1] to the controls, after the
+wheel torques: ``u = (m, k)``. It acts through its mean torque over a
+pulse cycle, :math:`τ_{thr} = T k` with ``T = torque_matrix()`` (seed 004
+eqs. 5-6), on the right-hand side of the body equation. That is the
+cycle-averaged model, valid when the cycle is short against the attitude
+motion; the pulses themselves are in `thrusters.simulation`.
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError, ShapeError
 from adcs_common.validation import as_finite_array, as_vector, check_positive
 from allocation import WheelArray
+from thrusters import ThrusterSet
 
 from .attitude import ek_angle_rates, quat_rate, quat_to_dcm
 
@@ -69,7 +78,7 @@ def _effective_torque_matrix(wheels: WheelArray) -> tuple[np.ndarray,
 
 
 def dynamics_numpy(inertia, x, u, tau_ext=None, axes=None,
-                   torque_factor=None) -> np.ndarray:
+                   torque_factor=None, thruster_torque=None) -> np.ndarray:
     """Numpy reference of `SpacecraftModel.dynamics` (independent code).
 
     Parameters
@@ -86,17 +95,25 @@ def dynamics_numpy(inertia, x, u, tau_ext=None, axes=None,
         Wheel axes A; None for the torque-box model.
     torque_factor : array_like (N,), optional
         Actual / commanded torque per wheel (0 for a failed wheel).
+    thruster_torque : array_like (3, n_t), optional
+        Mean torque per unit duty of a thruster set [N·m]; the last n_t
+        entries of ``u`` are then its duties.
     """
     J = np.asarray(inertia, dtype=float)
     x = np.asarray(x, dtype=float)
     u = np.asarray(u, dtype=float)
     tau = np.zeros(3) if tau_ext is None else np.asarray(tau_ext, float)
+    if thruster_torque is not None:
+        T = np.asarray(thruster_torque, dtype=float)
+        tau = tau + T @ u[len(u) - T.shape[1]:]
+        u = u[:len(u) - T.shape[1]]
     q, w = x[:4], x[4:7]
     qw, qv = q[0], q[1:]
     qdot = np.concatenate([[-0.5 * qv @ w],
                            0.5 * (qw * w + np.cross(qv, w))])
     if axes is None:
-        wdot = np.linalg.solve(J, -np.cross(w, J @ w) + u + tau)
+        wdot = np.linalg.solve(J, -np.cross(w, J @ w) + tau
+                               + (u if len(u) else 0.0))
         return np.concatenate([qdot, wdot])
     A = np.asarray(axes, dtype=float)
     m = u if torque_factor is None else np.asarray(torque_factor) * u
@@ -107,7 +124,7 @@ def dynamics_numpy(inertia, x, u, tau_ext=None, axes=None,
 
 @dataclass(frozen=True, eq=False)
 class SpacecraftModel:
-    """Symbolic rigid spacecraft with wheels or an ideal torque box.
+    """Symbolic rigid spacecraft with wheels, a torque box or thrusters.
 
     Build with `rigid_spacecraft`. The CasADi Functions have named inputs
     and outputs; states and controls follow the module docstring.
@@ -122,12 +139,15 @@ class SpacecraftModel:
         Per-axis bound of the body torque box [N·m] (torque-box model).
     dynamics : casadi.Function
         ``dynamics(x, u, tau) -> (xdot)``.
+    thrusters : thrusters.ThrusterSet or None
+        Thruster set whose duties end ``u`` (cycle-averaged torque).
     """
 
     inertia: np.ndarray
     wheels: WheelArray | None
     torque_max: np.ndarray | None
     dynamics: ca.Function
+    thrusters: ThrusterSet | None = None
 
     @property
     def nx(self) -> int:
@@ -136,7 +156,7 @@ class SpacecraftModel:
 
     @property
     def nu(self) -> int:
-        """Control dimension: N wheels, or 3 for the torque box."""
+        """Control dimension: N wheels or 3 (torque box), plus n_t duties."""
         return self.dynamics.size1_in(1)
 
     @property
@@ -144,16 +164,48 @@ class SpacecraftModel:
         """Number of wheels (0 for the torque box)."""
         return 0 if self.wheels is None else self.wheels.n_wheels
 
+    @property
+    def n_thrusters(self) -> int:
+        """Number of thrusters (0 without a thruster set)."""
+        return 0 if self.thrusters is None else self.thrusters.n
+
+    def control_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds ``(lb, ub)`` of ``u``, each (nu,).
+
+        ``±m_max`` for working wheels (0 for failed ones), ``±torque_max``
+        for the torque box [N·m], ``[0, 1]`` for thruster duties.
+        """
+        lo, hi = [], []
+        if self.wheels is not None:
+            m = np.asarray(self.wheels.m_max, dtype=float) * \
+                self.wheels.active
+            lo.append(-m)
+            hi.append(m)
+        elif self.torque_max is not None:
+            lo.append(-self.torque_max)
+            hi.append(np.array(self.torque_max))
+        if self.thrusters is not None:
+            lo.append(np.zeros(self.n_thrusters))
+            hi.append(np.ones(self.n_thrusters))
+        return np.concatenate(lo), np.concatenate(hi)
+
     def body_control_torque(self, u) -> np.ndarray:
         """Control torque on the body [N·m], (3,) or (3, K).
 
         ``-A diag(s) m`` for wheels (the reaction of the rotors), ``u`` for
-        the torque box.
+        the torque box, plus ``T k`` for thruster duties ``k``.
         """
         u = np.asarray(u, dtype=float)
+        nt = self.n_thrusters
+        own = u[:self.nu - nt]
         if self.wheels is None:
-            return u
-        return -self.wheels.body_torque(u)
+            out = own if self.torque_max is not None else np.zeros(
+                (3,) + u.shape[1:])
+        else:
+            out = -self.wheels.body_torque(own)
+        if nt:
+            out = out + self.thrusters.torque_matrix() @ u[self.nu - nt:]
+        return out
 
     def state(self, q, w=None, h=None) -> np.ndarray:
         """Assemble a state vector from its parts (zeros by default)."""
@@ -282,8 +334,10 @@ class SpacecraftModel:
 
 
 def rigid_spacecraft(inertia, wheels: WheelArray | None = None, *,
-                     torque_max=None) -> SpacecraftModel:
-    """Rigid spacecraft with a wheel array or an ideal per-axis torque box.
+                     torque_max=None,
+                     thrusters: ThrusterSet | None = None
+                     ) -> SpacecraftModel:
+    """Rigid spacecraft with a wheel array, a torque box or thrusters.
 
     Parameters
     ----------
@@ -293,7 +347,12 @@ def rigid_spacecraft(inertia, wheels: WheelArray | None = None, *,
         Wheel array; its scale factors and failures enter ``Ḣ_w = s m``.
     torque_max : float or array_like (3,), optional
         Per-axis bound of the body torque [N·m]; only for the torque-box
-        model (``wheels`` None), required there.
+        model (``wheels`` None).
+    thrusters : thrusters.ThrusterSet, optional
+        Thruster set; its duties follow the wheel torques in ``u`` and act
+        through the cycle-averaged torque ``torque_matrix() @ k``. With
+        wheels this is seed 004's spacecraft (wheels plus an unloading
+        unit); alone, a thruster-only spacecraft.
 
     Returns
     -------
@@ -302,31 +361,49 @@ def rigid_spacecraft(inertia, wheels: WheelArray | None = None, *,
     Raises
     ------
     InvalidValueError
-        Both or neither of ``wheels`` and ``torque_max`` given, or bad
-        values.
+        Both ``wheels`` and ``torque_max``, none of the three actuators, a
+        torque box with thrusters, or bad values.
     """
     J = check_inertia(inertia)
-    if (wheels is None) == (torque_max is None):
+    if wheels is not None and torque_max is not None:
         raise InvalidValueError(
-            "give exactly one of wheels (a WheelArray) and torque_max (the "
-            "per-axis torque box)")
+            "give wheels (a WheelArray) or torque_max (the per-axis torque "
+            "box), not both")
+    if wheels is None and torque_max is None and thrusters is None:
+        raise InvalidValueError(
+            "give an actuator: wheels (a WheelArray), torque_max (the "
+            "per-axis torque box) or thrusters (a ThrusterSet)")
+    if thrusters is not None:
+        if not isinstance(thrusters, ThrusterSet):
+            raise InvalidValueError(
+                f"thrusters must be a thrusters.ThrusterSet, got "
+                f"{type(thrusters).__name__}")
+        if torque_max is not None:
+            raise InvalidValueError(
+                "a torque box and thrusters are both external torques: "
+                "give one of them")
     x_q = ca.SX.sym("q", 4)
     x_w = ca.SX.sym("w", 3)
     tau = ca.SX.sym("tau", 3)
     Jdm = ca.DM(J)
     Jinv = ca.DM(np.linalg.inv(J))
+    k = ca.SX.sym("k", 0 if thrusters is None else thrusters.n)
+    tau_c = tau if thrusters is None else tau + ca.DM(
+        thrusters.torque_matrix()) @ k
+    tmax = None
     if wheels is None:
-        tmax = as_vector(torque_max, 3, "torque_max")
-        check_positive(tmax, "torque_max")
-        u = ca.SX.sym("u", 3)
+        if torque_max is not None:
+            tmax = as_vector(torque_max, 3, "torque_max")
+            check_positive(tmax, "torque_max")
+        u = ca.SX.sym("u", 0 if tmax is None else 3)
         x = ca.vertcat(x_q, x_w)
-        wdot = Jinv @ (-ca.cross(x_w, Jdm @ x_w) + u + tau)
+        wdot = Jinv @ (-ca.cross(x_w, Jdm @ x_w) + tau_c
+                       + (u if tmax is not None else 0))
         xdot = ca.vertcat(quat_rate(x_q, x_w), wdot)
     else:
         if not isinstance(wheels, WheelArray):
             raise InvalidValueError(
                 f"wheels must be a WheelArray, got {type(wheels).__name__}")
-        tmax = None
         A, s = _effective_torque_matrix(wheels)
         n = wheels.n_wheels
         h = ca.SX.sym("h", n)
@@ -334,12 +411,13 @@ def rigid_spacecraft(inertia, wheels: WheelArray | None = None, *,
         m = ca.DM(s) * u
         x = ca.vertcat(x_q, x_w, h)
         Adm = ca.DM(A)
-        wdot = Jinv @ (-ca.cross(x_w, Jdm @ x_w + Adm @ h) - Adm @ m + tau)
+        wdot = Jinv @ (-ca.cross(x_w, Jdm @ x_w + Adm @ h) - Adm @ m
+                       + tau_c)
         xdot = ca.vertcat(quat_rate(x_q, x_w), wdot, m)
-    f = ca.Function("dynamics", [x, u, tau], [xdot],
+    f = ca.Function("dynamics", [x, ca.vertcat(u, k), tau], [xdot],
                     ["x", "u", "tau"], ["xdot"])
     return SpacecraftModel(inertia=J, wheels=wheels, torque_max=tmax,
-                           dynamics=f)
+                           dynamics=f, thrusters=thrusters)
 
 
 def euler_krylov_model(inertia, wheels: WheelArray | None = None

@@ -23,6 +23,7 @@ from ocp.models import (
     euler_krylov_model,
     rigid_spacecraft,
 )
+from thrusters import six_thruster_unit
 
 J_METEOR = np.array([[120.0, 2.0, -1.5], [2.0, 95.0, 3.0], [-1.5, 3.0, 80.0]])
 
@@ -218,8 +219,15 @@ def test_euler_krylov_model_agrees_with_quaternion_model():
 
 
 def test_bad_inputs_raise_toolbox_errors_naming_the_argument():
-    with pytest.raises(InvalidValueError, match="exactly one"):
+    with pytest.raises(InvalidValueError, match="give an actuator"):
         rigid_spacecraft(np.eye(3))
+    with pytest.raises(InvalidValueError, match="not both"):
+        rigid_spacecraft(np.eye(3), WheelArray.pyramid(), torque_max=1.0)
+    with pytest.raises(InvalidValueError, match="one of them"):
+        rigid_spacecraft(np.eye(3), torque_max=1.0,
+                         thrusters=six_thruster_unit())
+    with pytest.raises(InvalidValueError, match="ThrusterSet"):
+        rigid_spacecraft(np.eye(3), thrusters=np.eye(3))
     with pytest.raises(ShapeError, match="inertia"):
         rigid_spacecraft(np.eye(2), torque_max=1.0)
     with pytest.raises(InvalidValueError, match="positive definite"):
@@ -243,3 +251,63 @@ def test_idas_and_cvodes_agree_on_a_torque_free_tumble():
     # torque-free: kinetic energy ½ ωᵀJω is conserved too
     e = 0.5 * np.einsum("ki,ij,kj->k", a[:, 4:], m.inertia, a[:, 4:])
     np.testing.assert_allclose(e, e[0], rtol=1e-8)
+
+
+# thrusters as the external torque (seed 004's spacecraft) ---------------
+J54 = np.diag([3.0, 2.5, 3.5])          # seed 004's 54 kg spacecraft
+
+
+def test_wheels_plus_thrusters_equal_the_numpy_reference():
+    unit = six_thruster_unit()
+    arr = WheelArray.pyramid(m_max=0.01, h_max=0.012)
+    m = rigid_spacecraft(J54, arr, thrusters=unit)
+    assert (m.nx, m.nu, m.n_wheels, m.n_thrusters) == (11, 10, 4, 6)
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        x = m.state(rng.normal(size=4), rng.normal(size=3) * 0.1,
+                    rng.normal(size=4) * 0.01)
+        u = np.r_[rng.uniform(-0.01, 0.01, 4), rng.uniform(0, 1, 6)]
+        tau = rng.normal(size=3) * 1e-3
+        ref = dynamics_numpy(J54, x, u, tau, axes=arr.axes,
+                             thruster_torque=unit.torque_matrix())
+        got = np.array(m.dynamics(x, u, tau)).ravel()
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-15)
+
+
+def test_thrusters_change_total_momentum_by_their_mean_torque():
+    """dH_ref/dt = R(q) T k: the thrusters are the only external torque."""
+    unit = six_thruster_unit()
+    arr = WheelArray.pyramid(m_max=0.01, h_max=0.012)
+    m = rigid_spacecraft(J54, arr, thrusters=unit)
+    x = m.state([0.9, 0.1, -0.3, 0.2], [0.01, -0.02, 0.03],
+                [0.002, -0.001, 0.0, 0.004])
+    k = np.array([0.3, 0.0, 0.7, 0.1, 0.0, 0.5])
+    u = np.r_[[0.002, -0.004, 0.001, 0.0], k]
+    xs = ca.SX.sym("x", m.nx)
+    dH = ca.Function("dH", [xs], [ca.jacobian(m.momentum_function()(xs),
+                                              xs)])
+    rate = np.array(dH(x)) @ np.array(m.dynamics(x, u, 0)).ravel()
+    R = quat_to_dcm(x[:4])
+    np.testing.assert_allclose(rate, R @ unit.torque_matrix() @ k,
+                               atol=1e-15)
+    np.testing.assert_allclose(m.body_control_torque(u),
+                               -arr.body_torque(u[:4])
+                               + unit.torque_matrix() @ k, atol=1e-15)
+
+
+def test_thruster_only_spacecraft_and_control_bounds():
+    unit = six_thruster_unit()
+    m = rigid_spacecraft(J54, thrusters=unit)
+    assert (m.nx, m.nu, m.n_wheels) == (7, 6, 0)
+    lb, ub = m.control_bounds()
+    np.testing.assert_array_equal(lb, np.zeros(6))
+    np.testing.assert_array_equal(ub, np.ones(6))
+    x = m.state([1, 0, 0, 0])
+    k = np.array([1.0, 0, 0, 0, 0, 0])    # D1 alone: its Table 1 torque
+    wdot = np.array(m.dynamics(x, k, 0)).ravel()[4:7]
+    np.testing.assert_allclose(J54 @ wdot, unit.torque_matrix()[:, 0],
+                               atol=1e-15)
+    arr = WheelArray.pyramid(m_max=0.01, h_max=0.012).with_failed(2)
+    lb, ub = rigid_spacecraft(J54, arr, thrusters=unit).control_bounds()
+    np.testing.assert_array_equal(ub, [0.01, 0.01, 0.0, 0.01] + [1.0] * 6)
+    np.testing.assert_array_equal(lb, [-0.01, -0.01, 0.0, -0.01] + [0] * 6)
