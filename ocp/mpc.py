@@ -10,12 +10,19 @@ torque estimate held over the horizon. Decision vector (layout
     \\min\\ \\sum_{k=1}^{N} c_k\\big(w_q \\|\\mathrm{vec}(q_f^{*}\\otimes
     q_k)\\|^2 + w_ω \\|ω_k\\|^2\\big)
     + \\sum_{k=0}^{N-1} w_m \\|m_k / m_{max}\\|^2
-    + w_H \\|H_k / h_{max}\\|^2
+    + w_H \\|H_k / h_{max}\\|^2 + w_p\\, p^T k_k
 
 subject to :math:`x_0 = x`, :math:`x_{k+1} = \\mathrm{RK4}(x_k, m_k, τ)`,
 :math:`|m_{k,i}| \\le m_{max,i}` (0 for a failed wheel),
 :math:`|H_{k,i}| \\le h_{max,i}` and optionally :math:`|ω_{k,j}| \\le
 ω_{max}`; :math:`c_N` is ``terminal`` and the other :math:`c_k` are 1.
+With a thruster set in the model (``rigid_spacecraft(J, wheels,
+thrusters=...)``) the controls are ``u = (m, k)``: duties
+:math:`0 \\le k_{k,i} \\le 1` enter through their cycle-averaged torque
+and the linear propellant term :math:`w_p\\, p^T k` (``p`` the engines'
+propellant rates over the largest one), so the thrusters fire only when
+the wheels alone cannot hold the attitude within their momentum bound
+(unloading under a secular disturbance).
 The cost is a sum of squares (the vector part of the quaternion error is
 linear in q), so a Gauss–Newton Hessian :math:`2 J_r^T J_r` is positive
 semi-definite: ``"sqpmethod"`` is CasADi's SQP with that Hessian and a
@@ -108,6 +115,9 @@ class MPCWeights:
         near zero momentum in holds).
     terminal : float
         Factor :math:`c_N` on the last stage's attitude and rate terms.
+    propellant : float
+        :math:`w_p` on the thruster duties weighted by propellant rate
+        (linear; only with a thruster set) [1].
     """
 
     attitude: float = 100.0
@@ -115,9 +125,12 @@ class MPCWeights:
     torque: float = 0.01
     momentum: float = 0.001
     terminal: float = 10.0
+    propellant: float = 0.1
 
     def __post_init__(self) -> None:
-        for name in ("attitude", "rate", "torque", "momentum", "terminal"):
+        """Check that every weight is finite and non-negative."""
+        for name in ("attitude", "rate", "torque", "momentum", "terminal",
+                     "propellant"):
             value = as_finite_scalar(getattr(self, name), name)
             check_nonnegative(value, name)
         if self.attitude <= 0:
@@ -132,7 +145,8 @@ class MPCStep:
     Attributes
     ----------
     u : numpy.ndarray, shape (nu,)
-        First motor torque command m [N·m], to hold over ``dt``.
+        First command, to hold over ``dt``: motor torques m [N·m], then
+        the thruster duties [1] when the model has thrusters.
     plan : numpy.ndarray, shape (nz,)
         The optimised decision vector (the next step's warm start).
     cost : float
@@ -170,7 +184,8 @@ class AttitudeMPC:
     ----------
     model : SpacecraftModel
         Spacecraft with a wheel array (`ocp.rigid_spacecraft` with
-        ``wheels``).
+        ``wheels``), optionally with a thruster set (duties in [0, 1],
+        propellant in the cost).
     horizon : int
         Number of intervals N (>= 2).
     dt : float
@@ -320,6 +335,11 @@ class AttitudeMPC:
         rk4 = model.rk4_step(1)
         m_max = np.asarray(wh.m_max, dtype=float)
         h_max = np.asarray(wh.h_max, dtype=float)
+        nw = wh.n_wheels
+        prop = (np.zeros(0) if model.thrusters is None
+                else model.thrusters.propellant_rate())
+        prop = prop / prop.max() if prop.size else prop
+        lin = 0
         g = [z[xs[0]] - x_par]
         res = []
         # fatrop's structure detection needs x_{k+1} - F(x_k, u_k); qrqp
@@ -329,7 +349,10 @@ class AttitudeMPC:
         for k in range(N):
             g.append(sign * (z[xs[k + 1]]
                              - rk4(z[xs[k]], z[us[k]], tau, self.dt)))
-            res.append(np.sqrt(w.torque) * z[us[k]] / ca.DM(m_max))
+            res.append(np.sqrt(w.torque) * z[us[k]][:nw] / ca.DM(m_max))
+            if prop.size:
+                lin = lin + w.propellant * ca.dot(ca.DM(prop),
+                                                  z[us[k]][nw:])
             res.append(np.sqrt(w.momentum) * z[xs[k]][7:] / ca.DM(h_max))
         for k in range(1, N + 1):
             c = w.terminal if k == N else 1.0
@@ -339,28 +362,33 @@ class AttitudeMPC:
             res.append(np.sqrt(c * w.rate) * xk[4:7])
         r = ca.vertcat(*res)
         gv = ca.vertcat(*g)
-        f = ca.sumsqr(r)
+        # the linear propellant term has no curvature: the Gauss–Newton
+        # Hessian of the squares is still the cost's Hessian
+        f = ca.sumsqr(r) + lin
 
         # bounds on the decision vector
         inf = np.inf
-        active = np.asarray(wh.active, dtype=bool)
-        m_hi = np.where(active, m_max, 0.0)
+        u_lo, u_hi = model.control_bounds()
         wmax = inf if self.rate_max is None else self.rate_max
         x_hi = np.r_[np.full(4, inf), np.full(3, wmax), h_max]
         ub = np.empty(nz)
+        lb = np.empty(nz)
         for k in range(N + 1):
             ub[xs[k]] = x_hi
+            lb[xs[k]] = -x_hi
             if k < N:
-                ub[us[k]] = m_hi
+                ub[us[k]] = u_hi
+                lb[us[k]] = u_lo
         ub[xs[0]] = inf  # x_0 is fixed by its equality row
-        self.lbz, self.ubz = -ub, ub
+        lb[xs[0]] = -inf
+        self.lbz, self.ubz = lb, ub
         # scale of each bound, for the scaled violation
         scale = np.ones(nz)
         for k in range(N + 1):
             scale[xs[k]] = np.r_[np.ones(4), np.full(3, 1.0 if wmax == inf
                                                      else wmax), h_max]
             if k < N:
-                scale[us[k]] = m_max
+                scale[us[k]] = np.r_[m_max, np.ones(len(prop))]
         self._bound_scale = scale
 
         nlp = {"x": z, "p": p, "f": f, "g": gv}
@@ -596,6 +624,9 @@ class AttitudeMPC:
             # the reachable change of rate in one step
             J = self.model.inertia
             reach = np.linalg.norm(wh.working_axes * m_hi, axis=0).sum()
+            if self.model.thrusters is not None:
+                reach += np.linalg.norm(
+                    self.model.thrusters.torque_matrix(), axis=0).sum()
             dmax = self.dt * reach / np.linalg.eigvalsh(J).min()
             if excess > dmax:
                 raise InfeasibleError(
@@ -766,15 +797,25 @@ def simulate_mpc(mpc: AttitudeMPC, q0, qf, *, t_final: float, w0=None,
         if progress is not None:
             progress(k + 1, K)
     t = mpc.dt * np.arange(K + 1)
+    nw = model.n_wheels
+    extras: dict[str, Any] = {"solver": mpc.name, "horizon": mpc.horizon,
+                              "dt": mpc.dt}
+    loop = {"statuses": statuses, "mean_iterations": float(np.mean(iters))}
+    if model.thrusters is not None:
+        duty = U[:, nw:]
+        extras["duty"] = duty
+        loop["propellant"] = float(np.sum(
+            duty @ model.thrusters.propellant_rate()) * mpc.dt)
+        loop["thruster_on_time"] = float(np.sum(duty) * mpc.dt)
     traj = SlewTrajectory(
         method="mpc", T=float("nan"), t=t, q=X[:, :4], w=X[:, 4:7],
-        torque=model.body_control_torque(U.T).T, wheel_torque=U,
+        torque=model.body_control_torque(U.T).T, wheel_torque=U[:, :nw],
         wheel_momentum=X[:, 7:], qf=qf, status="simulated", success=True,
         solve_time=float(np.sum(times)), iterations=int(np.sum(iters)),
-        extras={"solver": mpc.name, "horizon": mpc.horizon, "dt": mpc.dt})
+        extras=extras)
     return _result_from_trajectory(
         f"MPC {mpc.name}", traj, mpc.wheels, settle_angle, hold, times,
-        {"statuses": statuses, "mean_iterations": float(np.mean(iters))})
+        loop)
 
 
 def compare_slew(model: SpacecraftModel, q0, qf, *, t_final: float,
