@@ -110,17 +110,22 @@ class StudyContext:
         return name
 
 
+def _md_cell(text: str) -> str:
+    """Escape a Markdown table cell (``|x|`` would split the column)."""
+    return text.replace("|", "\\|")
+
+
 def _markdown(sections: Sequence[Section], title: str) -> str:
     out = [f"# {title}", ""]
     for s in sections:
         out += [f"## {s.title}", "", s.intro, ""]
         for t in s.tables:
             out += [f"### {t.title}", "",
-                    "| " + " | ".join(t.columns) + " |",
+                    "| " + " | ".join(map(_md_cell, t.columns)) + " |",
                     "|" + "---|" * len(t.columns)]
             for i, row in enumerate(t.rows):
                 flag = t.flags[i] if i < len(t.flags) else False
-                cells = [t.cell(v) for v in row]
+                cells = [_md_cell(t.cell(v)) for v in row]
                 if flag:
                     cells[0] = "⚠ " + cells[0]
                 out.append("| " + " | ".join(cells) + " |")

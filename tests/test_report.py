@@ -58,3 +58,20 @@ def test_bad_option_exits_with_usage(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["report", "--fast"])
     assert exc.value.code == 2
+
+
+def test_markdown_tables_keep_their_columns(quick_report):
+    """Every row of every table has as many cells as its header."""
+    import re
+
+    md = (quick_report / "report.md").read_text().splitlines()
+    split = re.compile(r"(?<!\\)\|")
+    header = None
+    for line in md:
+        if not line.startswith("|"):
+            header = None
+            continue
+        n = len(split.split(line)) - 2
+        if header is None:
+            header = n
+        assert n == header, line
