@@ -3,11 +3,14 @@
 `export_c` writes one self-contained C source (CasADi ``CodeGenerator``,
 no CasADi at run time) with its header, a test driver ``main.c`` that
 calls every function on sample inputs and times it with
-``clock_gettime``, a ``Makefile`` and a README. Every QP inside is a
-code-generatable conic. The wheel QP uses daqp when its header and the
-static ``libdaqpstat.a`` of the casadi wheel are found (≈ 4x faster than
-qrqp; the build then adds ``-I<casadi>/include <casadi>/libdaqpstat.a``,
-see `allocation.qp.conic_function.conic_c_flags`), otherwise qrqp; with
+``clock_gettime``, a ``Makefile`` and a README. The wheel QP is solved
+exactly in closed form for 3 or 4 working wheels (no solver in its C,
+``wheel_qp_fast_path``); otherwise, and for the other QPs, every QP inside
+is a code-generatable conic. A wheel-QP conic is daqp when its header and
+the static ``libdaqpstat.a`` of the casadi wheel are found (≈ 4x faster
+than qrqp; the build then adds ``-I<casadi>/include
+<casadi>/libdaqpstat.a``, see
+`allocation.qp.conic_function.conic_c_flags`), otherwise qrqp; with
 ``wheel_qp_plugin="qrqp"`` the C is self-contained and ``gcc`` and
 ``libm`` are all the build needs. Builds use ``-O3``.
 
@@ -16,7 +19,7 @@ Exported functions (names are the C symbols):
 * ``min_norm(M[3]) -> m[N]``: seed 001 eq. (5), the closed form;
 * ``wheel_qp(M[3], h[N]) -> (m[N], alpha, violation)``: the bounded wheel
   QP (`allocation.conic_allocator_function`, torque and momentum bounds;
-  daqp or qrqp, ``wheel_qp_plugin``);
+  closed form, or daqp / qrqp, ``wheel_qp_plugin``);
 * ``duty_qp(theta[9], kmax[6]) -> (x[7], violation)``: the thruster
   duty-cycle QP
   (`thrusters.build_qp` data; ``theta = (P_T, M_X, M_Z, H[3], τ[3])``);
@@ -42,7 +45,7 @@ import numpy as np
 from adcs_common.exceptions import AdcsError, InvalidValueError
 from adcs_common.validation import as_finite_scalar, check_positive
 from allocation import WheelArray, conic_allocator_function, min_norm_function
-from allocation.qp.conic_function import conic_c_flags
+from allocation.qp.conic_function import conic_c_flags, wheel_qp_method
 
 from .models import SpacecraftModel, rigid_spacecraft
 
@@ -136,7 +139,9 @@ class ExportResult:
     functions : dict of str to casadi.Function
         The exported Functions by C name (the Python reference of each).
     samples : dict of str to list of numpy.ndarray
-        The sample inputs compiled into the driver.
+        The sample inputs compiled into the driver (by C name; keys
+        ``"name:label"`` are extra cases of ``name`` the driver also times,
+        e.g. ``"wheel_qp:saturated"``).
     source, header, driver, makefile, readme : pathlib.Path
         The files written.
     executable : pathlib.Path or None
@@ -144,9 +149,11 @@ class ExportResult:
     shared_library : pathlib.Path or None
         The built shared library (None unless ``build=True``).
     extras : dict
-        ``wheel_qp_plugin`` (conic of ``wheel_qp``), ``cflags`` and
-        ``ldflags`` (what the build adds for it: empty and ``-lm`` for
-        qrqp).
+        ``wheel_qp_plugin`` (conic of ``wheel_qp``), ``wheel_qp_method``
+        (`allocation.qp.conic_function.wheel_qp_method`: ``"closed
+        form"``, ``"min-norm check + conic"`` or ``"conic"``), ``cflags``
+        and ``ldflags`` (what the build adds for daqp: empty and ``-lm``
+        for qrqp or a closed form).
     """
 
     out_dir: Path
@@ -203,7 +210,8 @@ def default_functions(*, wheels: WheelArray, inertia=None,
                       thruster_h_max: float = 0.012, dt: float = 0.5,
                       horizon: int = 20,
                       mpc_variants=("mpc_step", "mpc_rti_step"),
-                      wheel_qp_plugin: str | None = "qrqp"
+                      wheel_qp_plugin: str | None = "qrqp",
+                      wheel_qp_fast_path: bool = True
                       ) -> tuple[dict[str, ca.Function],
                                  dict[str, list[np.ndarray]],
                                  SpacecraftModel]:
@@ -216,7 +224,8 @@ def default_functions(*, wheels: WheelArray, inertia=None,
     functions : dict
         C name -> casadi.Function.
     samples : dict
-        C name -> list of input arrays (the driver's inputs).
+        C name -> list of input arrays (the driver's inputs); keys
+        ``"name:label"`` are extra timed cases of ``name``.
     model : SpacecraftModel
     """
     from .attitude import quat_from_axis_angle
@@ -238,9 +247,14 @@ def default_functions(*, wheels: WheelArray, inertia=None,
     M = 0.5 * float(np.min(wheels.m_max)) * rng.normal(size=3)
     samples["min_norm"] = [M]
     fns["wheel_qp"] = conic_allocator_function(
-        wheels, dt=dt, plugin=_resolve_wheel_qp_plugin(wheel_qp_plugin))
+        wheels, dt=dt, plugin=_resolve_wheel_qp_plugin(wheel_qp_plugin),
+        fast_path=wheel_qp_fast_path)
     h = 0.5 * np.asarray(wheels.h_max) * rng.uniform(-1, 1, n)
     samples["wheel_qp"] = [2.0 * M, h]
+    # a demand beyond the attainable set (alpha < 1): the driver times it
+    # as "wheel_qp:saturated"
+    samples["wheel_qp:saturated"] = [
+        4.0 * float(np.sum(wheels.m_max)) * M / np.linalg.norm(M), h]
     if thrusters is not None:
         f = duty_qp_function(thrusters, cycle, thruster_h_max)
         fns["duty_qp"] = f
@@ -280,6 +294,7 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
              horizon: int = 20,
              mpc_variants=("mpc_step", "mpc_rti_step"),
              wheel_qp_plugin: str | None = None,
+             wheel_qp_fast_path: bool = True,
              build: bool = False,
              cc: str = "gcc", repeats: int = 1000) -> ExportResult:
     """Generate C for the toolbox's laws, QPs, model and MPC step.
@@ -311,6 +326,12 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
         casadi wheel's ``include/daqp`` and ``libdaqpstat.a`` at build
         time), ``"qrqp"`` (self-contained C) or None: daqp when
         `daqp_available`, else qrqp.
+    wheel_qp_fast_path : bool
+        Solve the wheel QP exactly without the conic where possible
+        (`allocation.qp.conic_function.conic_allocator_function`: a closed
+        form for 3 or 4 working wheels, so ``wheel_qp`` then needs no
+        solver library; with more wheels the minimum-norm point when it
+        is within the bounds, else the conic).
     build : bool
         Compile the driver and a shared library with ``cc``.
     cc : str
@@ -333,11 +354,14 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
     if int(repeats) < 1:
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
-    cflags, ldflags = c_flags(plugin)
+    method = wheel_qp_method(wheels, wheel_qp_fast_path)
+    # a closed-form wheel_qp holds no conic: no solver library to link
+    cflags, ldflags = c_flags(plugin if method != "closed form" else "")
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
-        mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin)
+        mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
+        wheel_qp_fast_path=wheel_qp_fast_path)
     cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True})
     for f in fns.values():
         cg.add(f)
@@ -350,12 +374,14 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
         src=SOURCE, opt=" ".join(OPT_FLAGS), cflags=" ".join(cflags),
         libs=" ".join(ldflags)))
     readme = out / "README.md"
-    readme.write_text(_readme(fns, samples, plugin, cflags, ldflags))
+    readme.write_text(_readme(fns, samples, plugin, cflags, ldflags,
+                              method))
     res = ExportResult(out_dir=out, functions=fns, samples=samples,
                        source=out / f"{SOURCE}.c",
                        header=out / f"{SOURCE}.h", driver=driver,
                        makefile=makefile, readme=readme,
                        extras={"wheel_qp_plugin": plugin,
+                               "wheel_qp_method": method,
                                "cflags": cflags, "ldflags": ldflags})
     if build:
         return build_exported(res, cc=cc)
@@ -463,22 +489,26 @@ def _driver_source(fns: dict[str, ca.Function],
     lines = [_DRIVER_HEAD]
     calls = []
     for name, f in fns.items():
-        ins = samples[name]
-        for i, a in enumerate(ins):
-            lines.append(_c_array(f"{name}_in{i}", a))
         for j in range(f.n_out()):
             lines.append(f"static casadi_real {name}_out{j}"
                          f"[{max(f.nnz_out(j), 1)}];")
-        arg = ", ".join(f"{name}_in{i}" for i in range(len(ins)))
         res = ", ".join(f"{name}_out{j}" for j in range(f.n_out()))
         reps = repeats if not name.startswith("mpc") else max(
             repeats // 100, 3)
-        calls.append(
-            f"  {{ const casadi_real* a[] = {{{arg}}};\n"
-            f"    casadi_real* r[] = {{{res}}};\n"
-            f"    time_call(\"{name}\", {name}, {name}_work, "
-            f"{name}_checkout, {name}_release, a, {len(ins)}, r, "
-            f"{f.n_out()}, {reps}); }}")
+        # the function's sample, then extra cases "name:label"
+        cases = [name] + [k for k in samples if k.startswith(f"{name}:")]
+        for case in cases:
+            ins = samples[case]
+            tag = case.replace(":", "_")
+            for i, a in enumerate(ins):
+                lines.append(_c_array(f"{tag}_in{i}", a))
+            arg = ", ".join(f"{tag}_in{i}" for i in range(len(ins)))
+            calls.append(
+                f"  {{ const casadi_real* a[] = {{{arg}}};\n"
+                f"    casadi_real* r[] = {{{res}}};\n"
+                f"    time_call(\"{case}\", {name}, {name}_work, "
+                f"{name}_checkout, {name}_release, a, {len(ins)}, r, "
+                f"{f.n_out()}, {reps}); }}")
     body = "\n".join(lines)
     loops = []
     for name in fns:
@@ -646,7 +676,7 @@ clean:
 
 def _readme(fns: dict[str, ca.Function],
             samples: dict[str, list[np.ndarray]], plugin: str = "qrqp",
-            cflags=(), ldflags=("-lm",)) -> str:
+            cflags=(), ldflags=("-lm",), method: str = "conic") -> str:
     rows = []
     for name, f in fns.items():
         ins = ", ".join(f"{f.name_in(i)}[{f.nnz_in(i)}]"
@@ -657,7 +687,12 @@ def _readme(fns: dict[str, ca.Function],
     opt = " ".join(OPT_FLAGS)
     build_cmd = " ".join(["gcc", opt, *cflags, "-o adcs_driver main.c",
                           f"{SOURCE}.c", *ldflags])
-    if plugin == "daqp":
+    if method == "closed form":
+        solver_text = ("`wheel_qp` solves its QP exactly in closed form "
+                       "(3 or 4 working wheels: the equality leaves a "
+                       "point or a segment); the other QPs use CasADi's "
+                       "qrqp, generated inline, so only `-lm` is needed.")
+    elif plugin == "daqp":
         solver_text = ("`wheel_qp` is solved by DAQP: the source includes "
                        "`daqp/api.h` and links the static `libdaqpstat.a` "
                        "that the casadi wheel ships (paths in the "
