@@ -12,6 +12,7 @@ from ocp.export import (
     CompilerNotFound,
     daqp_available,
     export_c,
+    patch_qrqp,
     run_driver,
 )
 from thrusters import six_thruster_unit
@@ -151,7 +152,10 @@ def test_generated_mpc_step_equals_casadi(exported):
     f = exported.functions[name]
     ext = ca.external(name, str(exported.shared_library))
     args = list(exported.samples[name])
-    for _ in range(3):       # closed loop: feed the plan back
+    # the source's qrqp reuses factorizations (patch_qrqp): same results
+    assert exported.extras["qrqp_patched"]
+    assert "ocp.export.patch_qrqp" in exported.source.read_text()
+    for _ in range(8):       # closed loop: feed the plan back
         a = f.call(args)
         b = ext.call(args)
         for ya, yb in zip(a, b):
@@ -173,6 +177,11 @@ def test_driver_runs_and_times(exported):
     assert t["min_norm"]["median_us"] < 5.0
     assert t["wheel_qp"]["median_us"] < 50.0
     assert t["closed_loop:mpc_rti_step"]["median_us"] < 50_000.0
+
+
+def test_patch_qrqp_needs_its_text():
+    text = "int main(void) { return 0; }\n"
+    assert patch_qrqp(text) == (text, False)
 
 
 def test_missing_compiler_is_a_clear_error(tmp_path):
