@@ -404,6 +404,22 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
     return res
 
 
+#: qrqp's test of a singular KKT factorization (one line of its C).
+_QRQP_SINGULAR = ("d->sing = casadi_qr_singular(&d->mina, &d->imina, "
+                  "d->nz_r, p->sp_r, p->pc, 1e-12);")
+#: qrqp's KKT assembly and factorization (its C).
+_QRQP_FACTOR = """  casadi_qrqp_kkt(d);
+  casadi_qr(p->sp_kkt, d->nz_kkt, d->w, p->sp_v, d->nz_v, p->sp_r,
+            d->nz_r, d->beta, p->prinv, p->pc);
+"""
+_QRQP_FACTORIZE_HEAD = ("void casadi_qrqp_factorize("
+                        "struct casadi_qrqp_data* d) {\n" + """\
+  const struct casadi_qrqp_prob* p = d->prob;
+  if (d->has_search_dir) {
+    d->sing = 1;
+    return;
+  }
+""")
 #: Exact text edits of CasADi's generated qrqp (see `patch_qrqp`).
 _QRQP_EDITS = (
     ("  casadi_int r_index, r_sign;\n  casadi_int iter;\n};",
@@ -414,44 +430,25 @@ _QRQP_EDITS = (
     ("  for (i = 0; i < p->qp->nz; ++i) d->lincomb[i] = 0;\n",
      "  d->fact_valid = 0;\n"
      "  for (i = 0; i < p->qp->nz; ++i) d->lincomb[i] = 0;\n"),
-    ("""void casadi_qrqp_factorize(struct casadi_qrqp_data* d) {
-  const struct casadi_qrqp_prob* p = d->prob;
-  if (d->has_search_dir) {
-    d->sing = 1;
-    return;
-  }
-  casadi_qrqp_kkt(d);
-  casadi_qr(p->sp_kkt, d->nz_kkt, d->w, p->sp_v, d->nz_v, p->sp_r,
-            d->nz_r, d->beta, p->prinv, p->pc);
-  d->sing = casadi_qr_singular(&d->mina, &d->imina, d->nz_r, p->sp_r, p->pc, 1e-12);
-}""",
-     """void casadi_qrqp_factorize(struct casadi_qrqp_data* d) {
-  casadi_int i;
-  const struct casadi_qrqp_prob* p = d->prob;
-  if (d->has_search_dir) {
-    d->sing = 1;
-    return;
-  }
-  /* (ocp.export.patch_qrqp) The KKT matrix depends on H, A and the set
-   * of zero multipliers only; H and A are fixed within one solve, so the
-   * factorization of an unchanged set is reused (the same bits). The set
-   * of the last factorization is kept in lincomb, which only
+    (_QRQP_FACTORIZE_HEAD + _QRQP_FACTOR + f"  {_QRQP_SINGULAR}\n}}",
+     _QRQP_FACTORIZE_HEAD.replace(
+         "  const struct", "  casadi_int i;\n  const struct", 1)
+     + """  /* (ocp.export.patch_qrqp) The KKT matrix depends on H, A and the
+   * set of zero multipliers only; H and A are fixed within one solve,
+   * so the factorization of an unchanged set is reused (the same bits).
+   * The set of the last factorization is kept in lincomb, which only
    * singular_step uses (and it invalidates the cache). */
   if (d->fact_valid) {
-    for (i=0; i<p->qp->nz; ++i) if ((d->lam[i]==0) != d->lincomb[i]) break;
+    for (i=0; i<p->qp->nz; ++i)
+      if ((d->lam[i]==0) != d->lincomb[i]) break;
     if (i==p->qp->nz) {
       casadi_clear(d->w, p->qp->nz);
-      d->sing = casadi_qr_singular(&d->mina, &d->imina, d->nz_r, p->sp_r, p->pc, 1e-12);
-      return;
-    }
-  }
-  casadi_qrqp_kkt(d);
-  casadi_qr(p->sp_kkt, d->nz_kkt, d->w, p->sp_v, d->nz_v, p->sp_r,
-            d->nz_r, d->beta, p->prinv, p->pc);
-  for (i=0; i<p->qp->nz; ++i) d->lincomb[i] = d->lam[i]==0;
-  d->fact_valid = 1;
-  d->sing = casadi_qr_singular(&d->mina, &d->imina, d->nz_r, p->sp_r, p->pc, 1e-12);
-}"""),
+"""
+     + f"      {_QRQP_SINGULAR}\n      return;\n    }}\n  }}\n"
+     + _QRQP_FACTOR
+     + "  for (i=0; i<p->qp->nz; ++i) d->lincomb[i] = d->lam[i]==0;\n"
+     + "  d->fact_valid = 1;\n"
+     + f"  {_QRQP_SINGULAR}\n}}"),
 )
 
 
