@@ -390,7 +390,7 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
         libs=" ".join(ldflags)))
     readme = out / "README.md"
     readme.write_text(_readme(fns, samples, plugin, cflags, ldflags,
-                              method))
+                              method, patched))
     res = ExportResult(out_dir=out, functions=fns, samples=samples,
                        source=out / f"{SOURCE}.c",
                        header=out / f"{SOURCE}.h", driver=driver,
@@ -774,7 +774,8 @@ clean:
 
 def _readme(fns: dict[str, ca.Function],
             samples: dict[str, list[np.ndarray]], plugin: str = "qrqp",
-            cflags=(), ldflags=("-lm",), method: str = "conic") -> str:
+            cflags=(), ldflags=("-lm",), method: str = "conic",
+            patched: bool = False) -> str:
     rows = []
     for name, f in fns.items():
         ins = ", ".join(f"{f.name_in(i)}[{f.nnz_in(i)}]"
@@ -801,6 +802,10 @@ def _readme(fns: dict[str, ca.Function],
     else:
         solver_text = ("The QPs are solved by CasADi's qrqp, generated "
                        "inline, so only `-lm` is needed.")
+    if patched:
+        solver_text += (" qrqp is edited to reuse its KKT factorization "
+                        "while the active set does not change within a "
+                        "solve (`ocp.export.patch_qrqp`; same results).")
     return f"""# Generated ADCS C code
 
 Written by `ocp.export.export_c` (CasADi {ca.__version__} code
