@@ -73,7 +73,7 @@ WHEEL_QP_PLUGINS = ("daqp", "qrqp")
 
 
 def daqp_available() -> bool:
-    """True when generated C with daqp can be built here.
+    """Return True when generated C with daqp can be built here.
 
     Needs the CasADi conic plugin, ``daqp/api.h`` under the casadi
     package's ``include`` and its static ``libdaqpstat.a``.
@@ -175,7 +175,7 @@ class ExportResult:
 
 def duty_qp_function(unit, cycle: float, h_max: float, *,
                      plugin: str = "qrqp", **qp_options) -> ca.Function:
-    """The thruster duty-cycle QP as one casadi Function.
+    """Build the thruster duty-cycle QP as one casadi Function.
 
     Built from `thrusters.build_qp` data by the CasADi conic backend of
     `thrusters` (q, l, u formed from ``theta`` inside the graph).
@@ -219,7 +219,7 @@ def default_functions(*, wheels: WheelArray, inertia=None,
                       ) -> tuple[dict[str, ca.Function],
                                  dict[str, list[np.ndarray]],
                                  SpacecraftModel]:
-    """The Functions `export_c` exports and a sample input for each.
+    """Return the Functions `export_c` exports and a sample input each.
 
     Parameters are those of `export_c`.
 
