@@ -95,7 +95,7 @@ def run(quick: bool = False) -> list[tuple[str, float]]:
                 lambda: qa.allocate(Ms[:, next(cycle)]),
                 max(n_calls // 10, 5), repeats)))
 
-    qf = conic_allocator_function(arr, plugin="daqp")
+    qf = conic_allocator_function(arr, plugin="daqp", fast_path=False)
     rows.append(("QP conic_allocator_function daqp (numpy in)",
                  per_call(lambda: qf(Ms[:, next(cycle)]), n_calls,
                           repeats)))

@@ -3,20 +3,25 @@
 `export_c` writes one self-contained C source (CasADi ``CodeGenerator``,
 no CasADi at run time) with its header, a test driver ``main.c`` that
 calls every function on sample inputs and times it with
-``clock_gettime``, a ``Makefile`` and a README. Every QP inside is a
-code-generatable conic. The wheel QP uses daqp when its header and the
-static ``libdaqpstat.a`` of the casadi wheel are found (≈ 4x faster than
-qrqp; the build then adds ``-I<casadi>/include <casadi>/libdaqpstat.a``,
-see `allocation.qp.conic_function.conic_c_flags`), otherwise qrqp; with
+``clock_gettime``, a ``Makefile`` and a README. The wheel QP is solved
+exactly in closed form for 3 or 4 working wheels (no solver in its C,
+``wheel_qp_fast_path``); otherwise, and for the other QPs, every QP inside
+is a code-generatable conic. A wheel-QP conic is daqp when its header and
+the static ``libdaqpstat.a`` of the casadi wheel are found (≈ 4x faster
+than qrqp; the build then adds ``-I<casadi>/include
+<casadi>/libdaqpstat.a``, see
+`allocation.qp.conic_function.conic_c_flags`), otherwise qrqp; with
 ``wheel_qp_plugin="qrqp"`` the C is self-contained and ``gcc`` and
-``libm`` are all the build needs. Builds use ``-O3``.
+``libm`` are all the build needs. Builds use ``-O3``. The generated
+qrqp is edited to reuse its KKT factorization while the active set does
+not change (`patch_qrqp`, bit-identical results).
 
 Exported functions (names are the C symbols):
 
 * ``min_norm(M[3]) -> m[N]``: seed 001 eq. (5), the closed form;
 * ``wheel_qp(M[3], h[N]) -> (m[N], alpha, violation)``: the bounded wheel
   QP (`allocation.conic_allocator_function`, torque and momentum bounds;
-  daqp or qrqp, ``wheel_qp_plugin``);
+  closed form, or daqp / qrqp, ``wheel_qp_plugin``);
 * ``duty_qp(theta[9], kmax[6]) -> (x[7], violation)``: the thruster
   duty-cycle QP
   (`thrusters.build_qp` data; ``theta = (P_T, M_X, M_Z, H[3], τ[3])``);
@@ -42,7 +47,7 @@ import numpy as np
 from adcs_common.exceptions import AdcsError, InvalidValueError
 from adcs_common.validation import as_finite_scalar, check_positive
 from allocation import WheelArray, conic_allocator_function, min_norm_function
-from allocation.qp.conic_function import conic_c_flags
+from allocation.qp.conic_function import conic_c_flags, wheel_qp_method
 
 from .models import SpacecraftModel, rigid_spacecraft
 
@@ -55,6 +60,7 @@ __all__ = [
     "default_functions",
     "duty_qp_function",
     "export_c",
+    "patch_qrqp",
     "run_driver",
 ]
 
@@ -67,7 +73,7 @@ WHEEL_QP_PLUGINS = ("daqp", "qrqp")
 
 
 def daqp_available() -> bool:
-    """True when generated C with daqp can be built here.
+    """Return True when generated C with daqp can be built here.
 
     Needs the CasADi conic plugin, ``daqp/api.h`` under the casadi
     package's ``include`` and its static ``libdaqpstat.a``.
@@ -136,7 +142,9 @@ class ExportResult:
     functions : dict of str to casadi.Function
         The exported Functions by C name (the Python reference of each).
     samples : dict of str to list of numpy.ndarray
-        The sample inputs compiled into the driver.
+        The sample inputs compiled into the driver (by C name; keys
+        ``"name:label"`` are extra cases of ``name`` the driver also times,
+        e.g. ``"wheel_qp:saturated"``).
     source, header, driver, makefile, readme : pathlib.Path
         The files written.
     executable : pathlib.Path or None
@@ -144,9 +152,12 @@ class ExportResult:
     shared_library : pathlib.Path or None
         The built shared library (None unless ``build=True``).
     extras : dict
-        ``wheel_qp_plugin`` (conic of ``wheel_qp``), ``cflags`` and
-        ``ldflags`` (what the build adds for it: empty and ``-lm`` for
-        qrqp).
+        ``wheel_qp_plugin`` (conic of ``wheel_qp``), ``wheel_qp_method``
+        (`allocation.qp.conic_function.wheel_qp_method`: ``"closed
+        form"``, ``"min-norm check + conic"`` or ``"conic"``), ``cflags``
+        and ``ldflags`` (what the build adds for daqp: empty and ``-lm``
+        for qrqp or a closed form), ``qrqp_patched`` (`patch_qrqp` was
+        applied).
     """
 
     out_dir: Path
@@ -164,7 +175,7 @@ class ExportResult:
 
 def duty_qp_function(unit, cycle: float, h_max: float, *,
                      plugin: str = "qrqp", **qp_options) -> ca.Function:
-    """The thruster duty-cycle QP as one casadi Function.
+    """Build the thruster duty-cycle QP as one casadi Function.
 
     Built from `thrusters.build_qp` data by the CasADi conic backend of
     `thrusters` (q, l, u formed from ``theta`` inside the graph).
@@ -203,11 +214,12 @@ def default_functions(*, wheels: WheelArray, inertia=None,
                       thruster_h_max: float = 0.012, dt: float = 0.5,
                       horizon: int = 20,
                       mpc_variants=("mpc_step", "mpc_rti_step"),
-                      wheel_qp_plugin: str | None = "qrqp"
+                      wheel_qp_plugin: str | None = "qrqp",
+                      wheel_qp_fast_path: bool = True
                       ) -> tuple[dict[str, ca.Function],
                                  dict[str, list[np.ndarray]],
                                  SpacecraftModel]:
-    """The Functions `export_c` exports and a sample input for each.
+    """Return the Functions `export_c` exports and a sample input each.
 
     Parameters are those of `export_c`.
 
@@ -216,7 +228,8 @@ def default_functions(*, wheels: WheelArray, inertia=None,
     functions : dict
         C name -> casadi.Function.
     samples : dict
-        C name -> list of input arrays (the driver's inputs).
+        C name -> list of input arrays (the driver's inputs); keys
+        ``"name:label"`` are extra timed cases of ``name``.
     model : SpacecraftModel
     """
     from .attitude import quat_from_axis_angle
@@ -238,9 +251,14 @@ def default_functions(*, wheels: WheelArray, inertia=None,
     M = 0.5 * float(np.min(wheels.m_max)) * rng.normal(size=3)
     samples["min_norm"] = [M]
     fns["wheel_qp"] = conic_allocator_function(
-        wheels, dt=dt, plugin=_resolve_wheel_qp_plugin(wheel_qp_plugin))
+        wheels, dt=dt, plugin=_resolve_wheel_qp_plugin(wheel_qp_plugin),
+        fast_path=wheel_qp_fast_path)
     h = 0.5 * np.asarray(wheels.h_max) * rng.uniform(-1, 1, n)
     samples["wheel_qp"] = [2.0 * M, h]
+    # a demand beyond the attainable set (alpha < 1): the driver times it
+    # as "wheel_qp:saturated"
+    samples["wheel_qp:saturated"] = [
+        4.0 * float(np.sum(wheels.m_max)) * M / np.linalg.norm(M), h]
     if thrusters is not None:
         f = duty_qp_function(thrusters, cycle, thruster_h_max)
         fns["duty_qp"] = f
@@ -280,6 +298,8 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
              horizon: int = 20,
              mpc_variants=("mpc_step", "mpc_rti_step"),
              wheel_qp_plugin: str | None = None,
+             wheel_qp_fast_path: bool = True,
+             qrqp_reuse_factorization: bool = True,
              build: bool = False,
              cc: str = "gcc", repeats: int = 1000) -> ExportResult:
     """Generate C for the toolbox's laws, QPs, model and MPC step.
@@ -311,6 +331,16 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
         casadi wheel's ``include/daqp`` and ``libdaqpstat.a`` at build
         time), ``"qrqp"`` (self-contained C) or None: daqp when
         `daqp_available`, else qrqp.
+    wheel_qp_fast_path : bool
+        Solve the wheel QP exactly without the conic where possible
+        (`allocation.qp.conic_function.conic_allocator_function`: a closed
+        form for 3 or 4 working wheels, so ``wheel_qp`` then needs no
+        solver library; with more wheels the minimum-norm point when it
+        is within the bounds, else the conic).
+    qrqp_reuse_factorization : bool
+        Edit the generated qrqp to reuse its KKT factorization when the
+        active set recurs within a solve (`patch_qrqp`: same results bit
+        for bit, ≈ 30 % off an MPC step).
     build : bool
         Compile the driver and a shared library with ``cc``.
     cc : str
@@ -333,15 +363,24 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
     if int(repeats) < 1:
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
-    cflags, ldflags = c_flags(plugin)
+    method = wheel_qp_method(wheels, wheel_qp_fast_path)
+    # a closed-form wheel_qp holds no conic: no solver library to link
+    cflags, ldflags = c_flags(plugin if method != "closed form" else "")
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
-        mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin)
+        mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
+        wheel_qp_fast_path=wheel_qp_fast_path)
     cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True})
     for f in fns.values():
         cg.add(f)
     cg.generate(f"{out}/")
+    source = out / f"{SOURCE}.c"
+    patched = False
+    if qrqp_reuse_factorization:
+        text, patched = patch_qrqp(source.read_text())
+        if patched:
+            source.write_text(text)
     driver = out / "main.c"
     driver.write_text(_driver_source(fns, samples, int(repeats), model,
                                      dt))
@@ -350,16 +389,101 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
         src=SOURCE, opt=" ".join(OPT_FLAGS), cflags=" ".join(cflags),
         libs=" ".join(ldflags)))
     readme = out / "README.md"
-    readme.write_text(_readme(fns, samples, plugin, cflags, ldflags))
+    readme.write_text(_readme(fns, samples, plugin, cflags, ldflags,
+                              method, patched))
     res = ExportResult(out_dir=out, functions=fns, samples=samples,
                        source=out / f"{SOURCE}.c",
                        header=out / f"{SOURCE}.h", driver=driver,
                        makefile=makefile, readme=readme,
                        extras={"wheel_qp_plugin": plugin,
+                               "wheel_qp_method": method,
+                               "qrqp_patched": patched,
                                "cflags": cflags, "ldflags": ldflags})
     if build:
         return build_exported(res, cc=cc)
     return res
+
+
+#: qrqp's test of a singular KKT factorization (one line of its C).
+_QRQP_SINGULAR = ("d->sing = casadi_qr_singular(&d->mina, &d->imina, "
+                  "d->nz_r, p->sp_r, p->pc, 1e-12);")
+#: qrqp's KKT assembly and factorization (its C).
+_QRQP_FACTOR = """  casadi_qrqp_kkt(d);
+  casadi_qr(p->sp_kkt, d->nz_kkt, d->w, p->sp_v, d->nz_v, p->sp_r,
+            d->nz_r, d->beta, p->prinv, p->pc);
+"""
+_QRQP_FACTORIZE_HEAD = ("void casadi_qrqp_factorize("
+                        "struct casadi_qrqp_data* d) {\n" + """\
+  const struct casadi_qrqp_prob* p = d->prob;
+  if (d->has_search_dir) {
+    d->sing = 1;
+    return;
+  }
+""")
+#: Exact text edits of CasADi's generated qrqp (see `patch_qrqp`).
+_QRQP_EDITS = (
+    ("  casadi_int r_index, r_sign;\n  casadi_int iter;\n};",
+     "  casadi_int r_index, r_sign;\n  casadi_int iter;\n"
+     "  int fact_valid;\n};"),
+    ("  d->iter = 0;\n  return 0;\n}",
+     "  d->iter = 0;\n  d->fact_valid = 0;\n  return 0;\n}"),
+    ("  for (i = 0; i < p->qp->nz; ++i) d->lincomb[i] = 0;\n",
+     "  d->fact_valid = 0;\n"
+     "  for (i = 0; i < p->qp->nz; ++i) d->lincomb[i] = 0;\n"),
+    (_QRQP_FACTORIZE_HEAD + _QRQP_FACTOR + f"  {_QRQP_SINGULAR}\n}}",
+     _QRQP_FACTORIZE_HEAD.replace(
+         "  const struct", "  casadi_int i;\n  const struct", 1)
+     + """  /* (ocp.export.patch_qrqp) The KKT matrix depends on H, A and the
+   * set of zero multipliers only; H and A are fixed within one solve,
+   * so the factorization of an unchanged set is reused (the same bits).
+   * The set of the last factorization is kept in lincomb, which only
+   * singular_step uses (and it invalidates the cache). */
+  if (d->fact_valid) {
+    for (i=0; i<p->qp->nz; ++i)
+      if ((d->lam[i]==0) != d->lincomb[i]) break;
+    if (i==p->qp->nz) {
+      casadi_clear(d->w, p->qp->nz);
+"""
+     + f"      {_QRQP_SINGULAR}\n      return;\n    }}\n  }}\n"
+     + _QRQP_FACTOR
+     + "  for (i=0; i<p->qp->nz; ++i) d->lincomb[i] = d->lam[i]==0;\n"
+     + "  d->fact_valid = 1;\n"
+     + f"  {_QRQP_SINGULAR}\n}}"),
+)
+
+
+def patch_qrqp(source: str) -> tuple[str, bool]:
+    """Let CasADi's generated qrqp skip repeated KKT factorizations.
+
+    qrqp factorizes its KKT matrix (a sparse QR, most of an MPC step's
+    time) at every iteration, also when the active set has not changed
+    since the last factorization, e.g. the final iteration that confirms
+    convergence. The KKT matrix is a function of the QP's ``H``, ``A``
+    (fixed during one solve) and of which multipliers are zero, so this
+    edit keeps that zero pattern of the last factorization and reuses the
+    factors when it recurs within the solve: the results are bit for bit
+    those of the unedited code. Invalidated at every solve and by qrqp's
+    singular-KKT path (which refactorizes the transpose).
+
+    Parameters
+    ----------
+    source : str
+        Generated C text.
+
+    Returns
+    -------
+    text : str
+        The edited text (``source`` unchanged if it holds no qrqp or the
+        qrqp text differs from the CasADi version this edit was written
+        for, 3.7/3.8).
+    applied : bool
+        Whether the edit was made.
+    """
+    if any(source.count(old) != 1 for old, _ in _QRQP_EDITS):
+        return source, False
+    for old, new in _QRQP_EDITS:
+        source = source.replace(old, new)
+    return source, True
 
 
 def _check_cc(cc: str) -> str:
@@ -463,22 +587,26 @@ def _driver_source(fns: dict[str, ca.Function],
     lines = [_DRIVER_HEAD]
     calls = []
     for name, f in fns.items():
-        ins = samples[name]
-        for i, a in enumerate(ins):
-            lines.append(_c_array(f"{name}_in{i}", a))
         for j in range(f.n_out()):
             lines.append(f"static casadi_real {name}_out{j}"
                          f"[{max(f.nnz_out(j), 1)}];")
-        arg = ", ".join(f"{name}_in{i}" for i in range(len(ins)))
         res = ", ".join(f"{name}_out{j}" for j in range(f.n_out()))
         reps = repeats if not name.startswith("mpc") else max(
             repeats // 100, 3)
-        calls.append(
-            f"  {{ const casadi_real* a[] = {{{arg}}};\n"
-            f"    casadi_real* r[] = {{{res}}};\n"
-            f"    time_call(\"{name}\", {name}, {name}_work, "
-            f"{name}_checkout, {name}_release, a, {len(ins)}, r, "
-            f"{f.n_out()}, {reps}); }}")
+        # the function's sample, then extra cases "name:label"
+        cases = [name] + [k for k in samples if k.startswith(f"{name}:")]
+        for case in cases:
+            ins = samples[case]
+            tag = case.replace(":", "_")
+            for i, a in enumerate(ins):
+                lines.append(_c_array(f"{tag}_in{i}", a))
+            arg = ", ".join(f"{tag}_in{i}" for i in range(len(ins)))
+            calls.append(
+                f"  {{ const casadi_real* a[] = {{{arg}}};\n"
+                f"    casadi_real* r[] = {{{res}}};\n"
+                f"    time_call(\"{case}\", {name}, {name}_work, "
+                f"{name}_checkout, {name}_release, a, {len(ins)}, r, "
+                f"{f.n_out()}, {reps}); }}")
     body = "\n".join(lines)
     loops = []
     for name in fns:
@@ -646,7 +774,8 @@ clean:
 
 def _readme(fns: dict[str, ca.Function],
             samples: dict[str, list[np.ndarray]], plugin: str = "qrqp",
-            cflags=(), ldflags=("-lm",)) -> str:
+            cflags=(), ldflags=("-lm",), method: str = "conic",
+            patched: bool = False) -> str:
     rows = []
     for name, f in fns.items():
         ins = ", ".join(f"{f.name_in(i)}[{f.nnz_in(i)}]"
@@ -657,7 +786,12 @@ def _readme(fns: dict[str, ca.Function],
     opt = " ".join(OPT_FLAGS)
     build_cmd = " ".join(["gcc", opt, *cflags, "-o adcs_driver main.c",
                           f"{SOURCE}.c", *ldflags])
-    if plugin == "daqp":
+    if method == "closed form":
+        solver_text = ("`wheel_qp` solves its QP exactly in closed form "
+                       "(3 or 4 working wheels: the equality leaves a "
+                       "point or a segment); the other QPs use CasADi's "
+                       "qrqp, generated inline, so only `-lm` is needed.")
+    elif plugin == "daqp":
         solver_text = ("`wheel_qp` is solved by DAQP: the source includes "
                        "`daqp/api.h` and links the static `libdaqpstat.a` "
                        "that the casadi wheel ships (paths in the "
@@ -668,6 +802,10 @@ def _readme(fns: dict[str, ca.Function],
     else:
         solver_text = ("The QPs are solved by CasADi's qrqp, generated "
                        "inline, so only `-lm` is needed.")
+    if patched:
+        solver_text += (" qrqp is edited to reuse its KKT factorization "
+                        "while the active set does not change within a "
+                        "solve (`ocp.export.patch_qrqp`; same results).")
     return f"""# Generated ADCS C code
 
 Written by `ocp.export.export_c` (CasADi {ca.__version__} code

@@ -14,7 +14,7 @@ from allocation import (
     conic_allocator_function,
     min_norm_function,
 )
-from allocation.qp.conic_function import conic_c_flags
+from allocation.qp.conic_function import conic_c_flags, wheel_qp_method
 from conftest import DELTA, GAMMA
 
 RNG = np.random.default_rng(7)
@@ -77,3 +77,36 @@ def test_generated_c_matches_casadi(tmp_path):
             for a, b in zip(f(*args) if f.n_out() > 1 else [f(*args)],
                             ext(*args) if f.n_out() > 1 else [ext(*args)]):
                 np.testing.assert_allclose(a.full(), b.full(), atol=1e-10)
+
+
+@pytest.mark.parametrize("plugin", ["daqp", "qrqp"])
+@pytest.mark.parametrize("n_wheels, failed", [(4, ()), (4, (2,)), (5, ()),
+                                              (6, (0,))])
+def test_fast_path_equals_conic_qp(plugin, n_wheels, failed):
+    """Fast paths give the conic's optimum, saturated or not.
+
+    Closed form with 3-4 working wheels, min-norm check with 5 or more;
+    interior, saturated and momentum-bound demands.
+    """
+    axes = np.c_[_array().axes, np.eye(3)][:, :n_wheels]
+    arr = WheelArray(axes, h_max=np.full(n_wheels, 4.0),
+                     m_max=np.full(n_wheels, 0.2)).with_failed(*failed)
+    V = np.linspace(0.5, 2.0, n_wheels)
+    fast = conic_allocator_function(arr, V, dt=0.5, plugin=plugin)
+    ref = conic_allocator_function(arr, V, dt=0.5, plugin=plugin,
+                                   fast_path=False)
+    expected = "closed form" if n_wheels - len(failed) <= 4 else \
+        "min-norm check + conic"
+    assert wheel_qp_method(arr) == expected
+    assert wheel_qp_method(arr, fast_path=False) == "conic"
+    kinds = {"interior": 0, "saturated": 0}
+    for k in range(120):
+        M = RNG.normal(size=3) * (0.02, 0.1, 0.4)[k % 3]
+        h = RNG.uniform(-3.95, 3.95, n_wheels)
+        a = [x.full().ravel() for x in fast(M, h)]
+        b = [x.full().ravel() for x in ref(M, h)]
+        np.testing.assert_allclose(a[0], b[0], atol=1e-10, rtol=0)
+        assert a[1][0] == b[1][0]
+        assert a[2][0] < 1e-12
+        kinds["saturated" if a[1][0] < 1.0 else "interior"] += 1
+    assert min(kinds.values()) > 20

@@ -15,20 +15,85 @@ from .problem import facet_normals
 _MARGIN = 1e-9
 
 
+def weighted_pseudo_inverse(array: WheelArray, weights=None
+                            ) -> np.ndarray:
+    """``P = W Aᵀ (A W Aᵀ)⁻¹`` of the working wheels, ``W = diag(1/V)``.
+
+    ``P M`` is the minimiser of ``Σ V_i m_i²`` subject to ``A m = M``
+    with the failed wheels at zero (their rows of P are zero).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3)
+        The weighted minimum-norm map [1].
+    """
+    n = array.n_wheels
+    V = np.ones(n) if weights is None else as_vector(weights, n, "weights")
+    A = array.working_axes
+    W = np.where(array.active, 1.0 / V, 0.0)
+    AW = A * W
+    return np.linalg.solve(AW @ A.T, AW).T
+
+
+def wheel_qp_method(array: WheelArray, fast_path: bool = True) -> str:
+    """How `conic_allocator_function` solves the QP of ``array``.
+
+    Returns
+    -------
+    str
+        ``"closed form"`` (3 or 4 working wheels with ``fast_path``: no
+        conic in the Function, so its C needs no solver library),
+        ``"min-norm check + conic"`` (5 or more) or ``"conic"``.
+    """
+    if not fast_path:
+        return "conic"
+    if int(array.active.sum()) <= 4:
+        return "closed form"
+    return "min-norm check + conic"
+
+
+def _null_direction(array: WheelArray) -> np.ndarray:
+    """Return the unit vector (N,) spanning ``{n : A n = 0, n_failed = 0}``.
+
+    Only for arrays with one more working wheel than 3.
+    """
+    act = np.flatnonzero(array.active)
+    _, _, vt = np.linalg.svd(array.axes[:, act])
+    out = np.zeros(array.n_wheels)
+    out[act] = vt[-1]
+    return out
+
+
 def conic_allocator_function(array: WheelArray, weights=None, *,
                              dt: float | None = None, plugin: str = "daqp",
                              name: str = "wheel_qp",
-                             plugin_options: dict | None = None
-                             ) -> ca.Function:
+                             plugin_options: dict | None = None,
+                             fast_path: bool = True) -> ca.Function:
     """`QPAllocator` (``saturation="scale"``) as a single casadi Function.
 
     The same law as the numpy allocator: bounds ``|m_i| <= m_max_i`` (and
     ``|h_i + m_i dt| <= h_max_i`` when ``dt`` is given), failed wheels at 0,
     the largest ``α <= 1`` with ``α M`` attainable (from the zonotope
     facets, written symbolically), then ``min Σ V_i m_i²`` subject to
-    ``A m = α (1 - 1e-9) M`` by a CasADi ``conic``. The graph holds no
-    Python, so it can be called through ``Function.buffer()`` or exported
-    with ``generate()`` (daqp and qrqp generate self-contained C).
+    ``A m = α (1 - 1e-9) M``. The graph holds no Python, so it can be
+    called through ``Function.buffer()`` or exported with ``generate()``
+    (daqp and qrqp generate self-contained C).
+
+    With ``fast_path`` (default) the QP is solved exactly without the
+    conic whenever that is possible (the cost has no linear term, so the
+    weighted minimum-norm point ``m₀ = P t``, `weighted_pseudo_inverse`, is
+    the unconstrained optimum of the equality-constrained problem):
+
+    * 3 working wheels: ``m₀`` is the only point with ``A m = t``;
+    * 4 working wheels: the feasible set is the segment ``m₀ + s n``
+      (``n`` spans the null space of A, V-orthogonal to ``m₀``), so the
+      optimum is ``s`` = 0 clamped to the interval the bounds leave (an
+      exact 1-D QP: no conic in the graph, SX arithmetic only);
+    * 5 or more: ``m₀`` when it is within the bounds (then it is the QP
+      optimum: KKT holds with zero bound multipliers), else the conic
+      (evaluated only then, a short-circuit ``if_else``).
+
+    ``fast_path=False`` always calls the conic (the reference).
 
     Parameters
     ----------
@@ -40,6 +105,8 @@ def conic_allocator_function(array: WheelArray, weights=None, *,
         momentum bound.
     plugin : str
         CasADi conic plugin (``"daqp"`` default, ``"qrqp"``, ``"osqp"``).
+    fast_path : bool
+        Use the exact closed forms above before the conic.
 
     Returns
     -------
@@ -47,7 +114,9 @@ def conic_allocator_function(array: WheelArray, weights=None, *,
         ``wheel_qp(M[3] [, h[N]]) -> (m[N], alpha, violation)``:
         motor torques [N·m], the scale reached, and the largest
         violation of ``A m = α M`` or of the bounds (check it against
-        your tolerance: the conic's own success flag is not an output).
+        your tolerance: the conic's own success flag is not an output; on
+        an infeasible QP the closed forms return a point with a positive
+        violation).
     """
     array.require_full_rank()
     if f"casadi:{plugin}" not in _casadi_names():
@@ -58,10 +127,13 @@ def conic_allocator_function(array: WheelArray, weights=None, *,
     check_positive(V, "weights")
     A = array.working_axes
     active = array.active.astype(float)
+    nullity = int(array.active.sum()) - 3
+    closed = wheel_qp_method(array, fast_path) == "closed form"
     normals = facet_normals(A[:, array.active])
     NA = np.abs(normals @ A)
 
-    M = ca.MX.sym("M", 3)
+    sym = ca.SX if closed else ca.MX
+    M = sym.sym("M", 3)
     inputs, names = [M], ["M"]
     m_max = ca.DM(array.m_max)
     lo, hi = -m_max, m_max
@@ -69,7 +141,7 @@ def conic_allocator_function(array: WheelArray, weights=None, *,
         dt = as_finite_scalar(dt, "dt")
         if dt <= 0:
             raise InvalidValueError(f"dt must be positive, got {dt}")
-        h = ca.MX.sym("h", n)
+        h = sym.sym("h", n)
         inputs.append(h)
         names.append("h")
         h_max = ca.DM(array.h_max)
@@ -90,6 +162,47 @@ def conic_allocator_function(array: WheelArray, weights=None, *,
     alpha = ca.if_else(alpha < 1.0, alpha * (1.0 - _MARGIN), alpha)
     target = alpha * M
 
+    if fast_path:
+        m0 = ca.DM(weighted_pseudo_inverse(array, V)) @ target
+    if closed:
+        m = m0
+        if nullity == 1:
+            m = m0 + _segment_step(_null_direction(array), m0, lo, hi)
+    else:
+        m = _conic_call(name, plugin, plugin_options, n, V, A, target, lo,
+                        hi)
+        if fast_path:
+            inside = ca.mmax(ca.vertcat(lo - m0, m0 - hi)) <= 0.0
+            m = ca.if_else(inside, m0, m, True)
+    violation = ca.mmax(ca.vertcat(ca.fabs(ca.DM(A) @ m - target),
+                                   lo - m, m - hi))
+    return ca.Function(name, inputs, [m, alpha, violation], names,
+                       ["m", "alpha", "violation"])
+
+
+def _segment_step(direction: np.ndarray, m0, lo, hi):
+    """``s n`` with ``s`` = 0 clamped to ``{s : lo <= m0 + s n <= hi}``.
+
+    ``direction`` (N,) is constant; wheels with ``n_i`` = 0 do not bound
+    ``s`` (their torque is fixed by the equality).
+    """
+    tol = 1e-12 * float(np.abs(direction).max())
+    s_lo, s_hi = [], []
+    for i, ni in enumerate(direction):
+        if abs(ni) <= tol:
+            continue
+        a = (lo[i] - m0[i]) / ni
+        b = (hi[i] - m0[i]) / ni
+        s_lo.append(a if ni > 0 else b)
+        s_hi.append(b if ni > 0 else a)
+    step = ca.fmin(ca.fmax(0.0, ca.mmax(ca.vertcat(*s_lo))),
+                   ca.mmin(ca.vertcat(*s_hi)))
+    return step * ca.DM(direction)
+
+
+def _conic_call(name: str, plugin: str, plugin_options: dict | None,
+                n: int, V: np.ndarray, A: np.ndarray, target, lo, hi):
+    """``min Σ V_i m_i²`` s.t. ``A m = target``, ``lo <= m <= hi`` (MX)."""
     opts = dict(plugin_options or {})
     if plugin == "qrqp":
         opts.setdefault("print_iter", False)
@@ -101,11 +214,7 @@ def conic_allocator_function(array: WheelArray, weights=None, *,
                        "a": ca.Sparsity.dense(3, n)}, opts)
     sol = solver(h=ca.DM(np.diag(2.0 * V)), g=ca.DM.zeros(n), a=ca.DM(A),
                  lba=target, uba=target, lbx=lo, ubx=hi)
-    m = sol["x"]
-    violation = ca.mmax(ca.vertcat(ca.fabs(ca.DM(A) @ m - target),
-                                   lo - m, m - hi))
-    return ca.Function(name, inputs, [m, alpha, violation], names,
-                       ["m", "alpha", "violation"])
+    return sol["x"]
 
 
 def conic_c_flags(plugin: str = "daqp") -> list[str]:
