@@ -175,7 +175,7 @@ def _progress_fn(enabled: bool) -> Callable[[str], None]:
 def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
                  seed: int = 0, progress: Callable[[str], None] | None = None
                  ) -> list[BenchRow]:
-    """The bounded wheel-allocation QP across backends.
+    """Time the bounded wheel-allocation QP across backends.
 
     Pyramid (δ = 55°, γ = 45°), ``m_max = 0.2`` N·m; ``reps`` attainable
     demands ``M = A m`` with ``m`` uniform in ``0.97 · [-m_max, m_max]``
@@ -248,7 +248,7 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
                     seed: int = 0,
                     progress: Callable[[str], None] | None = None
                     ) -> list[BenchRow]:
-    """The thruster duty-cycle QP across backends.
+    """Time the thruster duty-cycle QP across backends.
 
     Six-thruster unit of seed 004, T_T = 2 s, ``h_max = 0.012`` N·m·s,
     weighted torque tracking, momentum box; random cycles with P_T in
@@ -338,7 +338,7 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
 def bench_slew(backends: Sequence[str] | None = None, reps: int = 5,
                progress: Callable[[str], None] | None = None,
                quick: bool = False) -> list[BenchRow]:
-    """The MPC slew NLP (horizon 20, 90° from rest), cold-started.
+    """Time the MPC slew NLP (horizon 20, 90° from rest), cold-started.
 
     Backends: ``"ipopt"``, ``"sqpmethod"`` (Gauss–Newton + qrqp),
     ``"sqpmethod-daqp"`` (dense: ~10 s per cold solve, left out with
