@@ -95,6 +95,25 @@ def run(quick: bool = False) -> list[tuple[str, float]]:
                 lambda: qa.allocate(Ms[:, next(cycle)]),
                 max(n_calls // 10, 5), repeats)))
 
+    fa = QPAllocator(arr, solver="daqp")
+    rows.append(("QPAllocator.allocate_fast (checked, closed-form QP)",
+                 per_call(lambda: fa.allocate_fast(Ms[:, next(cycle)]),
+                          n_calls, repeats)))
+    fq = conic_allocator_function(arr)
+    fbuf, fcall = fq.buffer()
+    f_in = Ms[:, 0].copy()
+    f_outs = [np.zeros(4), np.zeros(1), np.zeros(1)]
+    fbuf.set_arg(0, memoryview(f_in))
+    for i, o in enumerate(f_outs):
+        fbuf.set_res(i, memoryview(o))
+
+    def fast_buffered():
+        f_in[:] = Ms[:, next(cycle)]
+        fcall()
+
+    rows.append(("QP conic_allocator_function closed form, buffer",
+                 per_call(fast_buffered, n_calls, repeats)))
+
     qf = conic_allocator_function(arr, plugin="daqp", fast_path=False)
     rows.append(("QP conic_allocator_function daqp (numpy in)",
                  per_call(lambda: qf(Ms[:, next(cycle)]), n_calls,

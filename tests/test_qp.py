@@ -292,3 +292,61 @@ def test_property_random_arrays(n, seed, scale, n_failed, solver):
                      bounds=list(zip(lo, hi)) + [(0, 1)], method="highs")
         assert lp.status == 0
         assert res.alpha == pytest.approx(-lp.fun, abs=1e-6)
+
+
+# fast path: one buffer call of conic_allocator_function, checked ---------
+@pytest.mark.parametrize("arr", [
+    small_pyramid(), small_pyramid().with_failed(2),
+    WheelArray.orthogonal_pairs(h_max=1.0, m_max=0.1)],
+    ids=["pyramid", "pyramid_failed", "six_wheels"])
+def test_allocate_fast_equals_allocate_inside_and_saturated(arr):
+    rng = np.random.default_rng(11)
+    alloc = QPAllocator(arr, solver="daqp",
+                        weights=rng.uniform(0.5, 2.0, arr.n_wheels))
+    saturated = 0
+    out = np.full(arr.n_wheels, np.nan)
+    for _ in range(200):
+        M = rng.normal(size=3) * 0.3
+        h = rng.uniform(-0.99, 0.99, arr.n_wheels) * arr.h_max
+        for args in ((M,), (M, h, 0.5)):
+            ref = alloc.allocate(*args)
+            got = alloc.allocate_fast(*args, out=out)
+            assert got is out
+            np.testing.assert_allclose(got, ref.torques, atol=1e-12)
+            assert alloc.fast_alpha == pytest.approx(ref.alpha, abs=1e-12)
+            saturated += ref.status == "saturated"
+    assert saturated > 50
+    assert alloc.fast_fallbacks == 0
+
+
+def test_allocate_fast_falls_back_where_the_laws_differ_or_input_is_bad():
+    arr = small_pyramid()
+    alloc = QPAllocator(arr, solver="daqp")
+    # one wheel beyond h_max + m_max dt: it must brake; where allocate
+    # then falls back to least squares the fast answer fails its check
+    rng = np.random.default_rng(1)
+    least_squares = 0
+    for _ in range(150):
+        M = rng.normal(size=3) * 0.3
+        h = rng.uniform(-1.0, 1.0, 4) * 4.0
+        h[rng.integers(4)] = rng.choice([-1.0, 1.0]) * rng.uniform(4.2, 6.0)
+        ref = alloc.allocate(M, h, 1.0)
+        least_squares += ref.mode == "least_squares"
+        np.testing.assert_allclose(alloc.allocate_fast(M, h, 1.0),
+                                   ref.torques, atol=1e-12)
+    assert least_squares > 5
+    assert alloc.fast_fallbacks == least_squares
+    alloc.fast_fallbacks = 0
+    with pytest.raises(InvalidValueError, match="torque"):
+        alloc.allocate_fast([np.nan, 0.0, 0.0])
+    with pytest.raises(ShapeError, match="torque"):
+        alloc.allocate_fast([0.1, 0.0])
+    with pytest.raises(InvalidValueError, match="dt"):
+        alloc.allocate_fast([0.1, 0.0, 0.0], [0.0] * 4, -1.0)
+    assert alloc.fast_fallbacks == 3
+    # a null-space momentum term is not in the fast Function: allocate
+    managed = QPAllocator(arr, solver="daqp", momentum_target=np.zeros(4))
+    args = ([0.05, 0.02, -0.01], [1.0, -1.0, 0.5, 0.0], 0.5)
+    np.testing.assert_array_equal(managed.allocate_fast(*args),
+                                  managed.allocate(*args).torques)
+    assert managed.fast_fallbacks == 1
