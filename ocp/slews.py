@@ -58,6 +58,10 @@ NLP_SOLVERS: dict[str, tuple[str, dict]] = {
                         "ipopt": {"print_level": 0, "sb": "yes",
                                   "max_iter": 1000, "tol": 1e-8}}),
     "sqpmethod": ("sqpmethod", _QUIET_SQP),
+    "fatrop": ("fatrop", {"print_time": False, "record_time": True,
+                          "structure_detection": "auto",
+                          "fatrop": {"print_level": 0, "max_iter": 1000,
+                                     "tol": 1e-8}}),
 }
 
 
@@ -255,6 +259,80 @@ def _collocation_function(f: ca.Function, nx: int, nu: int,
                        [ca.vertcat(*res), xend])
 
 
+@dataclass(frozen=True)
+class _Layout:
+    """Positions of the scaled decision variables in the NLP vector ``w``.
+
+    ``iX`` (nx, N+1) and ``iU`` (nu, N) index the states and controls,
+    ``iT`` (N+1,) the scaled final time seen by each stage (one shared
+    variable, or a copy per stage for fatrop; empty at fixed T) and
+    ``iXc`` (nx, d N) the collocation states.
+    """
+
+    iX: np.ndarray
+    iU: np.ndarray
+    iT: np.ndarray
+    iXc: np.ndarray
+    n: int
+
+
+def _layout(nx: int, nu: int, N: int, free_T: bool, nc: int,
+            stagewise: bool) -> _Layout:
+    """Block layout (X, U, T, Xc) or stage-wise (x_k, T_k, u_k, xc_k)."""
+    if not stagewise:
+        c = np.cumsum([0, nx * (N + 1), nu * N, int(free_T)])
+        iX = np.arange(c[0], c[1]).reshape(nx, N + 1, order="F")
+        iU = np.arange(c[1], c[2]).reshape(nu, N, order="F")
+        iT = np.full(N + 1 if free_T else 0, c[2])
+        iXc = np.arange(c[3], c[3] + nx * nc * N).reshape(
+            nx, nc * N, order="F")
+        return _Layout(iX, iU, iT, iXc, int(c[3] + nx * nc * N))
+    nt = int(free_T)
+    stage = nx + nt + nu + nx * nc
+    base = stage * np.arange(N + 1)
+    iX = base[None, :] + np.arange(nx)[:, None]
+    iT = base + nx if free_T else np.zeros(0, dtype=int)
+    iU = base[None, :N] + nx + nt + np.arange(nu)[:, None]
+    iXc = (base[None, :N, None] + nx + nt + nu
+           + np.arange(nx * nc).reshape(nc, nx).T[:, None, :])
+    iXc = iXc.transpose(0, 2, 1).reshape(nx, nc * N, order="F")
+    return _Layout(iX, iU, iT, iXc, int(stage * N + nx + nt))
+
+
+def _pick(w, idx: np.ndarray):
+    """Symbolic entries ``w[idx]`` with the shape of ``idx``."""
+    if idx.size == 0:
+        return type(w)(*idx.shape) if idx.ndim == 2 else type(w)(0, 1)
+    flat = w[idx.ravel("F").tolist()]
+    return ca.reshape(flat, *idx.shape) if idx.ndim == 2 else flat
+
+
+class _Constraints:
+    """Accumulates constraint rows ``lbg <= g <= ubg``."""
+
+    def __init__(self) -> None:
+        self.g: list = []
+        self.lb: list[np.ndarray] = []
+        self.ub: list[np.ndarray] = []
+
+    def add(self, expr, lb, ub) -> None:
+        expr = ca.vec(expr)
+        n = expr.numel()
+        self.g.append(expr)
+        for out, v in ((self.lb, lb), (self.ub, ub)):
+            v = np.asarray(v, float).ravel("F")  # the order of ca.vec
+            out.append(np.broadcast_to(v, n).copy())
+
+    def eq(self, expr, value=0.0) -> None:
+        self.add(expr, value, value)
+
+    def arrays(self):
+        """(g, lbg, ubg, equality flags)."""
+        lb = np.concatenate(self.lb) if self.lb else np.zeros(0)
+        ub = np.concatenate(self.ub) if self.ub else np.zeros(0)
+        return ca.vertcat(*self.g), lb, ub, (lb == ub).tolist()
+
+
 def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
            transcription: str, solver: str, expand: bool, substeps: int,
            initial_guess: str, perturbation: float, seed: int,
@@ -264,6 +342,14 @@ def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
     nx, nu = model.nx, model.nu
     nw = model.n_wheels
     t_build = time.perf_counter()
+    # fatrop needs the stage-wise layout, the final time as a state
+    # (T_{k+1} = T_k) and fixed values as constraint rows
+    ocp_form = plugin == "fatrop"
+    colloc = transcription == "collocation"
+    if ocp_form and colloc:
+        # its structure detection rejects the collocation rows
+        raise InvalidValueError(
+            "solver 'fatrop' takes transcription='multiple_shooting' only")
     # expand=True builds the NLP in SX directly (what expanding the MX
     # graph gives, without the MX step); expand=False keeps an MX graph
     # of Function calls.
@@ -271,101 +357,78 @@ def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
     xs = np.r_[np.ones(4), s.w_scale * np.ones(3),
                s.h_max if s.h_max is not None else np.zeros(0)]
     d = 3
-    Xn = Sym.sym("X", nx, N + 1)
-    Un = Sym.sym("U", nu, N)
     free_T = T_fixed is None
-    Tn = Sym.sym("T", 1 if free_T else 0)
-    colloc = transcription == "collocation"
-    Xcn = Sym.sym("Xc", nx, d * N if colloc else 0)
+    lay = _layout(nx, nu, N, free_T, d if colloc else 0, ocp_form)
+    w = Sym.sym("w", lay.n)
+    Xn, Un, Xcn = _pick(w, lay.iX), _pick(w, lay.iU), _pick(w, lay.iXc)
+    Tk = _pick(w, lay.iT) if free_T else None  # (N+1,) scaled
     X = ca.diag(ca.DM(xs)) @ Xn
     U = ca.diag(ca.DM(s.u_max)) @ Un
-    T = s.T_eig * Tn if free_T else T_fixed
-    dt = T / N
+    dt = (s.T_eig / N * Tk[:N].T if free_T
+          else ca.DM.ones(1, N) * (T_fixed / N))
     f = model.dynamics
     inv_xs = ca.DM(1.0 / xs)
-    g, lbg, ubg = [], [], []
-
-    def eq(expr):
-        g.append(ca.vec(expr))
-        lbg.append(np.zeros(expr.numel()))
-        ubg.append(np.zeros(expr.numel()))
-
+    x0 = np.r_[s.q0, np.zeros(3), s.h0]
+    rate = (None if s.rate_max is None
+            else ca.sum1(Xn[4:7, :] ** 2) - (s.rate_max / s.w_scale) ** 2)
+    # rows stage by stage (fatrop's structure detection reads them so)
+    rows, lo, hi = [], [], []
     if not colloc:
         F = _shooting_function(f, nx, nu, substeps).map(N)
-        eq(Xn[:, 1:] - inv_xs * F(X[:, :N], U, ca.repmat(dt, 1, N)))
+        rows.append(Xn[:, 1:] - inv_xs * F(X[:, :N], U, dt))
+        lo.append(0.0), hi.append(0.0)
     else:
         F = _collocation_function(f, nx, nu, d).map(N)
         Xc = ca.diag(ca.DM(xs)) @ Xcn
-        Xc_stack = ca.reshape(Xc, nx * d, N)
-        res, xend = F(X[:, :N], Xc_stack, U, ca.repmat(dt, 1, N))
-        eq(ca.repmat(inv_xs, d, 1) * res)
-        eq(Xn[:, 1:] - inv_xs * xend)
-    qN = X[:4, N]
-    qe = quat_mul(ca.DM(quat_conj(s.qf)), qN)
-    eq(qe[1:])
-    g.append(qe[0])
-    lbg.append([0.0])
-    ubg.append([np.inf])
-    if s.rate_max is not None:
-        r = s.rate_max / s.w_scale
-        g.append(ca.sum1(Xn[4:7, :] ** 2).T)
-        lbg.append(np.full(N + 1, -np.inf))
-        ubg.append(np.full(N + 1, r ** 2))
-    # simple bounds
-    x0 = np.r_[s.q0, np.zeros(3), s.h0]
-    lbX = -np.inf * np.ones((nx, N + 1))
-    ubX = np.inf * np.ones((nx, N + 1))
-    lbX[:, 0] = ubX[:, 0] = x0 / xs
-    lbX[4:7, N] = ubX[4:7, N] = 0.0
-    if nw:
-        lbX[7:, 1:] = -1.0
-        ubX[7:, 1:] = 1.0
-    active = (np.ones(nu) if model.wheels is None
-              else model.wheels.active.astype(float))
-    lbU = -np.repeat(active[:, None], N, axis=1)
-    ubU = -lbU
-    lbXc = -np.inf * np.ones((nx, Xcn.shape[1]))
-    ubXc = np.inf * np.ones((nx, Xcn.shape[1]))
-    if nw and colloc:
-        lbXc[7:] = -1.0
-        ubXc[7:] = 1.0
-    lbT = np.full(Tn.shape[0], 1e-3)
-    ubT = np.full(Tn.shape[0], np.inf)
-    w = ca.vertcat(ca.vec(Xn), ca.vec(Un), Tn, ca.vec(Xcn))
-    lbw = np.concatenate([lbX.ravel("F"), lbU.ravel("F"), lbT,
-                          lbXc.ravel("F")])
-    ubw = np.concatenate([ubX.ravel("F"), ubU.ravel("F"), ubT,
-                          ubXc.ravel("F")])
-    J_obj = Tn if free_T else ca.sumsqr(Un) / N  # ∝ Σ ∫ m² dt at fixed T
-    # initial guess
+        res, xend = F(X[:, :N], ca.reshape(Xc, nx * d, N), U, dt)
+        rows.append(Xn[:, 1:] - inv_xs * xend)
+        rows.append(ca.repmat(inv_xs, d, 1) * res)
+        lo += [0.0, 0.0]
+        hi += [0.0, 0.0]
+    if free_T and ocp_form:
+        rows.append(Tk[1:].T - Tk[:N].T), lo.append(0.0), hi.append(0.0)
+    if rate is not None:
+        rows.append(rate[:N]), lo.append(-np.inf), hi.append(0.0)
+    con = _Constraints()
+    if ocp_form:
+        con.eq(Xn[:, 0], x0 / xs)
+    con.add(ca.vertcat(*rows),
+            np.concatenate([np.full((r.shape[0], N), a)
+                            for r, a in zip(rows, lo)]),
+            np.concatenate([np.full((r.shape[0], N), b)
+                            for r, b in zip(rows, hi)]))
+    if rate is not None:
+        con.add(rate[N], -np.inf, 0.0)
+    if ocp_form:
+        con.eq(Xn[4:7, N])
+    qe = quat_mul(ca.DM(quat_conj(s.qf)), X[:4, N])
+    con.eq(qe[1:])
+    con.add(qe[0], 0.0, np.inf)
+    g, lbg, ubg, equality = con.arrays()
+    lbw, ubw = _bounds(s, lay, N, xs, x0, colloc, fix=not ocp_form)
+    J_obj = Tk[0] if free_T else ca.sumsqr(Un) / N  # ∝ Σ ∫ m² dt
     T_guess = s.T_eig if free_T else T_fixed
-    Xg, Ug = _guess(s, N, T_guess, initial_guess, perturbation, seed)
-    Xgn = Xg / xs[:, None]
-    Xcg = np.repeat(0.5 * (Xgn[:, :-1] + Xgn[:, 1:]), d, axis=1)
-    w0 = np.concatenate([Xgn.ravel("F"), (Ug / s.u_max[:, None]).ravel("F"),
-                         [T_guess / s.T_eig] if free_T else [],
-                         Xcg.ravel("F") if colloc else []])
-    opts = _merge(base_opts, solver_options or {})
-    nlp = {"x": w, "f": J_obj, "g": ca.vertcat(*g)}
-    S = ca.nlpsol("slew", plugin, nlp, opts)
+    w0 = _initial_point(s, lay, N, xs, T_guess, free_T, colloc, d,
+                        initial_guess, perturbation, seed)
+    opts = dict(base_opts)
+    if ocp_form:
+        opts["equality"] = equality
+    opts = _merge(opts, solver_options or {})
+    S = ca.nlpsol("slew", plugin, {"x": w, "f": J_obj, "g": g}, opts)
     build_time = time.perf_counter() - t_build
     t0 = time.perf_counter()
     try:
-        sol = S(x0=w0, lbx=lbw, ubx=ubw, lbg=np.concatenate(lbg),
-                ubg=np.concatenate(ubg))
+        sol = S(x0=w0, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
     except RuntimeError as exc:
         raise SolverError(f"solver {solver!r} failed with an error: "
                           f"{str(exc).strip().splitlines()[-1]}",
                           solver=solver) from exc
     solve_time = time.perf_counter() - t0
     stats = S.stats()
-    success = bool(stats.get("success", False))
-    status = str(stats.get("return_status", "unknown"))
     wopt = np.asarray(sol["x"]).ravel()
-    nX, nU = nx * (N + 1), nu * N
-    Xv = wopt[:nX].reshape(nx, N + 1, order="F") * xs[:, None]
-    Uv = wopt[nX:nX + nU].reshape(nu, N, order="F") * s.u_max[:, None]
-    Tv = float(wopt[nX + nU] * s.T_eig) if free_T else float(T_fixed)
+    Xv = wopt[lay.iX] * xs[:, None]
+    Uv = wopt[lay.iU] * s.u_max[:, None]
+    Tv = float(wopt[lay.iT[0]] * s.T_eig) if free_T else float(T_fixed)
     t = np.linspace(0.0, Tv, N + 1)
     extras = {"objective": objective, "transcription": transcription,
               "solver": solver, "expand": bool(expand), "N": N,
@@ -382,18 +445,73 @@ def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
         T=Tv, t=t, q=Xv[:4].T, w=Xv[4:7].T,
         torque=model.body_control_torque(Uv).T,
         wheel_torque=Uv.T if nw else None,
-        wheel_momentum=Xv[7:].T if nw else None, qf=s.qf, status=status,
-        success=success, solve_time=solve_time,
+        wheel_momentum=Xv[7:].T if nw else None, qf=s.qf,
+        status=_status(stats), success=bool(stats.get("success", False)),
+        solve_time=solve_time,
         iterations=int(stats.get("iter_count", -1)), extras=extras)
     if verify and np.isfinite(Tv) and Tv > 0:
-        Xs = model.simulate(x0, t, Uv.T, options={"abstol": 1e-9,
-                                                   "reltol": 1e-9})
-        qe = quat_mul(quat_conj(s.qf), Xs[-1, :4] / np.linalg.norm(
-            Xs[-1, :4]))
-        extras["simulated_final_error"] = float(
-            2 * np.arcsin(min(1.0, np.linalg.norm(qe[1:]))))
-        extras["simulated_final_rate"] = float(np.linalg.norm(Xs[-1, 4:7]))
+        _verify(model, x0, t, Uv, s.qf, extras)
     return traj
+
+
+def _status(stats: dict) -> str:
+    """Return the solver's status message (fatrop's code is an int)."""
+    status = stats.get("return_status", "unknown")
+    if isinstance(status, str):
+        return status
+    return f"{stats.get('unified_return_status', 'unknown')} ({status})"
+
+
+def _bounds(s: _Setup, lay: _Layout, N: int, xs: np.ndarray,
+            x0: np.ndarray, colloc: bool, fix: bool):
+    """(lbw, ubw) of the scaled variables; ``fix``: x(0), ω(T) by bounds."""
+    nx = lay.iX.shape[0]
+    nw = s.model.n_wheels
+    lbw = np.full(lay.n, -np.inf)
+    ubw = np.full(lay.n, np.inf)
+    lbX = np.full((nx, N + 1), -np.inf)
+    ubX = np.full((nx, N + 1), np.inf)
+    if nw:
+        lbX[7:, 1:], ubX[7:, 1:] = -1.0, 1.0
+    if fix:
+        lbX[:, 0] = ubX[:, 0] = x0 / xs
+        lbX[4:7, N] = ubX[4:7, N] = 0.0
+    lbw[lay.iX], ubw[lay.iX] = lbX, ubX
+    active = (np.ones(s.model.nu) if s.model.wheels is None
+              else s.model.wheels.active.astype(float))
+    lbw[lay.iU] = -active[:, None]
+    ubw[lay.iU] = active[:, None]
+    if nw and colloc:
+        lbw[lay.iXc[7:]], ubw[lay.iXc[7:]] = -1.0, 1.0
+    lbw[lay.iT] = 1e-3
+    return lbw, ubw
+
+
+def _initial_point(s: _Setup, lay: _Layout, N: int, xs: np.ndarray,
+                   T_guess: float, free_T: bool, colloc: bool, d: int,
+                   kind: str, perturbation: float, seed: int) -> np.ndarray:
+    """Scaled initial guess ``w0`` (lay.n,)."""
+    Xg, Ug = _guess(s, N, T_guess, kind, perturbation, seed)
+    Xgn = Xg / xs[:, None]
+    w0 = np.zeros(lay.n)
+    w0[lay.iX] = Xgn
+    w0[lay.iU] = Ug / s.u_max[:, None]
+    if free_T:
+        w0[lay.iT] = T_guess / s.T_eig
+    if colloc:
+        w0[lay.iXc] = np.repeat(0.5 * (Xgn[:, :-1] + Xgn[:, 1:]), d, axis=1)
+    return w0
+
+
+def _verify(model: SpacecraftModel, x0: np.ndarray, t: np.ndarray,
+            Uv: np.ndarray, qf: np.ndarray, extras: dict) -> None:
+    """Simulate the controls with CVODES; store final error and rate."""
+    Xs = model.simulate(x0, t, Uv.T, options={"abstol": 1e-9,
+                                               "reltol": 1e-9})
+    qe = quat_mul(quat_conj(qf), Xs[-1, :4] / np.linalg.norm(Xs[-1, :4]))
+    extras["simulated_final_error"] = float(
+        2 * np.arcsin(min(1.0, np.linalg.norm(qe[1:]))))
+    extras["simulated_final_rate"] = float(np.linalg.norm(Xs[-1, 4:7]))
 
 
 def time_optimal_slew(inertia, q0, qf, *, torque_max=None,

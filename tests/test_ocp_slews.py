@@ -178,3 +178,41 @@ def test_benchmark_runs_one_configuration():
     assert res["status"] == "Solve_Succeeded"
     assert res["T"] == pytest.approx(BILIMORIA_WIE_T, abs=0.02)
     assert res["solve"] > 0
+
+
+fatrop_missing = pytest.mark.skipif(
+    "fatrop" not in __import__("ocp").available_nlp_solvers(),
+    reason="CasADi built without fatrop")
+
+
+@fatrop_missing
+def test_fatrop_gives_the_ipopt_time_optimal_slew(bw_ms):
+    r = time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=100,
+                          solver="fatrop")
+    assert r.success and "SUCCESS" in r.status
+    assert r.T == pytest.approx(bw_ms.T, rel=1e-5)
+    assert r.extras["simulated_final_error"] < 1e-6
+
+
+@fatrop_missing
+def test_fatrop_wheel_limits_and_min_energy_match_ipopt():
+    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
+    a = time_optimal_slew(J_METEOR, Q0, qf, wheels=arr, N=40,
+                          solver="fatrop", verify=False)
+    b = time_optimal_slew(J_METEOR, Q0, qf, wheels=arr, N=40, verify=False)
+    assert a.success and b.success
+    assert a.T == pytest.approx(b.T, rel=1e-5)
+    assert a.peak_wheel_momentum <= 4.0 * (1 + 1e-6)
+    e = min_energy_slew(J_METEOR, Q0, qf, wheels=arr, T=1.5 * b.T, N=40,
+                        solver="fatrop", verify=False)
+    f = min_energy_slew(J_METEOR, Q0, qf, wheels=arr, T=1.5 * b.T, N=40,
+                        verify=False)
+    assert e.success and e.energy == pytest.approx(f.energy, rel=1e-5)
+
+
+@fatrop_missing
+def test_fatrop_rejects_collocation():
+    with pytest.raises(InvalidValueError, match="multiple_shooting"):
+        time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=10,
+                          solver="fatrop", transcription="collocation")
