@@ -15,8 +15,15 @@ off-axis rate and torque, which lets the solver leave it.
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import tempfile
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -29,9 +36,14 @@ from adcs_common.exceptions import (
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 from allocation import WheelArray, min_norm_gains
 
-from .attitude import quat_conj, quat_mul, rotation_between
+from .attitude import quat_conj, quat_mul, quat_rate, rotation_between
 from .laws import _unit_quat, eigenaxis_slew
-from .models import SpacecraftModel, check_inertia, rigid_spacecraft
+from .models import (
+    SpacecraftModel,
+    _effective_torque_matrix,
+    check_inertia,
+    rigid_spacecraft,
+)
 from .trajectory import SlewTrajectory
 
 __all__ = [
@@ -220,42 +232,114 @@ def _collocation_coefficients(d: int = 3):
     return tau, C, D, B
 
 
-def _shooting_function(f: ca.Function, nx: int, nu: int,
-                       substeps: int) -> ca.Function:
-    """SX Function ``step(x, u, dt) -> (xf)``: RK4 with ``substeps``."""
-    x = ca.SX.sym("x", nx)
-    u = ca.SX.sym("u", nu)
+def _param_sizes(nx: int, nu: int, nw: int) -> dict[str, int]:
+    """Entries of the slew-data vector (order and lengths).
+
+    ``J``, ``Jinv`` (9, column-major) [kg·m², 1/(kg·m²)], ``A`` (3 N_w)
+    wheel axes, ``sfac`` (N_w) torque factors, ``umax`` (nu) control
+    scale [N·m], ``hmax`` (N_w) momentum scale [N·m·s], ``wscale`` rate
+    scale [rad/s], ``Tref`` time scale [s] (eigenaxis time, or T when
+    fixed), ``qf`` (4) target attitude, ``x0`` (nx) scaled initial state.
+    """
+    return {"J": 9, "Jinv": 9, "A": 3 * nw, "sfac": nw, "umax": nu,
+            "hmax": nw, "wscale": 1, "Tref": 1, "qf": 4, "x0": nx}
+
+
+#: Entries of the slew data that stay symbolic (NLP parameters ``p``)
+#: when the other ones are folded into the graph as constants.
+_SLEW_PARAMETERS = ("wscale", "Tref", "qf", "x0")
+
+
+def _split(v, sizes: dict[str, int]) -> dict:
+    """Slices of ``v`` named as in `_param_sizes`."""
+    out, i = {}, 0
+    for k, n in sizes.items():
+        out[k] = v[i:i + n]
+        i += n
+    return out
+
+
+def _state_scale(d: dict):
+    """Scale of the state (q, ω, H_w): ``x = xs ⊙ x_n``."""
+    one = d["wscale"] * 0 + 1  # 1 of the right type
+    return ca.vertcat(one, one, one, one, d["wscale"], d["wscale"],
+                      d["wscale"], d["hmax"])
+
+
+def _rigid_dynamics(x, u, d: dict, nw: int):
+    """ẋ of `ocp.models.rigid_spacecraft` (no external torque).
+
+    The same equations with J, J⁻¹, A and the torque factors taken from
+    ``d`` (symbols or constants): ``J ω̇ = -ω × (J ω + A H_w) - A m``,
+    ``Ḣ_w = m = sfac ⊙ u`` (torque box: ``J ω̇ = -ω × J ω + u``).
+    """
+    J = ca.reshape(d["J"], 3, 3)
+    Jinv = ca.reshape(d["Jinv"], 3, 3)
+    q, w = x[:4], x[4:7]
+    H = J @ w
+    if nw:
+        A = ca.reshape(d["A"], 3, nw)
+        m = d["sfac"] * u
+        H = H + A @ x[7:]
+        torque = -A @ m
+    else:
+        torque = u
+    wdot = Jinv @ (-ca.cross(w, H) + torque)
+    return ca.vertcat(quat_rate(q, w), wdot, m) if nw else ca.vertcat(
+        quat_rate(q, w), wdot)
+
+
+def _shooting_function(nx: int, nu: int, nw: int, substeps: int,
+                       data) -> ca.Function:
+    """SX ``step(x_n, u_n, dt, p) -> (x_n+)``: RK4, ``substeps`` stages.
+
+    States and controls are scaled (``x = xs ⊙ x_n``, ``u = umax ⊙
+    u_n``); ``data`` is the slew-data vector with symbols where it holds
+    NLP parameters, and ``p`` those symbols.
+    """
+    xn = ca.SX.sym("xn", nx)
+    un = ca.SX.sym("un", nu)
     dt = ca.SX.sym("dt")
-    tau = ca.SX.zeros(3)
+    d, p = data
+    xs = _state_scale(d)
+    u = d["umax"] * un
     h = dt / substeps
-    xk = x
+    xk = xs * xn
     for _ in range(substeps):
-        k1 = f(xk, u, tau)
-        k2 = f(xk + h / 2 * k1, u, tau)
-        k3 = f(xk + h / 2 * k2, u, tau)
-        k4 = f(xk + h * k3, u, tau)
+        k1 = _rigid_dynamics(xk, u, d, nw)
+        k2 = _rigid_dynamics(xk + h / 2 * k1, u, d, nw)
+        k3 = _rigid_dynamics(xk + h / 2 * k2, u, d, nw)
+        k4 = _rigid_dynamics(xk + h * k3, u, d, nw)
         xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return ca.Function("step", [x, u, dt], [xk])
+    return ca.Function("step", [xn, un, dt, p], [xk / xs])
 
 
-def _collocation_function(f: ca.Function, nx: int, nu: int,
-                          d: int) -> ca.Function:
-    """SX Function ``interval(x, xc, u, dt) -> (res, xend)`` (Legendre)."""
-    _, C, D, _ = _collocation_coefficients(d)
-    x = ca.SX.sym("x", nx)
-    xc = ca.SX.sym("xc", nx * d)
-    u = ca.SX.sym("u", nu)
+def _collocation_function(nx: int, nu: int, nw: int, deg: int,
+                          data) -> ca.Function:
+    """SX ``interval(x_n, xc_n, u_n, dt, p) -> (res, x_n end)``.
+
+    Legendre collocation of degree ``deg``, scaled as
+    `_shooting_function`; ``res`` (nx deg) are the scaled residuals.
+    """
+    _, C, D, _ = _collocation_coefficients(deg)
+    xn = ca.SX.sym("xn", nx)
+    xcn = ca.SX.sym("xcn", nx * deg)
+    un = ca.SX.sym("un", nu)
     dt = ca.SX.sym("dt")
-    pts = [x] + [xc[j * nx:(j + 1) * nx] for j in range(d)]
+    d, p = data
+    xs = _state_scale(d)
+    u = d["umax"] * un
+    pts = [xn] + [xcn[j * nx:(j + 1) * nx] for j in range(deg)]
     res = []
-    xend = D[0] * x
-    for j in range(1, d + 1):
-        xp = C[0, j] * x
-        for r in range(1, d + 1):
+    xend = D[0] * xn
+    for j in range(1, deg + 1):
+        xp = C[0, j] * xn
+        for r in range(1, deg + 1):
             xp = xp + C[r, j] * pts[r]
-        res.append(dt * f(pts[j], u, ca.SX.zeros(3)) - xp)
+        xdot = _rigid_dynamics(xs * pts[j], u, d, nw) / xs
+        res.append(dt * xdot - xp)
         xend = xend + D[j] * pts[j]
-    return ca.Function("interval", [x, xc, u, dt],
+    return ca.Function("interval", [xn, xcn, un, dt, p],
                        [ca.vertcat(*res), xend])
 
 
@@ -333,92 +417,251 @@ class _Constraints:
         return ca.vertcat(*self.g), lb, ub, (lb == ub).tolist()
 
 
-def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
-           transcription: str, solver: str, expand: bool, substeps: int,
-           initial_guess: str, perturbation: float, seed: int,
-           solver_options: dict | None, verify: bool) -> SlewTrajectory:
-    plugin, base_opts = _solver_entry(solver)
+@dataclass(frozen=True, eq=False)
+class _Built:
+    """A slew NLP solver and the numeric pieces of its inputs.
+
+    ``lbg``, ``ubg`` are the constraint bounds, with ``rate_rows`` the
+    rows of the ``|ω|² <= rate_max²`` bound (set per solve).
+    """
+
+    solver: ca.Function
+    lay: _Layout
+    lbg: np.ndarray
+    ubg: np.ndarray
+    rate_rows: np.ndarray
+    build_time: float
+
+
+#: Built solvers, keyed by problem structure (and folded data).
+_CACHE: dict[tuple, _Built] = {}
+_CACHE_SIZE = 16
+
+
+def _slew_data(s: _Setup, T_ref: float, x0: np.ndarray) -> np.ndarray:
+    """Numeric slew-data vector (layout of `_param_sizes`)."""
     model = s.model
-    nx, nu = model.nx, model.nu
-    nw = model.n_wheels
+    if model.wheels is None:
+        A, sfac, hmax = np.zeros((3, 0)), np.zeros(0), np.zeros(0)
+    else:
+        A, sfac = _effective_torque_matrix(model.wheels)
+        hmax = s.h_max
+    J = model.inertia
+    xs = np.r_[np.ones(4), np.full(3, s.w_scale), hmax]
+    return np.concatenate([J.ravel("F"), np.linalg.inv(J).ravel("F"),
+                           A.ravel("F"), sfac, s.u_max, hmax, [s.w_scale],
+                           [T_ref], s.qf, x0 / xs])
+
+
+def _data_symbols(Sym, sizes: dict[str, int], values: np.ndarray,
+                  symbolic: tuple[str, ...]):
+    """Return (dict of entries, p) of the slew data.
+
+    The ``symbolic`` entries are symbols, stacked in ``p``; the others
+    are the constants of ``values``.
+    """
+    num = _split(values, sizes)
+    d, syms = {}, []
+    for k, n in sizes.items():
+        if k in symbolic:
+            d[k] = Sym.sym(k, n)
+            syms.append(d[k])
+        else:
+            d[k] = ca.DM(num[k])
+    return d, ca.vertcat(*syms) if syms else Sym(0, 1)
+
+
+def _options_key(opts: dict):
+    """Hashable form of solver options, None if they hold objects."""
+    try:
+        return json.dumps(opts, sort_keys=True)
+    except TypeError:
+        return None
+
+
+def _build(s: _Setup, *, plugin: str, opts: dict, N: int, free_T: bool,
+           colloc: bool, substeps: int, expand: bool,
+           symbolic: tuple[str, ...], values: np.ndarray,
+           jit: dict | None) -> _Built:
+    """Build the NLP solver (parameters ``p``: the `symbolic` entries)."""
     t_build = time.perf_counter()
+    model = s.model
+    nx, nu, nw = model.nx, model.nu, model.n_wheels
     # fatrop needs the stage-wise layout, the final time as a state
     # (T_{k+1} = T_k) and fixed values as constraint rows
     ocp_form = plugin == "fatrop"
-    colloc = transcription == "collocation"
-    if ocp_form and colloc:
-        # its structure detection rejects the collocation rows
-        raise InvalidValueError(
-            "solver 'fatrop' takes transcription='multiple_shooting' only")
     # expand=True builds the NLP in SX directly (what expanding the MX
     # graph gives, without the MX step); expand=False keeps an MX graph
-    # of Function calls.
-    Sym = ca.SX if expand else ca.MX
-    xs = np.r_[np.ones(4), s.w_scale * np.ones(3),
-               s.h_max if s.h_max is not None else np.zeros(0)]
-    d = 3
-    free_T = T_fixed is None
-    lay = _layout(nx, nu, N, free_T, d if colloc else 0, ocp_form)
+    # of mapped Function calls (what the JIT compiles: loops, not one
+    # flat expression).
+    Sym = ca.SX if expand and jit is None else ca.MX
+    sizes = _param_sizes(nx, nu, nw)
+    deg = 3
+    lay = _layout(nx, nu, N, free_T, deg if colloc else 0, ocp_form)
     w = Sym.sym("w", lay.n)
+    d, p = _data_symbols(Sym, sizes, values, symbolic)
+    inner = _data_symbols(ca.SX, sizes, values, symbolic)
     Xn, Un, Xcn = _pick(w, lay.iX), _pick(w, lay.iU), _pick(w, lay.iXc)
     Tk = _pick(w, lay.iT) if free_T else None  # (N+1,) scaled
-    X = ca.diag(ca.DM(xs)) @ Xn
-    U = ca.diag(ca.DM(s.u_max)) @ Un
-    dt = (s.T_eig / N * Tk[:N].T if free_T
-          else ca.DM.ones(1, N) * (T_fixed / N))
-    f = model.dynamics
-    inv_xs = ca.DM(1.0 / xs)
-    x0 = np.r_[s.q0, np.zeros(3), s.h0]
-    rate = (None if s.rate_max is None
-            else ca.sum1(Xn[4:7, :] ** 2) - (s.rate_max / s.w_scale) ** 2)
+    dt = (d["Tref"] / N * Tk[:N].T if free_T
+          else ca.repmat(d["Tref"] / N, 1, N))
+    rate = ca.sum1(Xn[4:7, :] ** 2) if s.rate_max is not None else None
     # rows stage by stage (fatrop's structure detection reads them so)
     rows, lo, hi = [], [], []
     if not colloc:
-        F = _shooting_function(f, nx, nu, substeps).map(N)
-        rows.append(Xn[:, 1:] - inv_xs * F(X[:, :N], U, dt))
+        F = _shooting_function(nx, nu, nw, substeps, inner).map(N)
+        rows.append(Xn[:, 1:] - F(Xn[:, :N], Un, dt, p))
         lo.append(0.0), hi.append(0.0)
     else:
-        F = _collocation_function(f, nx, nu, d).map(N)
-        Xc = ca.diag(ca.DM(xs)) @ Xcn
-        res, xend = F(X[:, :N], ca.reshape(Xc, nx * d, N), U, dt)
-        rows.append(Xn[:, 1:] - inv_xs * xend)
-        rows.append(ca.repmat(inv_xs, d, 1) * res)
+        F = _collocation_function(nx, nu, nw, deg, inner).map(N)
+        res, xend = F(Xn[:, :N], ca.reshape(Xcn, nx * deg, N), Un, dt, p)
+        rows += [Xn[:, 1:] - xend, res]
         lo += [0.0, 0.0]
         hi += [0.0, 0.0]
     if free_T and ocp_form:
         rows.append(Tk[1:].T - Tk[:N].T), lo.append(0.0), hi.append(0.0)
     if rate is not None:
-        rows.append(rate[:N]), lo.append(-np.inf), hi.append(0.0)
+        rows.append(rate[:N]), lo.append(-np.inf), hi.append(np.nan)
     con = _Constraints()
     if ocp_form:
-        con.eq(Xn[:, 0], x0 / xs)
+        con.eq(Xn[:, 0] - d["x0"])
     con.add(ca.vertcat(*rows),
             np.concatenate([np.full((r.shape[0], N), a)
                             for r, a in zip(rows, lo)]),
             np.concatenate([np.full((r.shape[0], N), b)
                             for r, b in zip(rows, hi)]))
     if rate is not None:
-        con.add(rate[N], -np.inf, 0.0)
+        con.add(rate[N], -np.inf, np.nan)
     if ocp_form:
         con.eq(Xn[4:7, N])
-    qe = quat_mul(ca.DM(quat_conj(s.qf)), X[:4, N])
+    qe = quat_mul(quat_conj(d["qf"]), Xn[:4, N])  # xs = 1 on q
     con.eq(qe[1:])
     con.add(qe[0], 0.0, np.inf)
     g, lbg, ubg, equality = con.arrays()
-    lbw, ubw = _bounds(s, lay, N, xs, x0, colloc, fix=not ocp_form)
     J_obj = Tk[0] if free_T else ca.sumsqr(Un) / N  # ∝ Σ ∫ m² dt
-    T_guess = s.T_eig if free_T else T_fixed
-    w0 = _initial_point(s, lay, N, xs, T_guess, free_T, colloc, d,
-                        initial_guess, perturbation, seed)
-    opts = dict(base_opts)
+    opts = dict(opts)
     if ocp_form:
         opts["equality"] = equality
-    opts = _merge(opts, solver_options or {})
-    S = ca.nlpsol("slew", plugin, {"x": w, "f": J_obj, "g": g}, opts)
-    build_time = time.perf_counter() - t_build
+    nlp = {"x": w, "p": p, "f": J_obj, "g": g}
+    S = (ca.nlpsol("slew", plugin, nlp, opts) if jit is None
+         else _compiled_nlpsol(plugin, nlp, opts, jit))
+    return _Built(S, lay, lbg, ubg, np.flatnonzero(np.isnan(ubg)),
+                  time.perf_counter() - t_build)
+
+
+def _compiled_nlpsol(plugin: str, nlp: dict, opts: dict,
+                     jit: dict) -> ca.Function:
+    """Return an nlpsol over a C library of the NLP, cached on disk.
+
+    The library is compiled once per generated code (its SHA-256 names
+    it) with ``jit["compiler"]`` and ``jit["flags"]`` into
+    ``jit["cache_dir"]``.
+    """
+    S0 = ca.nlpsol("slew", plugin, nlp, opts)
+    cache = Path(jit["cache_dir"]).expanduser()
+    cache.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=cache) as tmp:
+        cwd = os.getcwd()
+        os.chdir(tmp)  # generate_dependencies writes to the cwd
+        try:
+            S0.generate_dependencies("slew_nlp.c")
+        finally:
+            os.chdir(cwd)
+        src = Path(tmp, "slew_nlp.c")
+        cmd = [jit["compiler"], *jit["flags"], "-shared", "-fPIC"]
+        key = hashlib.sha256(src.read_bytes() + " ".join(
+            cmd + [ca.__version__]).encode()).hexdigest()[:20]
+        lib = cache / f"slew_{key}.so"
+        if not lib.exists():
+            out = Path(tmp, "lib.so")
+            run = subprocess.run([*cmd, "-o", str(out), str(src), "-lm"],
+                                 capture_output=True, text=True)
+            if run.returncode != 0:
+                raise SolverError("compiling the slew NLP failed: "
+                                  + run.stderr.strip()[-500:],
+                                  solver=plugin)
+            os.replace(out, lib)  # atomic: concurrent builds are safe
+    return ca.nlpsol("slew", plugin, str(lib), opts)
+
+
+def _jit_settings(jit) -> dict | None:
+    """None (no JIT) or the compiler, flags and cache directory."""
+    if jit is False or jit is None:
+        return None
+    cfg = {"compiler": os.environ.get("CC") or shutil.which("gcc")
+           or shutil.which("cc") or shutil.which("clang"),
+           "flags": ["-O1"],
+           "cache_dir": os.environ.get("ADCS_CACHE_DIR",
+                                       "~/.cache/adcs_toolbox/slews")}
+    if isinstance(jit, dict):
+        unknown = set(jit) - set(cfg)
+        if unknown:
+            raise InvalidValueError(
+                f"jit takes the keys {sorted(cfg)}, got {sorted(unknown)}")
+        cfg.update(jit)
+    elif jit is not True:
+        raise InvalidValueError(f"jit must be a bool or a dict, got {jit!r}")
+    if not cfg["compiler"]:
+        raise InvalidValueError("jit needs a C compiler (gcc, cc or clang "
+                                "on PATH, or $CC)")
+    cfg["flags"] = list(cfg["flags"])
+    return cfg
+
+
+def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
+           transcription: str, solver: str, expand: bool, substeps: int,
+           initial_guess: str, perturbation: float, seed: int,
+           solver_options: dict | None, verify: bool,
+           jit=False) -> SlewTrajectory:
+    plugin, base_opts = _solver_entry(solver)
+    model = s.model
+    nx, nw = model.nx, model.n_wheels
+    colloc = transcription == "collocation"
+    if plugin == "fatrop" and colloc:
+        # its structure detection rejects the collocation rows
+        raise InvalidValueError(
+            "solver 'fatrop' takes transcription='multiple_shooting' only")
+    jit_cfg = _jit_settings(jit)
+    free_T = T_fixed is None
+    T_ref = s.T_eig if free_T else float(T_fixed)
+    x0 = np.r_[s.q0, np.zeros(3), s.h0]
+    xs = np.r_[np.ones(4), s.w_scale * np.ones(3),
+               s.h_max if s.h_max is not None else np.zeros(0)]
+    values = _slew_data(s, T_ref, x0)
+    sizes = _param_sizes(nx, model.nu, nw)
+    opts = _merge(base_opts, solver_options or {})
+    # compiled: every entry is a parameter (one library per shape);
+    # otherwise the spacecraft data are folded into the SX graph
+    symbolic = tuple(sizes) if jit_cfg else _SLEW_PARAMETERS
+    folded = np.concatenate([np.zeros(0)] + [
+        v for k, v in _split(values, sizes).items() if k not in symbolic])
+    okey = _options_key(opts)
+    key = (solver, transcription, N, nx, model.nu, nw, substeps, free_T,
+           s.rate_max is not None, bool(expand), _options_key(jit_cfg),
+           okey, folded.tobytes())
+    built = _CACHE.get(key) if okey is not None else None
+    cached = built is not None
+    if built is None:
+        built = _build(s, plugin=plugin, opts=opts, N=N, free_T=free_T,
+                       colloc=colloc, substeps=substeps, expand=expand,
+                       symbolic=symbolic, values=values, jit=jit_cfg)
+        if okey is not None:
+            while len(_CACHE) >= _CACHE_SIZE:
+                _CACHE.pop(next(iter(_CACHE)))
+            _CACHE[key] = built
+    lay = built.lay
+    p = np.concatenate([v for k, v in _split(values, sizes).items()
+                        if k in symbolic])
+    ubg = built.ubg.copy()
+    if s.rate_max is not None:
+        ubg[built.rate_rows] = (s.rate_max / s.w_scale) ** 2
+    lbw, ubw = _bounds(s, lay, N, xs, x0, colloc, fix=plugin != "fatrop")
+    w0 = _initial_point(s, lay, N, xs, T_ref, free_T, colloc, 3,
+                        initial_guess, perturbation, seed)
+    S = built.solver
     t0 = time.perf_counter()
     try:
-        sol = S(x0=w0, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
+        sol = S(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=built.lbg, ubg=ubg)
     except RuntimeError as exc:
         raise SolverError(f"solver {solver!r} failed with an error: "
                           f"{str(exc).strip().splitlines()[-1]}",
@@ -432,7 +675,8 @@ def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
     t = np.linspace(0.0, Tv, N + 1)
     extras = {"objective": objective, "transcription": transcription,
               "solver": solver, "expand": bool(expand), "N": N,
-              "build_time": build_time,
+              "jit": jit_cfg is not None, "cached": cached,
+              "build_time": 0.0 if cached else built.build_time,
               "solver_time": float(stats.get("t_wall_total", np.nan)),
               "eigenaxis_T": s.T_eig,
               "initial_guess": ("perturbed_eigenaxis" if perturbation > 0
@@ -523,7 +767,8 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
                       initial_guess: str = "perturbed_eigenaxis",
                       perturbation: float = 0.3, seed: int = 0,
                       solver_options: dict | None = None,
-                      verify: bool = True) -> SlewTrajectory:
+                      verify: bool = True,
+                      jit: bool | dict = False) -> SlewTrajectory:
     """Minimum-time rest-to-rest slew from ``q0`` to ``qf`` (free T).
 
     .. math::
@@ -547,8 +792,10 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
         Number of control intervals.
     transcription : {"multiple_shooting", "collocation"}
         Transcription of the dynamics.
-    solver : {"ipopt", "sqpmethod"}
-        NLP solver (default ``"ipopt"``). ``"sqpmethod"`` is CasADi's SQP
+    solver : {"ipopt", "fatrop", "sqpmethod"}
+        NLP solver (default ``"ipopt"``). ``"fatrop"`` (where CasADi has
+        it; multiple shooting only) exploits the stage structure.
+        ``"sqpmethod"`` is CasADi's SQP
         with qpOASES: it converges on minimum-energy slews but stalls on
         time-optimal ones (its status then says so).
     expand : bool
@@ -573,6 +820,16 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
     verify : bool
         Simulate the optimal controls with CVODES and store the final
         attitude error and rate in ``extras`` (outside ``solve_time``).
+    jit : bool or dict
+        Opt-in: compile the NLP's functions to C (MX graph of mapped
+        interval Functions, ``expand`` ignored) with all problem data as
+        NLP parameters, so one library serves every slew of the same
+        shape (N, wheels or torque box, transcription, solver, options).
+        The library is cached on disk, named by the SHA-256 of its code:
+        the compile (≈ 3–12 s at -O1) happens once per machine. A dict
+        sets ``compiler`` (default $CC, gcc, cc or clang), ``flags``
+        (default ``["-O1"]``) and ``cache_dir`` (default
+        $ADCS_CACHE_DIR or ``~/.cache/adcs_toolbox/slews``).
 
     Returns
     -------
@@ -600,7 +857,7 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
                   transcription=transcription, solver=solver,
                   expand=expand, substeps=int(substeps),
                   initial_guess="eigenaxis", perturbation=pert, seed=seed,
-                  solver_options=solver_options, verify=verify)
+                  solver_options=solver_options, verify=verify, jit=jit)
 
 
 def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
@@ -610,7 +867,8 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
                     substeps: int = 1, h0=None,
                     rate_max: float | None = None,
                     solver_options: dict | None = None,
-                    verify: bool = True) -> SlewTrajectory:
+                    verify: bool = True,
+                    jit: bool | dict = False) -> SlewTrajectory:
     """Minimum-energy rest-to-rest slew in a fixed time ``T``.
 
     .. math::
@@ -628,7 +886,7 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
         ``success`` is False).
     inertia, q0, qf, torque_max, wheels, N, transcription, solver
         As `time_optimal_slew`.
-    expand, substeps, h0, rate_max, solver_options, verify
+    expand, substeps, h0, rate_max, solver_options, verify, jit
         As `time_optimal_slew`.
 
     Returns
@@ -644,4 +902,4 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
                   transcription=transcription, solver=solver,
                   expand=expand, substeps=int(substeps),
                   initial_guess="cubic", perturbation=0.0, seed=0,
-                  solver_options=solver_options, verify=verify)
+                  solver_options=solver_options, verify=verify, jit=jit)

@@ -4,6 +4,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 
+import casadi as ca  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
@@ -216,3 +217,77 @@ def test_fatrop_rejects_collocation():
     with pytest.raises(InvalidValueError, match="multiple_shooting"):
         time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=10,
                           solver="fatrop", transcription="collocation")
+
+
+def test_cached_solver_gives_the_fresh_result_for_another_target():
+    """Same spacecraft, other target: the built NLP is reused.
+
+    Its target, initial state and scales are parameters; the answer
+    agrees with a fresh build.
+    """
+    from ocp import slews
+
+    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    kw = dict(wheels=arr, N=30, verify=False)
+    qa = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
+    qb = quat_from_axis_angle([0.3, -0.5, 0.8], np.deg2rad(150.0))
+    time_optimal_slew(J_METEOR, Q0, qa, **kw)
+    reused = time_optimal_slew(J_METEOR, Q0, qb, **kw)
+    assert reused.extras["cached"] and reused.extras["build_time"] == 0.0
+    slews._CACHE.clear()
+    fresh = time_optimal_slew(J_METEOR, Q0, qb, **kw)
+    assert not fresh.extras["cached"]
+    assert reused.success and fresh.success
+    assert reused.T == pytest.approx(fresh.T, rel=1e-9)
+    np.testing.assert_allclose(reused.wheel_torque, fresh.wheel_torque,
+                               atol=1e-9)
+
+
+def test_parametric_dynamics_match_the_model():
+    from ocp import rigid_spacecraft, slews
+
+    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    model = rigid_spacecraft(J_METEOR, arr)
+    s = slews._setup(J_METEOR, Q0, Q_180X, arr, None, None, None)
+    sizes = slews._param_sizes(model.nx, model.nu, model.n_wheels)
+    d = slews._split(slews._slew_data(s, 1.0, np.r_[Q0, np.zeros(7)]),
+                     sizes)
+    rng = np.random.default_rng(1)
+    x, u = rng.normal(size=model.nx), rng.normal(size=model.nu)
+    f = slews._rigid_dynamics(ca.DM(x), ca.DM(u), {
+        k: ca.DM(v) for k, v in d.items()}, model.n_wheels)
+    ref = model.dynamics(x, u, np.zeros(3))
+    np.testing.assert_allclose(np.asarray(f).ravel(),
+                               np.asarray(ref).ravel(), rtol=1e-12,
+                               atol=1e-12)
+
+
+jit_needs_cc = pytest.mark.skipif(
+    not any(__import__("shutil").which(c) for c in ("gcc", "cc", "clang")),
+    reason="no C compiler")
+
+
+@pytest.mark.slow
+@jit_needs_cc
+def test_jit_library_is_cached_and_solves_like_the_sx_graph(tmp_path):
+    from ocp import slews
+
+    kw = dict(torque_max=1.0, N=20, verify=False)
+    ref = time_optimal_slew(np.eye(3), Q0, Q_180X, **kw)
+    jit = {"cache_dir": str(tmp_path), "flags": ["-O0"]}
+    a = time_optimal_slew(np.eye(3), Q0, Q_180X, jit=jit, **kw)
+    assert a.extras["jit"] and len(list(tmp_path.glob("slew_*.so"))) == 1
+    assert a.success and a.T == pytest.approx(ref.T, rel=1e-9)
+    # another inertia and target: same library (the data are parameters)
+    slews._CACHE.clear()
+    qf = quat_from_axis_angle([0, 0, 1], 2.0)
+    b = time_optimal_slew(np.diag([2.0, 1.0, 1.5]), Q0, qf, jit=jit, **kw)
+    c = time_optimal_slew(np.diag([2.0, 1.0, 1.5]), Q0, qf, **kw)
+    assert len(list(tmp_path.glob("slew_*.so"))) == 1
+    assert b.success and b.T == pytest.approx(c.T, rel=1e-8)
+
+
+def test_jit_rejects_bad_settings():
+    with pytest.raises(InvalidValueError, match="jit"):
+        time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=10,
+                          jit={"optimise": 3})
