@@ -66,7 +66,7 @@ def test_unperturbed_eigenaxis_guess_is_a_stationary_point(bw_ms):
     assert r.extras["initial_guess"] == "eigenaxis"
     # the default perturbed guess leaves it
     assert bw_ms.T < r.T - 0.25
-    assert bw_ms.extras["initial_guess"] == "perturbed_eigenaxis"
+    assert bw_ms.extras["initial_guess"] == "coarse"
     assert bw_ms.extras["perturbation"] > 0
 
 
@@ -291,3 +291,18 @@ def test_jit_rejects_bad_settings():
     with pytest.raises(InvalidValueError, match="jit"):
         time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=10,
                           jit={"optimise": 3})
+
+
+def test_coarse_start_solves_the_same_nlp_as_the_perturbed_guess(bw_ms):
+    r = time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=100,
+                          initial_guess="perturbed_eigenaxis", verify=False)
+    assert r.success and r.extras["initial_guess"] == "perturbed_eigenaxis"
+    assert bw_ms.extras["coarse_N"] == 20
+    assert bw_ms.extras["coarse_iterations"] > 0
+    assert bw_ms.solve_time > bw_ms.extras["coarse_solve_time"]
+    assert bw_ms.T == pytest.approx(r.T, rel=2e-6)
+    # too few intervals for a coarse stage: the perturbed guess directly
+    s = time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=20,
+                          verify=False)
+    assert s.extras["initial_guess"] == "perturbed_eigenaxis"
+    assert "coarse_N" not in s.extras
