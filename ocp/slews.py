@@ -1,16 +1,23 @@
 """Rest-to-rest slews as NLPs: time-optimal and minimum-energy (SPEC 4).
 
-The NLP is built with CasADi Opti on ``N`` intervals of length ``T/N``
-with piecewise-constant controls, by multiple shooting (one RK4 step per
-interval, ``substeps`` stages) or direct collocation (Legendre points of
-degree 3). Limits are wheel-level, through the array — ``|m_i| <= m_max_i``
-and ``|H_i| <= h_max_i`` — or a per-axis body torque box. Decision
-variables are scaled by the limits and the eigenaxis time.
+The NLP is built with CasADi ``nlpsol`` on ``N`` intervals of length
+``T/N`` with piecewise-constant controls, by multiple shooting (one RK4
+step per interval, ``substeps`` stages) or direct collocation (Legendre
+points of degree 3). Limits are wheel-level, through the array —
+``|m_i| <= m_max_i`` and ``|H_i| <= h_max_i`` — or a per-axis body torque
+box. Decision variables are scaled by the limits and the eigenaxis time.
 
 The time-optimal problem has a stationary point at the eigenaxis slew
 (SOLVER_NOTES): started exactly there, IPOPT stops at the eigenaxis time.
-The default initial guess is the eigenaxis slew perturbed by a smooth
-off-axis rate and torque, which lets the solver leave it.
+The perturbed guess is the eigenaxis slew plus a smooth off-axis rate and
+torque, which lets the solver leave it; the default with IPOPT solves
+that first on about N/5 intervals and refines (``initial_guess``).
+
+Built solvers are kept per problem shape (`_CACHE`): the target, initial
+state and scales are NLP parameters, so another slew of the same
+spacecraft reuses the solver. ``jit=True`` compiles the NLP (all data as
+parameters) to a C library cached on disk. ``solver="fatrop"`` uses a
+stage-wise layout with the final time as a state of every stage.
 """
 
 from __future__ import annotations
