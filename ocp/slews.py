@@ -1,22 +1,36 @@
 """Rest-to-rest slews as NLPs: time-optimal and minimum-energy (SPEC 4).
 
-The NLP is built with CasADi Opti on ``N`` intervals of length ``T/N``
-with piecewise-constant controls, by multiple shooting (one RK4 step per
-interval, ``substeps`` stages) or direct collocation (Legendre points of
-degree 3). Limits are wheel-level, through the array — ``|m_i| <= m_max_i``
-and ``|H_i| <= h_max_i`` — or a per-axis body torque box. Decision
-variables are scaled by the limits and the eigenaxis time.
+The NLP is built with CasADi ``nlpsol`` on ``N`` intervals of length
+``T/N`` with piecewise-constant controls, by multiple shooting (one RK4
+step per interval, ``substeps`` stages) or direct collocation (Legendre
+points of degree 3). Limits are wheel-level, through the array —
+``|m_i| <= m_max_i`` and ``|H_i| <= h_max_i`` — or a per-axis body torque
+box. Decision variables are scaled by the limits and the eigenaxis time.
 
 The time-optimal problem has a stationary point at the eigenaxis slew
 (SOLVER_NOTES): started exactly there, IPOPT stops at the eigenaxis time.
-The default initial guess is the eigenaxis slew perturbed by a smooth
-off-axis rate and torque, which lets the solver leave it.
+The perturbed guess is the eigenaxis slew plus a smooth off-axis rate and
+torque, which lets the solver leave it; the default with IPOPT solves
+that first on about N/5 intervals and refines (``initial_guess``).
+
+Built solvers are kept per problem shape (`_CACHE`): the target, initial
+state and scales are NLP parameters, so another slew of the same
+spacecraft reuses the solver. ``jit=True`` compiles the NLP (all data as
+parameters) to a C library cached on disk. ``solver="fatrop"`` uses a
+stage-wise layout with the final time as a state of every stage.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import tempfile
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -29,9 +43,14 @@ from adcs_common.exceptions import (
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 from allocation import WheelArray, min_norm_gains
 
-from .attitude import quat_conj, quat_mul, rotation_between
+from .attitude import quat_conj, quat_mul, quat_rate, rotation_between
 from .laws import _unit_quat, eigenaxis_slew
-from .models import SpacecraftModel, check_inertia, rigid_spacecraft
+from .models import (
+    SpacecraftModel,
+    _effective_torque_matrix,
+    check_inertia,
+    rigid_spacecraft,
+)
 from .trajectory import SlewTrajectory
 
 __all__ = [
@@ -58,6 +77,10 @@ NLP_SOLVERS: dict[str, tuple[str, dict]] = {
                         "ipopt": {"print_level": 0, "sb": "yes",
                                   "max_iter": 1000, "tol": 1e-8}}),
     "sqpmethod": ("sqpmethod", _QUIET_SQP),
+    "fatrop": ("fatrop", {"print_time": False, "record_time": True,
+                          "structure_detection": "auto",
+                          "fatrop": {"print_level": 0, "max_iter": 1000,
+                                     "tol": 1e-8}}),
 }
 
 
@@ -216,184 +239,667 @@ def _collocation_coefficients(d: int = 3):
     return tau, C, D, B
 
 
-def _shooting_function(f: ca.Function, nx: int, nu: int,
-                       substeps: int) -> ca.Function:
-    """SX Function ``step(x, u, dt) -> (xf)``: RK4 with ``substeps``."""
-    x = ca.SX.sym("x", nx)
-    u = ca.SX.sym("u", nu)
+def _param_sizes(nx: int, nu: int, nw: int) -> dict[str, int]:
+    """Entries of the slew-data vector (order and lengths).
+
+    ``J``, ``Jinv`` (9, column-major) [kg·m², 1/(kg·m²)], ``A`` (3 N_w)
+    wheel axes, ``sfac`` (N_w) torque factors, ``umax`` (nu) control
+    scale [N·m], ``hmax`` (N_w) momentum scale [N·m·s], ``wscale`` rate
+    scale [rad/s], ``Tref`` time scale [s] (eigenaxis time, or T when
+    fixed), ``qf`` (4) target attitude, ``x0`` (nx) scaled initial state.
+    """
+    return {"J": 9, "Jinv": 9, "A": 3 * nw, "sfac": nw, "umax": nu,
+            "hmax": nw, "wscale": 1, "Tref": 1, "qf": 4, "x0": nx}
+
+
+#: Entries of the slew data that stay symbolic (NLP parameters ``p``)
+#: when the other ones are folded into the graph as constants.
+_SLEW_PARAMETERS = ("wscale", "Tref", "qf", "x0")
+
+
+def _split(v, sizes: dict[str, int]) -> dict:
+    """Slices of ``v`` named as in `_param_sizes`."""
+    out, i = {}, 0
+    for k, n in sizes.items():
+        out[k] = v[i:i + n]
+        i += n
+    return out
+
+
+def _state_scale(d: dict):
+    """Scale of the state (q, ω, H_w): ``x = xs ⊙ x_n``."""
+    one = d["wscale"] * 0 + 1  # 1 of the right type
+    return ca.vertcat(one, one, one, one, d["wscale"], d["wscale"],
+                      d["wscale"], d["hmax"])
+
+
+def _rigid_dynamics(x, u, d: dict, nw: int):
+    """ẋ of `ocp.models.rigid_spacecraft` (no external torque).
+
+    The same equations with J, J⁻¹, A and the torque factors taken from
+    ``d`` (symbols or constants): ``J ω̇ = -ω × (J ω + A H_w) - A m``,
+    ``Ḣ_w = m = sfac ⊙ u`` (torque box: ``J ω̇ = -ω × J ω + u``).
+    """
+    J = ca.reshape(d["J"], 3, 3)
+    Jinv = ca.reshape(d["Jinv"], 3, 3)
+    q, w = x[:4], x[4:7]
+    H = J @ w
+    if nw:
+        A = ca.reshape(d["A"], 3, nw)
+        m = d["sfac"] * u
+        H = H + A @ x[7:]
+        torque = -A @ m
+    else:
+        torque = u
+    wdot = Jinv @ (-ca.cross(w, H) + torque)
+    return ca.vertcat(quat_rate(q, w), wdot, m) if nw else ca.vertcat(
+        quat_rate(q, w), wdot)
+
+
+def _shooting_function(nx: int, nu: int, nw: int, substeps: int,
+                       data) -> ca.Function:
+    """SX ``step(x_n, u_n, dt, p) -> (x_n+)``: RK4, ``substeps`` stages.
+
+    States and controls are scaled (``x = xs ⊙ x_n``, ``u = umax ⊙
+    u_n``); ``data`` is the slew-data vector with symbols where it holds
+    NLP parameters, and ``p`` those symbols.
+    """
+    xn = ca.SX.sym("xn", nx)
+    un = ca.SX.sym("un", nu)
     dt = ca.SX.sym("dt")
-    tau = ca.SX.zeros(3)
+    d, p = data
+    xs = _state_scale(d)
+    u = d["umax"] * un
     h = dt / substeps
-    xk = x
+    xk = xs * xn
     for _ in range(substeps):
-        k1 = f(xk, u, tau)
-        k2 = f(xk + h / 2 * k1, u, tau)
-        k3 = f(xk + h / 2 * k2, u, tau)
-        k4 = f(xk + h * k3, u, tau)
+        k1 = _rigid_dynamics(xk, u, d, nw)
+        k2 = _rigid_dynamics(xk + h / 2 * k1, u, d, nw)
+        k3 = _rigid_dynamics(xk + h / 2 * k2, u, d, nw)
+        k4 = _rigid_dynamics(xk + h * k3, u, d, nw)
         xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return ca.Function("step", [x, u, dt], [xk])
+    return ca.Function("step", [xn, un, dt, p], [xk / xs])
 
 
-def _collocation_function(f: ca.Function, nx: int, nu: int,
-                          d: int) -> ca.Function:
-    """SX Function ``interval(x, xc, u, dt) -> (res, xend)`` (Legendre)."""
-    _, C, D, _ = _collocation_coefficients(d)
-    x = ca.SX.sym("x", nx)
-    xc = ca.SX.sym("xc", nx * d)
-    u = ca.SX.sym("u", nu)
+def _collocation_function(nx: int, nu: int, nw: int, deg: int,
+                          data) -> ca.Function:
+    """SX ``interval(x_n, xc_n, u_n, dt, p) -> (res, x_n end)``.
+
+    Legendre collocation of degree ``deg``, scaled as
+    `_shooting_function`; ``res`` (nx deg) are the scaled residuals.
+    """
+    _, C, D, _ = _collocation_coefficients(deg)
+    xn = ca.SX.sym("xn", nx)
+    xcn = ca.SX.sym("xcn", nx * deg)
+    un = ca.SX.sym("un", nu)
     dt = ca.SX.sym("dt")
-    pts = [x] + [xc[j * nx:(j + 1) * nx] for j in range(d)]
+    d, p = data
+    xs = _state_scale(d)
+    u = d["umax"] * un
+    pts = [xn] + [xcn[j * nx:(j + 1) * nx] for j in range(deg)]
     res = []
-    xend = D[0] * x
-    for j in range(1, d + 1):
-        xp = C[0, j] * x
-        for r in range(1, d + 1):
+    xend = D[0] * xn
+    for j in range(1, deg + 1):
+        xp = C[0, j] * xn
+        for r in range(1, deg + 1):
             xp = xp + C[r, j] * pts[r]
-        res.append(dt * f(pts[j], u, ca.SX.zeros(3)) - xp)
+        xdot = _rigid_dynamics(xs * pts[j], u, d, nw) / xs
+        res.append(dt * xdot - xp)
         xend = xend + D[j] * pts[j]
-    return ca.Function("interval", [x, xc, u, dt],
+    return ca.Function("interval", [xn, xcn, un, dt, p],
                        [ca.vertcat(*res), xend])
 
 
-def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
-           transcription: str, solver: str, expand: bool, substeps: int,
-           initial_guess: str, perturbation: float, seed: int,
-           solver_options: dict | None, verify: bool) -> SlewTrajectory:
-    plugin, base_opts = _solver_entry(solver)
+@dataclass(frozen=True)
+class _Layout:
+    """Positions of the scaled decision variables in the NLP vector ``w``.
+
+    ``iX`` (nx, N+1) and ``iU`` (nu, N) index the states and controls,
+    ``iT`` (N+1,) the scaled final time seen by each stage (one shared
+    variable, or a copy per stage for fatrop; empty at fixed T) and
+    ``iXc`` (nx, d N) the collocation states.
+    """
+
+    iX: np.ndarray
+    iU: np.ndarray
+    iT: np.ndarray
+    iXc: np.ndarray
+    n: int
+
+
+def _layout(nx: int, nu: int, N: int, free_T: bool, nc: int,
+            stagewise: bool) -> _Layout:
+    """Block layout (X, U, T, Xc) or stage-wise (x_k, T_k, u_k, xc_k)."""
+    if not stagewise:
+        c = np.cumsum([0, nx * (N + 1), nu * N, int(free_T)])
+        iX = np.arange(c[0], c[1]).reshape(nx, N + 1, order="F")
+        iU = np.arange(c[1], c[2]).reshape(nu, N, order="F")
+        iT = np.full(N + 1 if free_T else 0, c[2])
+        iXc = np.arange(c[3], c[3] + nx * nc * N).reshape(
+            nx, nc * N, order="F")
+        return _Layout(iX, iU, iT, iXc, int(c[3] + nx * nc * N))
+    nt = int(free_T)
+    stage = nx + nt + nu + nx * nc
+    base = stage * np.arange(N + 1)
+    iX = base[None, :] + np.arange(nx)[:, None]
+    iT = base + nx if free_T else np.zeros(0, dtype=int)
+    iU = base[None, :N] + nx + nt + np.arange(nu)[:, None]
+    iXc = (base[None, :N, None] + nx + nt + nu
+           + np.arange(nx * nc).reshape(nc, nx).T[:, None, :])
+    iXc = iXc.transpose(0, 2, 1).reshape(nx, nc * N, order="F")
+    return _Layout(iX, iU, iT, iXc, int(stage * N + nx + nt))
+
+
+def _pick(w, idx: np.ndarray):
+    """Symbolic entries ``w[idx]`` with the shape of ``idx``."""
+    if idx.size == 0:
+        return type(w)(*idx.shape) if idx.ndim == 2 else type(w)(0, 1)
+    flat = w[idx.ravel("F").tolist()]
+    return ca.reshape(flat, *idx.shape) if idx.ndim == 2 else flat
+
+
+class _Constraints:
+    """Accumulates constraint rows ``lbg <= g <= ubg``."""
+
+    def __init__(self) -> None:
+        self.g: list = []
+        self.lb: list[np.ndarray] = []
+        self.ub: list[np.ndarray] = []
+
+    def add(self, expr, lb, ub) -> None:
+        expr = ca.vec(expr)
+        n = expr.numel()
+        self.g.append(expr)
+        for out, v in ((self.lb, lb), (self.ub, ub)):
+            v = np.asarray(v, float).ravel("F")  # the order of ca.vec
+            out.append(np.broadcast_to(v, n).copy())
+
+    def eq(self, expr, value=0.0) -> None:
+        self.add(expr, value, value)
+
+    def arrays(self):
+        """(g, lbg, ubg, equality flags)."""
+        lb = np.concatenate(self.lb) if self.lb else np.zeros(0)
+        ub = np.concatenate(self.ub) if self.ub else np.zeros(0)
+        return ca.vertcat(*self.g), lb, ub, (lb == ub).tolist()
+
+
+@dataclass(frozen=True, eq=False)
+class _Built:
+    """A slew NLP solver and the numeric pieces of its inputs.
+
+    ``lbg``, ``ubg`` are the constraint bounds, with ``rate_rows`` the
+    rows of the ``|ω|² <= rate_max²`` bound (set per solve).
+    """
+
+    solver: ca.Function
+    lay: _Layout
+    lbg: np.ndarray
+    ubg: np.ndarray
+    rate_rows: np.ndarray
+    build_time: float
+
+
+#: Built solvers, keyed by problem structure (and folded data).
+_CACHE: dict[tuple, _Built] = {}
+_CACHE_SIZE = 16
+
+
+def _slew_data(s: _Setup, T_ref: float, x0: np.ndarray) -> np.ndarray:
+    """Numeric slew-data vector (layout of `_param_sizes`)."""
     model = s.model
-    nx, nu = model.nx, model.nu
-    nw = model.n_wheels
+    if model.wheels is None:
+        A, sfac, hmax = np.zeros((3, 0)), np.zeros(0), np.zeros(0)
+    else:
+        A, sfac = _effective_torque_matrix(model.wheels)
+        hmax = s.h_max
+    J = model.inertia
+    xs = np.r_[np.ones(4), np.full(3, s.w_scale), hmax]
+    return np.concatenate([J.ravel("F"), np.linalg.inv(J).ravel("F"),
+                           A.ravel("F"), sfac, s.u_max, hmax, [s.w_scale],
+                           [T_ref], s.qf, x0 / xs])
+
+
+def _data_symbols(Sym, sizes: dict[str, int], values: np.ndarray,
+                  symbolic: tuple[str, ...]):
+    """Return (dict of entries, p) of the slew data.
+
+    The ``symbolic`` entries are symbols, stacked in ``p``; the others
+    are the constants of ``values``.
+    """
+    num = _split(values, sizes)
+    d, syms = {}, []
+    for k, n in sizes.items():
+        if k in symbolic:
+            d[k] = Sym.sym(k, n)
+            syms.append(d[k])
+        else:
+            d[k] = ca.DM(num[k])
+    return d, ca.vertcat(*syms) if syms else Sym(0, 1)
+
+
+def _options_key(opts: dict):
+    """Hashable form of solver options, None if they hold objects."""
+    try:
+        return json.dumps(opts, sort_keys=True)
+    except TypeError:
+        return None
+
+
+def _build(s: _Setup, *, plugin: str, opts: dict, N: int, free_T: bool,
+           colloc: bool, substeps: int, expand: bool,
+           symbolic: tuple[str, ...], values: np.ndarray,
+           jit: dict | None) -> _Built:
+    """Build the NLP solver (parameters ``p``: the `symbolic` entries)."""
     t_build = time.perf_counter()
+    model = s.model
+    nx, nu, nw = model.nx, model.nu, model.n_wheels
+    # fatrop needs the stage-wise layout, the final time as a state
+    # (T_{k+1} = T_k) and fixed values as constraint rows
+    ocp_form = plugin == "fatrop"
     # expand=True builds the NLP in SX directly (what expanding the MX
     # graph gives, without the MX step); expand=False keeps an MX graph
-    # of Function calls.
-    Sym = ca.SX if expand else ca.MX
+    # of mapped Function calls (what the JIT compiles: loops, not one
+    # flat expression).
+    Sym = ca.SX if expand and jit is None else ca.MX
+    sizes = _param_sizes(nx, nu, nw)
+    deg = 3
+    lay = _layout(nx, nu, N, free_T, deg if colloc else 0, ocp_form)
+    w = Sym.sym("w", lay.n)
+    d, p = _data_symbols(Sym, sizes, values, symbolic)
+    inner = _data_symbols(ca.SX, sizes, values, symbolic)
+    Xn, Un, Xcn = _pick(w, lay.iX), _pick(w, lay.iU), _pick(w, lay.iXc)
+    Tk = _pick(w, lay.iT) if free_T else None  # (N+1,) scaled
+    dt = (d["Tref"] / N * Tk[:N].T if free_T
+          else ca.repmat(d["Tref"] / N, 1, N))
+    rate = ca.sum1(Xn[4:7, :] ** 2) if s.rate_max is not None else None
+    # rows stage by stage (fatrop's structure detection reads them so)
+    rows, lo, hi = [], [], []
+    if not colloc:
+        F = _shooting_function(nx, nu, nw, substeps, inner).map(N)
+        rows.append(Xn[:, 1:] - F(Xn[:, :N], Un, dt, p))
+        lo.append(0.0), hi.append(0.0)
+    else:
+        F = _collocation_function(nx, nu, nw, deg, inner).map(N)
+        res, xend = F(Xn[:, :N], ca.reshape(Xcn, nx * deg, N), Un, dt, p)
+        rows += [Xn[:, 1:] - xend, res]
+        lo += [0.0, 0.0]
+        hi += [0.0, 0.0]
+    if free_T and ocp_form:
+        rows.append(Tk[1:].T - Tk[:N].T), lo.append(0.0), hi.append(0.0)
+    if rate is not None:
+        rows.append(rate[:N]), lo.append(-np.inf), hi.append(np.nan)
+    con = _Constraints()
+    if ocp_form:
+        con.eq(Xn[:, 0] - d["x0"])
+    con.add(ca.vertcat(*rows),
+            np.concatenate([np.full((r.shape[0], N), a)
+                            for r, a in zip(rows, lo)]),
+            np.concatenate([np.full((r.shape[0], N), b)
+                            for r, b in zip(rows, hi)]))
+    if rate is not None:
+        con.add(rate[N], -np.inf, np.nan)
+    if ocp_form:
+        con.eq(Xn[4:7, N])
+    qe = quat_mul(quat_conj(d["qf"]), Xn[:4, N])  # xs = 1 on q
+    con.eq(qe[1:])
+    con.add(qe[0], 0.0, np.inf)
+    g, lbg, ubg, equality = con.arrays()
+    J_obj = Tk[0] if free_T else ca.sumsqr(Un) / N  # ∝ Σ ∫ m² dt
+    opts = dict(opts)
+    if ocp_form:
+        opts["equality"] = equality
+    nlp = {"x": w, "p": p, "f": J_obj, "g": g}
+    S = (ca.nlpsol("slew", plugin, nlp, opts) if jit is None
+         else _compiled_nlpsol(plugin, nlp, opts, jit))
+    return _Built(S, lay, lbg, ubg, np.flatnonzero(np.isnan(ubg)),
+                  time.perf_counter() - t_build)
+
+
+def _compiled_nlpsol(plugin: str, nlp: dict, opts: dict,
+                     jit: dict) -> ca.Function:
+    """Return an nlpsol over a C library of the NLP, cached on disk.
+
+    The library is compiled once per generated code (its SHA-256 names
+    it) with ``jit["compiler"]`` and ``jit["flags"]`` into
+    ``jit["cache_dir"]``.
+    """
+    S0 = ca.nlpsol("slew", plugin, nlp, opts)
+    cache = Path(jit["cache_dir"]).expanduser()
+    cache.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=cache) as tmp:
+        cwd = os.getcwd()
+        os.chdir(tmp)  # generate_dependencies writes to the cwd
+        try:
+            S0.generate_dependencies("slew_nlp.c")
+        finally:
+            os.chdir(cwd)
+        src = Path(tmp, "slew_nlp.c")
+        cmd = [jit["compiler"], *jit["flags"], "-shared", "-fPIC"]
+        key = hashlib.sha256(src.read_bytes() + " ".join(
+            cmd + [ca.__version__]).encode()).hexdigest()[:20]
+        lib = cache / f"slew_{key}.so"
+        if not lib.exists():
+            out = Path(tmp, "lib.so")
+            run = subprocess.run([*cmd, "-o", str(out), str(src), "-lm"],
+                                 capture_output=True, text=True)
+            if run.returncode != 0:
+                raise SolverError("compiling the slew NLP failed: "
+                                  + run.stderr.strip()[-500:],
+                                  solver=plugin)
+            os.replace(out, lib)  # atomic: concurrent builds are safe
+    return ca.nlpsol("slew", plugin, str(lib), opts)
+
+
+def _jit_settings(jit) -> dict | None:
+    """None (no JIT) or the compiler, flags and cache directory."""
+    if jit is False or jit is None:
+        return None
+    cfg = {"compiler": os.environ.get("CC") or shutil.which("gcc")
+           or shutil.which("cc") or shutil.which("clang"),
+           "flags": ["-O1"],
+           "cache_dir": os.environ.get("ADCS_CACHE_DIR",
+                                       "~/.cache/adcs_toolbox/slews")}
+    if isinstance(jit, dict):
+        unknown = set(jit) - set(cfg)
+        if unknown:
+            raise InvalidValueError(
+                f"jit takes the keys {sorted(cfg)}, got {sorted(unknown)}")
+        cfg.update(jit)
+    elif jit is not True:
+        raise InvalidValueError(f"jit must be a bool or a dict, got {jit!r}")
+    if not cfg["compiler"]:
+        raise InvalidValueError("jit needs a C compiler (gcc, cc or clang "
+                                "on PATH, or $CC)")
+    cfg["flags"] = list(cfg["flags"])
+    return cfg
+
+
+@dataclass(frozen=True, eq=False)
+class _Prepared:
+    """A built solver with the numeric inputs of one slew."""
+
+    built: _Built
+    cached: bool
+    p: np.ndarray
+    lbw: np.ndarray
+    ubw: np.ndarray
+    ubg: np.ndarray
+    xs: np.ndarray
+
+
+def _prepare(s: _Setup, *, solver: str, N: int, T_fixed: float | None,
+             transcription: str, expand: bool, substeps: int,
+             opts: dict, jit_cfg: dict | None) -> _Prepared:
+    """Fetch (or build) the solver and set the numeric inputs."""
+    plugin, _ = _solver_entry(solver)
+    model = s.model
+    nx, nw = model.nx, model.n_wheels
+    colloc = transcription == "collocation"
+    free_T = T_fixed is None
+    T_ref = s.T_eig if free_T else float(T_fixed)
+    x0 = np.r_[s.q0, np.zeros(3), s.h0]
     xs = np.r_[np.ones(4), s.w_scale * np.ones(3),
                s.h_max if s.h_max is not None else np.zeros(0)]
-    d = 3
-    Xn = Sym.sym("X", nx, N + 1)
-    Un = Sym.sym("U", nu, N)
-    free_T = T_fixed is None
-    Tn = Sym.sym("T", 1 if free_T else 0)
-    colloc = transcription == "collocation"
-    Xcn = Sym.sym("Xc", nx, d * N if colloc else 0)
-    X = ca.diag(ca.DM(xs)) @ Xn
-    U = ca.diag(ca.DM(s.u_max)) @ Un
-    T = s.T_eig * Tn if free_T else T_fixed
-    dt = T / N
-    f = model.dynamics
-    inv_xs = ca.DM(1.0 / xs)
-    g, lbg, ubg = [], [], []
-
-    def eq(expr):
-        g.append(ca.vec(expr))
-        lbg.append(np.zeros(expr.numel()))
-        ubg.append(np.zeros(expr.numel()))
-
-    if not colloc:
-        F = _shooting_function(f, nx, nu, substeps).map(N)
-        eq(Xn[:, 1:] - inv_xs * F(X[:, :N], U, ca.repmat(dt, 1, N)))
-    else:
-        F = _collocation_function(f, nx, nu, d).map(N)
-        Xc = ca.diag(ca.DM(xs)) @ Xcn
-        Xc_stack = ca.reshape(Xc, nx * d, N)
-        res, xend = F(X[:, :N], Xc_stack, U, ca.repmat(dt, 1, N))
-        eq(ca.repmat(inv_xs, d, 1) * res)
-        eq(Xn[:, 1:] - inv_xs * xend)
-    qN = X[:4, N]
-    qe = quat_mul(ca.DM(quat_conj(s.qf)), qN)
-    eq(qe[1:])
-    g.append(qe[0])
-    lbg.append([0.0])
-    ubg.append([np.inf])
+    values = _slew_data(s, T_ref, x0)
+    sizes = _param_sizes(nx, model.nu, nw)
+    # compiled: every entry is a parameter (one library per shape);
+    # otherwise the spacecraft data are folded into the SX graph
+    symbolic = tuple(sizes) if jit_cfg else _SLEW_PARAMETERS
+    folded = np.concatenate([np.zeros(0)] + [
+        v for k, v in _split(values, sizes).items() if k not in symbolic])
+    okey = _options_key(opts)
+    key = (solver, transcription, N, nx, model.nu, nw, substeps, free_T,
+           s.rate_max is not None, bool(expand), _options_key(jit_cfg),
+           okey, folded.tobytes())
+    built = _CACHE.get(key) if okey is not None else None
+    cached = built is not None
+    if built is None:
+        built = _build(s, plugin=plugin, opts=opts, N=N, free_T=free_T,
+                       colloc=colloc, substeps=substeps, expand=expand,
+                       symbolic=symbolic, values=values, jit=jit_cfg)
+        if okey is not None:
+            while len(_CACHE) >= _CACHE_SIZE:
+                _CACHE.pop(next(iter(_CACHE)))
+            _CACHE[key] = built
+    p = np.concatenate([v for k, v in _split(values, sizes).items()
+                        if k in symbolic])
+    ubg = built.ubg.copy()
     if s.rate_max is not None:
-        r = s.rate_max / s.w_scale
-        g.append(ca.sum1(Xn[4:7, :] ** 2).T)
-        lbg.append(np.full(N + 1, -np.inf))
-        ubg.append(np.full(N + 1, r ** 2))
-    # simple bounds
-    x0 = np.r_[s.q0, np.zeros(3), s.h0]
-    lbX = -np.inf * np.ones((nx, N + 1))
-    ubX = np.inf * np.ones((nx, N + 1))
-    lbX[:, 0] = ubX[:, 0] = x0 / xs
-    lbX[4:7, N] = ubX[4:7, N] = 0.0
-    if nw:
-        lbX[7:, 1:] = -1.0
-        ubX[7:, 1:] = 1.0
-    active = (np.ones(nu) if model.wheels is None
-              else model.wheels.active.astype(float))
-    lbU = -np.repeat(active[:, None], N, axis=1)
-    ubU = -lbU
-    lbXc = -np.inf * np.ones((nx, Xcn.shape[1]))
-    ubXc = np.inf * np.ones((nx, Xcn.shape[1]))
-    if nw and colloc:
-        lbXc[7:] = -1.0
-        ubXc[7:] = 1.0
-    lbT = np.full(Tn.shape[0], 1e-3)
-    ubT = np.full(Tn.shape[0], np.inf)
-    w = ca.vertcat(ca.vec(Xn), ca.vec(Un), Tn, ca.vec(Xcn))
-    lbw = np.concatenate([lbX.ravel("F"), lbU.ravel("F"), lbT,
-                          lbXc.ravel("F")])
-    ubw = np.concatenate([ubX.ravel("F"), ubU.ravel("F"), ubT,
-                          ubXc.ravel("F")])
-    J_obj = Tn if free_T else ca.sumsqr(Un) / N  # ∝ Σ ∫ m² dt at fixed T
-    # initial guess
-    T_guess = s.T_eig if free_T else T_fixed
-    Xg, Ug = _guess(s, N, T_guess, initial_guess, perturbation, seed)
-    Xgn = Xg / xs[:, None]
-    Xcg = np.repeat(0.5 * (Xgn[:, :-1] + Xgn[:, 1:]), d, axis=1)
-    w0 = np.concatenate([Xgn.ravel("F"), (Ug / s.u_max[:, None]).ravel("F"),
-                         [T_guess / s.T_eig] if free_T else [],
-                         Xcg.ravel("F") if colloc else []])
-    opts = _merge(base_opts, solver_options or {})
-    nlp = {"x": w, "f": J_obj, "g": ca.vertcat(*g)}
-    S = ca.nlpsol("slew", plugin, nlp, opts)
-    build_time = time.perf_counter() - t_build
+        ubg[built.rate_rows] = (s.rate_max / s.w_scale) ** 2
+    lbw, ubw = _bounds(s, built.lay, N, xs, x0, colloc,
+                       fix=plugin != "fatrop")
+    return _Prepared(built, cached, p, lbw, ubw, ubg, xs)
+
+
+def _run(prep: _Prepared, solver: str,
+         w0: np.ndarray) -> tuple[dict, dict, float]:
+    """Solve; return (solution as arrays, stats, wall time [s])."""
+    S = prep.built.solver
+    args = dict(x0=w0, p=prep.p, lbx=prep.lbw, ubx=prep.ubw,
+                lbg=prep.built.lbg, ubg=prep.ubg)
     t0 = time.perf_counter()
     try:
-        sol = S(x0=w0, lbx=lbw, ubx=ubw, lbg=np.concatenate(lbg),
-                ubg=np.concatenate(ubg))
+        sol = S(**args)
     except RuntimeError as exc:
         raise SolverError(f"solver {solver!r} failed with an error: "
                           f"{str(exc).strip().splitlines()[-1]}",
                           solver=solver) from exc
     solve_time = time.perf_counter() - t0
-    stats = S.stats()
-    success = bool(stats.get("success", False))
-    status = str(stats.get("return_status", "unknown"))
-    wopt = np.asarray(sol["x"]).ravel()
-    nX, nU = nx * (N + 1), nu * N
-    Xv = wopt[:nX].reshape(nx, N + 1, order="F") * xs[:, None]
-    Uv = wopt[nX:nX + nU].reshape(nu, N, order="F") * s.u_max[:, None]
-    Tv = float(wopt[nX + nU] * s.T_eig) if free_T else float(T_fixed)
+    sol = {k: np.asarray(v).ravel() for k, v in sol.items()}
+    return sol, S.stats(), solve_time
+
+
+#: Options of the refined solve (``initial_guess="coarse"``): its guess
+#: is feasible and near the optimum, so a small barrier parameter and
+#: iterates kept close to the (active) bounds. Measured on the benchmark
+#: slews; IPOPT's warm start with the interpolated multipliers was no
+#: better.
+WARM_START_OPTIONS: dict[str, dict] = {
+    "ipopt": {"ipopt": {"mu_init": 1e-5, "bound_push": 1e-8,
+                        "bound_frac": 1e-8}},
+    "fatrop": {"fatrop": {"mu_init": 1e-5}},
+}
+
+#: Options of the coarse solve that seeds ``initial_guess="coarse"``
+#: (a rough optimum is enough).
+COARSE_OPTIONS: dict[str, dict] = {
+    "ipopt": {"ipopt": {"tol": 1e-4}},
+    "fatrop": {"fatrop": {"tol": 1e-4}},
+}
+
+
+def _coarse_N(N: int) -> int | None:
+    """Intervals of the coarse solve for ``initial_guess="coarse"``.
+
+    The divisor of N nearest N/5 within [N/8, N/3] (its piecewise-
+    constant controls are then exactly representable on N intervals),
+    else round(N/5); None when that is under 6 intervals (then the
+    perturbed eigenaxis guess is used directly).
+    """
+    divs = [n for n in range(max(1, N // 8), N // 3 + 1)
+            if N % n == 0 and 8 * n >= N]
+    Nc = (min(divs, key=lambda n: abs(5 * n - N)) if divs
+          else int(round(N / 5)))
+    return Nc if Nc >= 6 else None
+
+
+def _refined_start(s: _Setup, coarse: _Prepared, sol: dict,
+                   fine: _Prepared, N: int, T_fixed: float | None,
+                   substeps: int) -> np.ndarray:
+    """Scaled guess w0 on N intervals from a coarse solution.
+
+    Controls are held over the fine grid and the states simulated by the
+    RK4 of the NLP, so the guess satisfies the continuity rows.
+    """
+    lc, lf = coarse.built.lay, fine.built.lay
+    Nc = lc.iU.shape[1]
+    j = np.minimum((np.arange(N) * Nc) // N, Nc - 1)  # coarse interval
+    Un = sol["x"][lc.iU][:, j]
+    T = (float(sol["x"][lc.iT[0]] * s.T_eig) if T_fixed is None
+         else T_fixed)
+    U = Un * s.u_max[:, None]
+    X = np.empty((s.model.nx, N + 1))
+    X[:, 0] = np.r_[s.q0, np.zeros(3), s.h0]
+    step = s.model.rk4_step(substeps)  # the shooting step of the NLP
+    for k in range(N):
+        X[:, k + 1] = np.asarray(step(X[:, k], U[:, k], np.zeros(3),
+                                      T / N)).ravel()
+    w0 = np.zeros(lf.n)
+    w0[lf.iX] = X / fine.xs[:, None]
+    w0[lf.iU] = Un
+    if lf.iXc.size:  # collocation states: interval midpoints
+        d = lf.iXc.shape[1] // N
+        mid = 0.5 * (w0[lf.iX][:, :-1] + w0[lf.iX][:, 1:])
+        w0[lf.iXc] = np.repeat(mid, d, axis=1)
+    if lf.iT.size:
+        w0[lf.iT] = sol["x"][lc.iT[0]]
+    return w0
+
+
+def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
+           transcription: str, solver: str, expand: bool, substeps: int,
+           initial_guess: str, perturbation: float, seed: int,
+           solver_options: dict | None, verify: bool,
+           jit=False) -> SlewTrajectory:
+    plugin, base_opts = _solver_entry(solver)
+    model = s.model
+    nw = model.n_wheels
+    colloc = transcription == "collocation"
+    if plugin == "fatrop" and colloc:
+        # its structure detection rejects the collocation rows
+        raise InvalidValueError(
+            "solver 'fatrop' takes transcription='multiple_shooting' only")
+    jit_cfg = _jit_settings(jit)
+    free_T = T_fixed is None
+    T_ref = s.T_eig if free_T else float(T_fixed)
+    opts = _merge(base_opts, solver_options or {})
+    common = dict(solver=solver, T_fixed=T_fixed, transcription=transcription,
+                  expand=expand, substeps=substeps, jit_cfg=jit_cfg)
+    coarse_info = {}
+    Nc = _coarse_N(N) if initial_guess == "coarse" else None
+    if Nc is not None:
+        cprep = _prepare(s, N=Nc, opts=_merge(
+            opts, COARSE_OPTIONS.get(plugin, {})), **common)
+        w0c = _initial_point(s, cprep.built.lay, Nc, cprep.xs, T_ref,
+                             free_T, colloc, 3,
+                             "eigenaxis" if free_T else "cubic",
+                             perturbation, seed)
+        csol, cstats, ctime = _run(cprep, solver, w0c)
+        warm = _merge(_merge(base_opts, WARM_START_OPTIONS.get(plugin, {})),
+                      solver_options or {})
+        prep = _prepare(s, N=N, opts=warm, **common)
+        w0 = _refined_start(s, cprep, csol, prep, N, T_fixed, substeps)
+        sol, stats, solve_time = _run(prep, solver, w0)
+        coarse_info = {"coarse_N": Nc,
+                       "coarse_iterations": int(cstats.get("iter_count", -1)),
+                       "coarse_solve_time": ctime,
+                       "coarse_status": _status(cstats)}
+        solve_time += ctime
+        builds = [cprep, prep]
+    else:
+        kind = "eigenaxis" if initial_guess == "coarse" else initial_guess
+        prep = _prepare(s, N=N, opts=opts, **common)
+        w0 = _initial_point(s, prep.built.lay, N, prep.xs, T_ref, free_T,
+                            colloc, 3, kind, perturbation, seed)
+        sol, stats, solve_time = _run(prep, solver, w0)
+        builds = [prep]
+    lay, xs = prep.built.lay, prep.xs
+    cached = all(b.cached for b in builds)
+    build_time = sum(b.built.build_time for b in builds if not b.cached)
+    x0 = np.r_[s.q0, np.zeros(3), s.h0]
+    wopt = sol["x"]
+    Xv = wopt[lay.iX] * xs[:, None]
+    Uv = wopt[lay.iU] * s.u_max[:, None]
+    Tv = float(wopt[lay.iT[0]] * s.T_eig) if free_T else float(T_fixed)
     t = np.linspace(0.0, Tv, N + 1)
     extras = {"objective": objective, "transcription": transcription,
               "solver": solver, "expand": bool(expand), "N": N,
+              "jit": jit_cfg is not None, "cached": cached,
               "build_time": build_time,
               "solver_time": float(stats.get("t_wall_total", np.nan)),
               "eigenaxis_T": s.T_eig,
-              "initial_guess": ("perturbed_eigenaxis" if perturbation > 0
-                                and initial_guess == "eigenaxis"
+              "initial_guess": ("coarse" if Nc is not None
+                                else "perturbed_eigenaxis"
+                                if perturbation > 0 and initial_guess in (
+                                    "eigenaxis", "coarse")
+                                else "eigenaxis"
+                                if initial_guess == "coarse"
                                 else initial_guess),
               "perturbation": perturbation,
-              "nlp_objective": float(sol["f"])}
+              "nlp_objective": float(sol["f"][0]), **coarse_info}
     traj = SlewTrajectory(
         method="time_optimal" if free_T else "min_energy",
         T=Tv, t=t, q=Xv[:4].T, w=Xv[4:7].T,
         torque=model.body_control_torque(Uv).T,
         wheel_torque=Uv.T if nw else None,
-        wheel_momentum=Xv[7:].T if nw else None, qf=s.qf, status=status,
-        success=success, solve_time=solve_time,
+        wheel_momentum=Xv[7:].T if nw else None, qf=s.qf,
+        status=_status(stats), success=bool(stats.get("success", False)),
+        solve_time=solve_time,
         iterations=int(stats.get("iter_count", -1)), extras=extras)
     if verify and np.isfinite(Tv) and Tv > 0:
-        Xs = model.simulate(x0, t, Uv.T, options={"abstol": 1e-9,
-                                                   "reltol": 1e-9})
-        qe = quat_mul(quat_conj(s.qf), Xs[-1, :4] / np.linalg.norm(
-            Xs[-1, :4]))
-        extras["simulated_final_error"] = float(
-            2 * np.arcsin(min(1.0, np.linalg.norm(qe[1:]))))
-        extras["simulated_final_rate"] = float(np.linalg.norm(Xs[-1, 4:7]))
+        _verify(model, x0, t, Uv, s.qf, extras)
     return traj
+
+
+def _status(stats: dict) -> str:
+    """Return the solver's status message (fatrop's code is an int)."""
+    status = stats.get("return_status", "unknown")
+    if isinstance(status, str):
+        return status
+    return f"{stats.get('unified_return_status', 'unknown')} ({status})"
+
+
+def _bounds(s: _Setup, lay: _Layout, N: int, xs: np.ndarray,
+            x0: np.ndarray, colloc: bool, fix: bool):
+    """(lbw, ubw) of the scaled variables; ``fix``: x(0), ω(T) by bounds."""
+    nx = lay.iX.shape[0]
+    nw = s.model.n_wheels
+    lbw = np.full(lay.n, -np.inf)
+    ubw = np.full(lay.n, np.inf)
+    lbX = np.full((nx, N + 1), -np.inf)
+    ubX = np.full((nx, N + 1), np.inf)
+    if nw:
+        lbX[7:, 1:], ubX[7:, 1:] = -1.0, 1.0
+    if fix:
+        lbX[:, 0] = ubX[:, 0] = x0 / xs
+        lbX[4:7, N] = ubX[4:7, N] = 0.0
+    lbw[lay.iX], ubw[lay.iX] = lbX, ubX
+    active = (np.ones(s.model.nu) if s.model.wheels is None
+              else s.model.wheels.active.astype(float))
+    lbw[lay.iU] = -active[:, None]
+    ubw[lay.iU] = active[:, None]
+    if nw and colloc:
+        lbw[lay.iXc[7:]], ubw[lay.iXc[7:]] = -1.0, 1.0
+    lbw[lay.iT] = 1e-3
+    return lbw, ubw
+
+
+def _initial_point(s: _Setup, lay: _Layout, N: int, xs: np.ndarray,
+                   T_guess: float, free_T: bool, colloc: bool, d: int,
+                   kind: str, perturbation: float, seed: int) -> np.ndarray:
+    """Scaled initial guess ``w0`` (lay.n,)."""
+    Xg, Ug = _guess(s, N, T_guess, kind, perturbation, seed)
+    Xgn = Xg / xs[:, None]
+    w0 = np.zeros(lay.n)
+    w0[lay.iX] = Xgn
+    w0[lay.iU] = Ug / s.u_max[:, None]
+    if free_T:
+        w0[lay.iT] = T_guess / s.T_eig
+    if colloc:
+        w0[lay.iXc] = np.repeat(0.5 * (Xgn[:, :-1] + Xgn[:, 1:]), d, axis=1)
+    return w0
+
+
+def _verify(model: SpacecraftModel, x0: np.ndarray, t: np.ndarray,
+            Uv: np.ndarray, qf: np.ndarray, extras: dict) -> None:
+    """Simulate the controls with CVODES; store final error and rate."""
+    Xs = model.simulate(x0, t, Uv.T, options={"abstol": 1e-9,
+                                               "reltol": 1e-9})
+    qe = quat_mul(quat_conj(qf), Xs[-1, :4] / np.linalg.norm(Xs[-1, :4]))
+    extras["simulated_final_error"] = float(
+        2 * np.arcsin(min(1.0, np.linalg.norm(qe[1:]))))
+    extras["simulated_final_rate"] = float(np.linalg.norm(Xs[-1, 4:7]))
 
 
 def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
@@ -402,10 +908,11 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
                       solver: str = "ipopt", expand: bool = True,
                       substeps: int = 1, h0=None,
                       rate_max: float | None = None,
-                      initial_guess: str = "perturbed_eigenaxis",
+                      initial_guess: str | None = None,
                       perturbation: float = 0.3, seed: int = 0,
                       solver_options: dict | None = None,
-                      verify: bool = True) -> SlewTrajectory:
+                      verify: bool = True,
+                      jit: bool | dict = False) -> SlewTrajectory:
     """Minimum-time rest-to-rest slew from ``q0`` to ``qf`` (free T).
 
     .. math::
@@ -429,8 +936,10 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
         Number of control intervals.
     transcription : {"multiple_shooting", "collocation"}
         Transcription of the dynamics.
-    solver : {"ipopt", "sqpmethod"}
-        NLP solver (default ``"ipopt"``). ``"sqpmethod"`` is CasADi's SQP
+    solver : {"ipopt", "fatrop", "sqpmethod"}
+        NLP solver (default ``"ipopt"``). ``"fatrop"`` (where CasADi has
+        it; multiple shooting only) exploits the stage structure.
+        ``"sqpmethod"`` is CasADi's SQP
         with qpOASES: it converges on minimum-energy slews but stalls on
         time-optimal ones (its status then says so).
     expand : bool
@@ -442,8 +951,19 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
         Initial wheel momenta [N·m·s] (default zero); final ones are free.
     rate_max : float, optional
         Bound on |ω| [rad/s].
-    initial_guess : {"perturbed_eigenaxis", "eigenaxis"}
-        ``"eigenaxis"`` is the unperturbed closed form: a stationary point.
+    initial_guess : {None, "coarse", "perturbed_eigenaxis", "eigenaxis"}
+        None (default): ``"coarse"`` with IPOPT, ``"perturbed_eigenaxis"``
+        with the other solvers (fatrop's coarse solve of the
+        Bilimoria–Wie slew ends in another local optimum, T = 3.285).
+        ``"perturbed_eigenaxis"``: the eigenaxis slew with a smooth
+        off-axis perturbation. ``"coarse"``: that guess solved
+        first on about N/5 intervals (a divisor of N where one fits;
+        tolerance 1e-4, `COARSE_OPTIONS`), its controls held on the N
+        intervals and its states re-simulated, then the N-interval NLP
+        solved from there (`WARM_START_OPTIONS`); ``solve_time`` includes
+        both solves and ``extras`` holds the coarse figures. Below 30
+        intervals it is ``"perturbed_eigenaxis"``. ``"eigenaxis"`` is the
+        unperturbed closed form: a stationary point.
     perturbation : float
         Off-axis rate amplitude of the perturbed guess, relative to the
         eigenaxis peak rate.
@@ -455,6 +975,16 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
     verify : bool
         Simulate the optimal controls with CVODES and store the final
         attitude error and rate in ``extras`` (outside ``solve_time``).
+    jit : bool or dict
+        Opt-in: compile the NLP's functions to C (MX graph of mapped
+        interval Functions, ``expand`` ignored) with all problem data as
+        NLP parameters, so one library serves every slew of the same
+        shape (N, wheels or torque box, transcription, solver, options).
+        The library is cached on disk, named by the SHA-256 of its code:
+        the compile (≈ 3–12 s at -O1) happens once per machine. A dict
+        sets ``compiler`` (default $CC, gcc, cc or clang), ``flags``
+        (default ``["-O1"]``) and ``cache_dir`` (default
+        $ADCS_CACHE_DIR or ``~/.cache/adcs_toolbox/slews``).
 
     Returns
     -------
@@ -469,10 +999,13 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
     InvalidValueError, ShapeError
         Bad arguments.
     """
-    if initial_guess not in ("perturbed_eigenaxis", "eigenaxis"):
+    if initial_guess is None:
+        initial_guess = ("coarse" if solver == "ipopt"
+                         else "perturbed_eigenaxis")
+    if initial_guess not in ("perturbed_eigenaxis", "eigenaxis", "coarse"):
         raise InvalidValueError(
-            "initial_guess must be 'perturbed_eigenaxis' or 'eigenaxis', "
-            f"got {initial_guess!r}")
+            "initial_guess must be 'perturbed_eigenaxis', 'eigenaxis' or "
+            f"'coarse', got {initial_guess!r}")
     _solver_entry(solver)
     _check_common(N, transcription, substeps)
     perturbation = as_finite_scalar(perturbation, "perturbation")
@@ -481,8 +1014,10 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
     return _solve(s, objective="time", T_fixed=None, N=int(N),
                   transcription=transcription, solver=solver,
                   expand=expand, substeps=int(substeps),
-                  initial_guess="eigenaxis", perturbation=pert, seed=seed,
-                  solver_options=solver_options, verify=verify)
+                  initial_guess=("coarse" if initial_guess == "coarse"
+                                 else "eigenaxis"),
+                  perturbation=pert, seed=seed,
+                  solver_options=solver_options, verify=verify, jit=jit)
 
 
 def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
@@ -492,7 +1027,8 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
                     substeps: int = 1, h0=None,
                     rate_max: float | None = None,
                     solver_options: dict | None = None,
-                    verify: bool = True) -> SlewTrajectory:
+                    verify: bool = True,
+                    jit: bool | dict = False) -> SlewTrajectory:
     """Minimum-energy rest-to-rest slew in a fixed time ``T``.
 
     .. math::
@@ -510,7 +1046,7 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
         ``success`` is False).
     inertia, q0, qf, torque_max, wheels, N, transcription, solver
         As `time_optimal_slew`.
-    expand, substeps, h0, rate_max, solver_options, verify
+    expand, substeps, h0, rate_max, solver_options, verify, jit
         As `time_optimal_slew`.
 
     Returns
@@ -526,4 +1062,4 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
                   transcription=transcription, solver=solver,
                   expand=expand, substeps=int(substeps),
                   initial_guess="cubic", perturbation=0.0, seed=0,
-                  solver_options=solver_options, verify=verify)
+                  solver_options=solver_options, verify=verify, jit=jit)

@@ -4,6 +4,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 
+import casadi as ca  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
@@ -65,7 +66,7 @@ def test_unperturbed_eigenaxis_guess_is_a_stationary_point(bw_ms):
     assert r.extras["initial_guess"] == "eigenaxis"
     # the default perturbed guess leaves it
     assert bw_ms.T < r.T - 0.25
-    assert bw_ms.extras["initial_guess"] == "perturbed_eigenaxis"
+    assert bw_ms.extras["initial_guess"] == "coarse"
     assert bw_ms.extras["perturbation"] > 0
 
 
@@ -180,3 +181,130 @@ def test_benchmark_runs_one_configuration():
     assert res["status"] == "Solve_Succeeded"
     assert res["T"] == pytest.approx(BILIMORIA_WIE_T, abs=0.02)
     assert res["solve"] > 0
+
+
+fatrop_missing = pytest.mark.skipif(
+    "fatrop" not in __import__("ocp").available_nlp_solvers(),
+    reason="CasADi built without fatrop")
+
+
+@fatrop_missing
+def test_fatrop_gives_the_ipopt_time_optimal_slew(bw_ms):
+    r = time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=100,
+                          solver="fatrop")
+    assert r.success and "SUCCESS" in r.status
+    assert r.T == pytest.approx(bw_ms.T, rel=1e-5)
+    assert r.extras["simulated_final_error"] < 1e-6
+
+
+@fatrop_missing
+def test_fatrop_wheel_limits_and_min_energy_match_ipopt():
+    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
+    a = time_optimal_slew(J_METEOR, Q0, qf, wheels=arr, N=40,
+                          solver="fatrop", verify=False)
+    b = time_optimal_slew(J_METEOR, Q0, qf, wheels=arr, N=40, verify=False)
+    assert a.success and b.success
+    assert a.T == pytest.approx(b.T, rel=1e-5)
+    assert a.peak_wheel_momentum <= 4.0 * (1 + 1e-6)
+    e = min_energy_slew(J_METEOR, Q0, qf, wheels=arr, T=1.5 * b.T, N=40,
+                        solver="fatrop", verify=False)
+    f = min_energy_slew(J_METEOR, Q0, qf, wheels=arr, T=1.5 * b.T, N=40,
+                        verify=False)
+    assert e.success and e.energy == pytest.approx(f.energy, rel=1e-5)
+
+
+@fatrop_missing
+def test_fatrop_rejects_collocation():
+    with pytest.raises(InvalidValueError, match="multiple_shooting"):
+        time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=10,
+                          solver="fatrop", transcription="collocation")
+
+
+def test_cached_solver_gives_the_fresh_result_for_another_target():
+    """Same spacecraft, other target: the built NLP is reused.
+
+    Its target, initial state and scales are parameters; the answer
+    agrees with a fresh build.
+    """
+    from ocp import slews
+
+    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    kw = dict(wheels=arr, N=30, verify=False)
+    qa = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
+    qb = quat_from_axis_angle([0.3, -0.5, 0.8], np.deg2rad(150.0))
+    time_optimal_slew(J_METEOR, Q0, qa, **kw)
+    reused = time_optimal_slew(J_METEOR, Q0, qb, **kw)
+    assert reused.extras["cached"] and reused.extras["build_time"] == 0.0
+    slews._CACHE.clear()
+    fresh = time_optimal_slew(J_METEOR, Q0, qb, **kw)
+    assert not fresh.extras["cached"]
+    assert reused.success and fresh.success
+    assert reused.T == pytest.approx(fresh.T, rel=1e-9)
+    np.testing.assert_allclose(reused.wheel_torque, fresh.wheel_torque,
+                               atol=1e-9)
+
+
+def test_parametric_dynamics_match_the_model():
+    from ocp import rigid_spacecraft, slews
+
+    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    model = rigid_spacecraft(J_METEOR, arr)
+    s = slews._setup(J_METEOR, Q0, Q_180X, arr, None, None, None)
+    sizes = slews._param_sizes(model.nx, model.nu, model.n_wheels)
+    d = slews._split(slews._slew_data(s, 1.0, np.r_[Q0, np.zeros(7)]),
+                     sizes)
+    rng = np.random.default_rng(1)
+    x, u = rng.normal(size=model.nx), rng.normal(size=model.nu)
+    f = slews._rigid_dynamics(ca.DM(x), ca.DM(u), {
+        k: ca.DM(v) for k, v in d.items()}, model.n_wheels)
+    ref = model.dynamics(x, u, np.zeros(3))
+    np.testing.assert_allclose(np.asarray(f).ravel(),
+                               np.asarray(ref).ravel(), rtol=1e-12,
+                               atol=1e-12)
+
+
+jit_needs_cc = pytest.mark.skipif(
+    not any(__import__("shutil").which(c) for c in ("gcc", "cc", "clang")),
+    reason="no C compiler")
+
+
+@pytest.mark.slow
+@jit_needs_cc
+def test_jit_library_is_cached_and_solves_like_the_sx_graph(tmp_path):
+    from ocp import slews
+
+    kw = dict(torque_max=1.0, N=20, verify=False)
+    ref = time_optimal_slew(np.eye(3), Q0, Q_180X, **kw)
+    jit = {"cache_dir": str(tmp_path), "flags": ["-O0"]}
+    a = time_optimal_slew(np.eye(3), Q0, Q_180X, jit=jit, **kw)
+    assert a.extras["jit"] and len(list(tmp_path.glob("slew_*.so"))) == 1
+    assert a.success and a.T == pytest.approx(ref.T, rel=1e-9)
+    # another inertia and target: same library (the data are parameters)
+    slews._CACHE.clear()
+    qf = quat_from_axis_angle([0, 0, 1], 2.0)
+    b = time_optimal_slew(np.diag([2.0, 1.0, 1.5]), Q0, qf, jit=jit, **kw)
+    c = time_optimal_slew(np.diag([2.0, 1.0, 1.5]), Q0, qf, **kw)
+    assert len(list(tmp_path.glob("slew_*.so"))) == 1
+    assert b.success and b.T == pytest.approx(c.T, rel=1e-8)
+
+
+def test_jit_rejects_bad_settings():
+    with pytest.raises(InvalidValueError, match="jit"):
+        time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=10,
+                          jit={"optimise": 3})
+
+
+def test_coarse_start_solves_the_same_nlp_as_the_perturbed_guess(bw_ms):
+    r = time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=100,
+                          initial_guess="perturbed_eigenaxis", verify=False)
+    assert r.success and r.extras["initial_guess"] == "perturbed_eigenaxis"
+    assert bw_ms.extras["coarse_N"] == 20
+    assert bw_ms.extras["coarse_iterations"] > 0
+    assert bw_ms.solve_time > bw_ms.extras["coarse_solve_time"]
+    assert bw_ms.T == pytest.approx(r.T, rel=2e-6)
+    # too few intervals for a coarse stage: the perturbed guess directly
+    s = time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=20,
+                          verify=False)
+    assert s.extras["initial_guess"] == "perturbed_eigenaxis"
+    assert "coarse_N" not in s.extras
