@@ -53,6 +53,7 @@ from .seed003 import (
 )
 from .slews import (
     NLP_SOLVERS,
+    KeepOut,
     TRANSCRIPTIONS,
     available_nlp_solvers,
     min_energy_slew,
@@ -61,6 +62,7 @@ from .slews import (
 from .trajectory import SlewTrajectory
 
 __all__: list[str] = [
+    "KeepOut",
     "BdotRun",
     "EARTH_DIPOLE",
     "EARTH_MU",

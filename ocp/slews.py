@@ -43,7 +43,13 @@ from adcs_common.exceptions import (
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 from allocation import WheelArray, min_norm_gains
 
-from .attitude import quat_conj, quat_mul, quat_rate, rotation_between
+from .attitude import (
+    quat_conj,
+    quat_mul,
+    quat_rate,
+    quat_to_dcm,
+    rotation_between,
+)
 from .laws import _unit_quat, eigenaxis_slew
 from .models import (
     SpacecraftModel,
@@ -54,6 +60,7 @@ from .models import (
 from .trajectory import SlewTrajectory
 
 __all__ = [
+    "KeepOut",
     "NLP_SOLVERS",
     "TRANSCRIPTIONS",
     "available_nlp_solvers",
@@ -111,6 +118,80 @@ def _merge(base: dict, extra: dict) -> dict:
     return out
 
 
+@dataclass(frozen=True)
+class KeepOut:
+    """A keep-out cone: a body axis must stay away from a fixed direction.
+
+    The boresight ``b`` (body frame, e.g. a star tracker's or a
+    telescope's) keeps an angle of at least ``half_angle`` from the
+    direction ``s`` (reference frame, e.g. the Sun):
+    :math:`s^T R(q)\\, b \\le \\cos(\\text{half\\_angle})`, with R(q)
+    body to reference. The slews impose it at every node of the grid
+    (between nodes the motion is smooth; ``extras["keep_out_margin"]``
+    reports the smallest angular margin on the simulated trajectory).
+
+    Attributes
+    ----------
+    boresight : tuple of 3 float
+        Body axis (normalised here).
+    direction : tuple of 3 float
+        Reference-frame direction to avoid (normalised here).
+    half_angle : float
+        Cone half-angle [rad], in (0, π).
+    """
+
+    boresight: tuple
+    direction: tuple
+    half_angle: float
+
+    def __post_init__(self) -> None:
+        """Normalise the axes and check the angle."""
+        for name in ("boresight", "direction"):
+            v = as_vector(getattr(self, name), 3, name)
+            n = np.linalg.norm(v)
+            if n < 1e-12:
+                raise InvalidValueError(f"{name} must be a non-zero vector")
+            object.__setattr__(self, name, tuple(v / n))
+        a = as_finite_scalar(self.half_angle, "half_angle")
+        if not 0.0 < a < np.pi:
+            raise InvalidValueError(
+                f"half_angle must lie in (0, π) rad, got {a}")
+        object.__setattr__(self, "half_angle", a)
+
+    def margin(self, q) -> np.ndarray:
+        """Angle of the boresight from the direction minus the half-angle.
+
+        ``q`` (4,) or (K, 4) scalar-first; returns radians, (K,) or a
+        float; negative inside the cone.
+        """
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        b, d = np.array(self.boresight), np.array(self.direction)
+        c = np.array([d @ quat_to_dcm(qk / np.linalg.norm(qk)) @ b
+                      for qk in q])
+        out = np.arccos(np.clip(c, -1.0, 1.0)) - self.half_angle
+        return out if out.size > 1 else float(out[0])
+
+
+def _keep_outs(keep_out, q0, qf) -> tuple[KeepOut, ...]:
+    """Check the cones; the end attitudes must lie outside them."""
+    if keep_out is None:
+        return ()
+    if isinstance(keep_out, KeepOut):
+        keep_out = (keep_out,)
+    out = tuple(keep_out)
+    for i, k in enumerate(out):
+        if not isinstance(k, KeepOut):
+            raise InvalidValueError(
+                f"keep_out[{i}] must be a KeepOut, got {type(k).__name__}")
+        for name, q in (("q0", q0), ("qf", qf)):
+            if k.margin(q) < 0:
+                raise InvalidValueError(
+                    f"{name} lies inside keep_out[{i}] (boresight "
+                    f"{np.rad2deg(k.margin(q) + k.half_angle):.2f}° from the "
+                    f"direction, cone {np.rad2deg(k.half_angle):.2f}°)")
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class _Setup:
     model: SpacecraftModel
@@ -123,9 +204,11 @@ class _Setup:
     rate_max: float | None
     T_eig: float
     eig_axis: np.ndarray
+    keep_out: tuple = ()
 
 
-def _setup(inertia, q0, qf, wheels, torque_max, h0, rate_max) -> _Setup:
+def _setup(inertia, q0, qf, wheels, torque_max, h0, rate_max,
+           keep_out=None) -> _Setup:
     J = check_inertia(inertia)
     q0 = _unit_quat(q0, "q0")
     qf = _unit_quat(qf, "qf")
@@ -153,7 +236,7 @@ def _setup(inertia, q0, qf, wheels, torque_max, h0, rate_max) -> _Setup:
         h_max = None
     w_scale = max(eig.peak_rate, 1e-12) if eig.T > 0 else 1.0
     return _Setup(model, q0, qf, h0, u_max, h_max, w_scale, rate_max,
-                  max(eig.T, 1e-9), eig.axis)
+                  max(eig.T, 1e-9), eig.axis, _keep_outs(keep_out, q0, qf))
 
 
 def _check_common(N: int, transcription: str, substeps: int) -> None:
@@ -239,22 +322,26 @@ def _collocation_coefficients(d: int = 3):
     return tau, C, D, B
 
 
-def _param_sizes(nx: int, nu: int, nw: int) -> dict[str, int]:
+def _param_sizes(nx: int, nu: int, nw: int,
+                 nk: int = 0) -> dict[str, int]:
     """Entries of the slew-data vector (order and lengths).
 
     ``J``, ``Jinv`` (9, column-major) [kg·m², 1/(kg·m²)], ``A`` (3 N_w)
     wheel axes, ``sfac`` (N_w) torque factors, ``umax`` (nu) control
     scale [N·m], ``hmax`` (N_w) momentum scale [N·m·s], ``wscale`` rate
     scale [rad/s], ``Tref`` time scale [s] (eigenaxis time, or T when
-    fixed), ``qf`` (4) target attitude, ``x0`` (nx) scaled initial state.
+    fixed), ``qf`` (4) target attitude, ``x0`` (nx) scaled initial state,
+    ``keep`` (7 nk) the keep-out cones (boresight, direction, cos of the
+    half-angle, column by column).
     """
     return {"J": 9, "Jinv": 9, "A": 3 * nw, "sfac": nw, "umax": nu,
-            "hmax": nw, "wscale": 1, "Tref": 1, "qf": 4, "x0": nx}
+            "hmax": nw, "wscale": 1, "Tref": 1, "qf": 4, "x0": nx,
+            "keep": 7 * nk}
 
 
 #: Entries of the slew data that stay symbolic (NLP parameters ``p``)
 #: when the other ones are folded into the graph as constants.
-_SLEW_PARAMETERS = ("wscale", "Tref", "qf", "x0")
+_SLEW_PARAMETERS = ("wscale", "Tref", "qf", "x0", "keep")
 
 
 def _split(v, sizes: dict[str, int]) -> dict:
@@ -455,9 +542,11 @@ def _slew_data(s: _Setup, T_ref: float, x0: np.ndarray) -> np.ndarray:
         hmax = s.h_max
     J = model.inertia
     xs = np.r_[np.ones(4), np.full(3, s.w_scale), hmax]
+    keep = [np.r_[k.boresight, k.direction, np.cos(k.half_angle)]
+            for k in s.keep_out]
     return np.concatenate([J.ravel("F"), np.linalg.inv(J).ravel("F"),
                            A.ravel("F"), sfac, s.u_max, hmax, [s.w_scale],
-                           [T_ref], s.qf, x0 / xs])
+                           [T_ref], s.qf, x0 / xs, *keep])
 
 
 def _data_symbols(Sym, sizes: dict[str, int], values: np.ndarray,
@@ -502,7 +591,8 @@ def _build(s: _Setup, *, plugin: str, opts: dict, N: int, free_T: bool,
     # of mapped Function calls (what the JIT compiles: loops, not one
     # flat expression).
     Sym = ca.SX if expand and jit is None else ca.MX
-    sizes = _param_sizes(nx, nu, nw)
+    nk = len(s.keep_out)
+    sizes = _param_sizes(nx, nu, nw, nk)
     deg = 3
     lay = _layout(nx, nu, N, free_T, deg if colloc else 0, ocp_form)
     w = Sym.sym("w", lay.n)
@@ -513,6 +603,14 @@ def _build(s: _Setup, *, plugin: str, opts: dict, N: int, free_T: bool,
     dt = (d["Tref"] / N * Tk[:N].T if free_T
           else ca.repmat(d["Tref"] / N, 1, N))
     rate = ca.sum1(Xn[4:7, :] ** 2) if s.rate_max is not None else None
+    # keep-out cones: s_j^T R(q_k) b_j - cos(half-angle_j) <= 0 per node
+    cones = None
+    if nk:
+        kd = ca.reshape(d["keep"], 7, nk)
+        cones = ca.horzcat(*[
+            ca.vertcat(*[kd[3:6, j].T @ quat_to_dcm(Xn[:4, k]) @ kd[:3, j]
+                         - kd[6, j] for j in range(nk)])
+            for k in range(N + 1)])
     # rows stage by stage (fatrop's structure detection reads them so)
     rows, lo, hi = [], [], []
     if not colloc:
@@ -529,6 +627,8 @@ def _build(s: _Setup, *, plugin: str, opts: dict, N: int, free_T: bool,
         rows.append(Tk[1:].T - Tk[:N].T), lo.append(0.0), hi.append(0.0)
     if rate is not None:
         rows.append(rate[:N]), lo.append(-np.inf), hi.append(np.nan)
+    if cones is not None:
+        rows.append(cones[:, :N]), lo.append(-np.inf), hi.append(0.0)
     con = _Constraints()
     if ocp_form:
         con.eq(Xn[:, 0] - d["x0"])
@@ -539,6 +639,8 @@ def _build(s: _Setup, *, plugin: str, opts: dict, N: int, free_T: bool,
                             for r, b in zip(rows, hi)]))
     if rate is not None:
         con.add(rate[N], -np.inf, np.nan)
+    if cones is not None:
+        con.add(cones[:, N], -np.inf, 0.0)
     if ocp_form:
         con.eq(Xn[4:7, N])
     qe = quat_mul(quat_conj(d["qf"]), Xn[:4, N])  # xs = 1 on q
@@ -642,7 +744,7 @@ def _prepare(s: _Setup, *, solver: str, N: int, T_fixed: float | None,
     xs = np.r_[np.ones(4), s.w_scale * np.ones(3),
                s.h_max if s.h_max is not None else np.zeros(0)]
     values = _slew_data(s, T_ref, x0)
-    sizes = _param_sizes(nx, model.nu, nw)
+    sizes = _param_sizes(nx, model.nu, nw, len(s.keep_out))
     # compiled: every entry is a parameter (one library per shape);
     # otherwise the spacecraft data are folded into the SX graph
     symbolic = tuple(sizes) if jit_cfg else _SLEW_PARAMETERS
@@ -650,7 +752,8 @@ def _prepare(s: _Setup, *, solver: str, N: int, T_fixed: float | None,
         v for k, v in _split(values, sizes).items() if k not in symbolic])
     okey = _options_key(opts)
     key = (solver, transcription, N, nx, model.nu, nw, substeps, free_T,
-           s.rate_max is not None, bool(expand), _options_key(jit_cfg),
+           s.rate_max is not None, len(s.keep_out), bool(expand),
+           _options_key(jit_cfg),
            okey, folded.tobytes())
     built = _CACHE.get(key) if okey is not None else None
     cached = built is not None
@@ -837,8 +940,11 @@ def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
         status=_status(stats), success=bool(stats.get("success", False)),
         solve_time=solve_time,
         iterations=int(stats.get("iter_count", -1)), extras=extras)
+    if s.keep_out:
+        extras["keep_out_node_margin"] = float(min(
+            np.min(k.margin(traj.q)) for k in s.keep_out))
     if verify and np.isfinite(Tv) and Tv > 0:
-        _verify(model, x0, t, Uv, s.qf, extras)
+        _verify(model, x0, t, Uv, s.qf, extras, s.keep_out)
     return traj
 
 
@@ -892,10 +998,24 @@ def _initial_point(s: _Setup, lay: _Layout, N: int, xs: np.ndarray,
 
 
 def _verify(model: SpacecraftModel, x0: np.ndarray, t: np.ndarray,
-            Uv: np.ndarray, qf: np.ndarray, extras: dict) -> None:
-    """Simulate the controls with CVODES; store final error and rate."""
-    Xs = model.simulate(x0, t, Uv.T, options={"abstol": 1e-9,
-                                               "reltol": 1e-9})
+            Uv: np.ndarray, qf: np.ndarray, extras: dict,
+            keep_out: tuple = ()) -> None:
+    """Simulate the controls with CVODES; store final error and rate.
+
+    With keep-out cones the grid is refined 8 times (controls held) and
+    the smallest angular margin on it is stored too [rad].
+    """
+    opts = {"abstol": 1e-9, "reltol": 1e-9}
+    if keep_out:
+        sub = 8
+        tf = np.linspace(t[0], t[-1], sub * (len(t) - 1) + 1)
+        Xf = model.simulate(x0, tf, np.repeat(Uv.T, sub, axis=0),
+                            options=opts)
+        extras["keep_out_margin"] = float(min(
+            np.min(k.margin(Xf[:, :4])) for k in keep_out))
+        Xs = Xf[::sub]
+    else:
+        Xs = model.simulate(x0, t, Uv.T, options=opts)
     qe = quat_mul(quat_conj(qf), Xs[-1, :4] / np.linalg.norm(Xs[-1, :4]))
     extras["simulated_final_error"] = float(
         2 * np.arcsin(min(1.0, np.linalg.norm(qe[1:]))))
@@ -912,7 +1032,8 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
                       perturbation: float = 0.3, seed: int = 0,
                       solver_options: dict | None = None,
                       verify: bool = True,
-                      jit: bool | dict = False) -> SlewTrajectory:
+                      jit: bool | dict = False,
+                      keep_out=None) -> SlewTrajectory:
     """Minimum-time rest-to-rest slew from ``q0`` to ``qf`` (free T).
 
     .. math::
@@ -985,6 +1106,13 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
         sets ``compiler`` (default $CC, gcc, cc or clang), ``flags``
         (default ``["-O1"]``) and ``cache_dir`` (default
         $ADCS_CACHE_DIR or ``~/.cache/adcs_toolbox/slews``).
+    keep_out : KeepOut or sequence of KeepOut, optional
+        Cones a body axis must stay out of (e.g. a star tracker away from
+        the Sun), imposed at every node; ``extras`` then holds
+        ``keep_out_node_margin`` and, with ``verify``,
+        ``keep_out_margin`` (smallest margin on the simulated trajectory
+        at 8 points per interval) [rad]. ``q0`` and ``qf`` must lie
+        outside every cone.
 
     Returns
     -------
@@ -1009,7 +1137,7 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
     _solver_entry(solver)
     _check_common(N, transcription, substeps)
     perturbation = as_finite_scalar(perturbation, "perturbation")
-    s = _setup(inertia, q0, qf, wheels, torque_max, h0, rate_max)
+    s = _setup(inertia, q0, qf, wheels, torque_max, h0, rate_max, keep_out)
     pert = 0.0 if initial_guess == "eigenaxis" else perturbation
     return _solve(s, objective="time", T_fixed=None, N=int(N),
                   transcription=transcription, solver=solver,
@@ -1028,7 +1156,8 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
                     rate_max: float | None = None,
                     solver_options: dict | None = None,
                     verify: bool = True,
-                    jit: bool | dict = False) -> SlewTrajectory:
+                    jit: bool | dict = False,
+                    keep_out=None) -> SlewTrajectory:
     """Minimum-energy rest-to-rest slew in a fixed time ``T``.
 
     .. math::
@@ -1037,7 +1166,8 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
     (body torque :math:`\\int |u|^2 dt` for the torque box) under the
     constraints of `time_optimal_slew`. The initial guess is a cubic
     rest-to-rest eigenaxis profile over ``T``, allocated by the
-    minimum-norm law.
+    minimum-norm law (with keep-out cones, perturbed off the eigenaxis
+    plane as in `time_optimal_slew`).
 
     Parameters
     ----------
@@ -1046,7 +1176,7 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
         ``success`` is False).
     inertia, q0, qf, torque_max, wheels, N, transcription, solver
         As `time_optimal_slew`.
-    expand, substeps, h0, rate_max, solver_options, verify, jit
+    expand, substeps, h0, rate_max, solver_options, verify, jit, keep_out
         As `time_optimal_slew`.
 
     Returns
@@ -1057,9 +1187,12 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
     _check_common(N, transcription, substeps)
     T = as_finite_scalar(T, "T")
     check_positive(T, "T")
-    s = _setup(inertia, q0, qf, wheels, torque_max, h0, rate_max)
+    s = _setup(inertia, q0, qf, wheels, torque_max, h0, rate_max, keep_out)
+    # a cone on the eigenaxis path makes the planar guess a stationary
+    # point (escaping to either side is symmetric): perturb it off-plane
     return _solve(s, objective="energy", T_fixed=T, N=int(N),
                   transcription=transcription, solver=solver,
                   expand=expand, substeps=int(substeps),
-                  initial_guess="cubic", perturbation=0.0, seed=0,
+                  initial_guess="cubic",
+                  perturbation=0.3 if s.keep_out else 0.0, seed=0,
                   solver_options=solver_options, verify=verify, jit=jit)

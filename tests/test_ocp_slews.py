@@ -11,6 +11,8 @@ import pytest  # noqa: E402
 from adcs_common import InvalidValueError, SolverNotFound  # noqa: E402
 from allocation import WheelArray  # noqa: E402
 from ocp import (  # noqa: E402
+    KeepOut,
+    available_nlp_solvers,
     eigenaxis_slew,
     min_energy_slew,
     quat_from_axis_angle,
@@ -308,3 +310,62 @@ def test_coarse_start_solves_the_same_nlp_as_the_perturbed_guess(bw_ms):
                           verify=False)
     assert s.extras["initial_guess"] == "perturbed_eigenaxis"
     assert "coarse_N" not in s.extras
+
+
+# keep-out cones ----------------------------------------------------------
+#: Bilimoria–Wie's slew (180° about x) turns body y through +z halfway:
+#: a 50° cone about z around y blocks the eigenaxis path and both of the
+#: free problem's mirror-image optima (y passes 33° from z on them).
+BW_CONE = KeepOut(boresight=(0, 1, 0), direction=(0, 0, 1),
+                  half_angle=np.deg2rad(50.0))
+BW_FREE_T = 3.2432
+
+
+def test_keep_out_margin_by_hand():
+    ko = KeepOut((2, 0, 0), (0, 3, 0), np.deg2rad(30.0))
+    assert ko.boresight == (1.0, 0.0, 0.0)
+    assert ko.margin([1, 0, 0, 0]) == pytest.approx(np.deg2rad(60.0))
+    q = quat_from_axis_angle([0, 0, 1], np.deg2rad(80.0))  # x -> 10° off y
+    assert ko.margin(q) == pytest.approx(np.deg2rad(10.0 - 30.0))
+
+
+@pytest.mark.parametrize("solver", ["ipopt", "fatrop"])
+def test_time_optimal_slew_goes_around_a_keep_out_cone(solver):
+    if solver not in available_nlp_solvers():
+        pytest.skip(f"{solver} not available")
+    r = time_optimal_slew(np.eye(3), [1, 0, 0, 0], [0, 1, 0, 0],
+                          torque_max=1.0, keep_out=BW_CONE, solver=solver)
+    assert r.success
+    # the detour costs time (local optima: 3.277-3.286 by solver/guess)
+    assert BW_FREE_T + 0.02 < r.T < 3.4
+    assert r.extras["keep_out_node_margin"] >= -1e-7
+    # between nodes (simulated at 8 points per interval) it stays out too
+    assert r.extras["keep_out_margin"] >= -1e-4
+    assert r.extras["simulated_final_error"] < 1e-5
+
+
+def test_min_energy_slew_goes_around_a_keep_out_cone():
+    q0, qf, T = [1, 0, 0, 0], [0, 1, 0, 0], 4.0
+    free = min_energy_slew(np.eye(3), q0, qf, torque_max=1.0, T=T)
+    # the free minimum-energy slew is the eigenaxis one: through the cone
+    assert BW_CONE.margin(free.q).min() < -0.5
+    r = min_energy_slew(np.eye(3), q0, qf, torque_max=1.0, T=T,
+                        keep_out=[BW_CONE])
+    assert r.success
+    assert r.extras["keep_out_node_margin"] >= -1e-7
+    assert r.extras["keep_out_margin"] >= -1e-4
+    assert r.energy > free.energy
+
+
+def test_bad_keep_outs_are_rejected():
+    with pytest.raises(InvalidValueError, match="half_angle"):
+        KeepOut((1, 0, 0), (0, 1, 0), np.pi)
+    with pytest.raises(InvalidValueError, match="boresight"):
+        KeepOut((0, 0, 0), (0, 1, 0), 0.1)
+    with pytest.raises(InvalidValueError, match="q0 lies inside"):
+        time_optimal_slew(np.eye(3), [1, 0, 0, 0], [0, 1, 0, 0],
+                          torque_max=1.0,
+                          keep_out=KeepOut((0, 1, 0), (0, 1, 0), 0.2))
+    with pytest.raises(InvalidValueError, match="KeepOut"):
+        time_optimal_slew(np.eye(3), [1, 0, 0, 0], [0, 1, 0, 0],
+                          torque_max=1.0, keep_out=[(0, 1, 0)])
