@@ -992,7 +992,10 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
         NLP parameters, so one library serves every slew of the same
         shape (N, wheels or torque box, transcription, solver, options).
         The library is cached on disk, named by the SHA-256 of its code:
-        the compile (≈ 3–12 s at -O1) happens once per machine. A dict
+        the compile (≈ 8–16 s per library at -O1 on the benchmark slews;
+        the coarse start needs two) happens once per machine, later
+        processes load it in ≈ 1 s. It is not thread-safe (it changes
+        the working directory while generating the code). A dict
         sets ``compiler`` (default $CC, gcc, cc or clang), ``flags``
         (default ``["-O1"]``) and ``cache_dir`` (default
         $ADCS_CACHE_DIR or ``~/.cache/adcs_toolbox/slews``).
