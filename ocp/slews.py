@@ -860,6 +860,16 @@ def _refined_start(s: _Setup, coarse: _Prepared, sol: dict,
     return w0
 
 
+def _guess_label(initial_guess: str, Nc: int | None,
+                 perturbation: float) -> str:
+    """Name of the start actually used, for ``extras["initial_guess"]``."""
+    if Nc is not None:
+        return "coarse"
+    if initial_guess in ("eigenaxis", "coarse"):
+        return "perturbed_eigenaxis" if perturbation > 0 else "eigenaxis"
+    return initial_guess
+
+
 def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
            transcription: str, solver: str, expand: bool, substeps: int,
            initial_guess: str, perturbation: float, seed: int,
@@ -879,8 +889,10 @@ def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
     opts = _merge(base_opts, solver_options or {})
     common = dict(solver=solver, T_fixed=T_fixed, transcription=transcription,
                   expand=expand, substeps=substeps, jit_cfg=jit_cfg)
-    coarse_info = {}
+    coarse_info: dict = {}
+    builds: list[_Prepared] = []
     Nc = _coarse_N(N) if initial_guess == "coarse" else None
+    sol = None
     if Nc is not None:
         cprep = _prepare(s, N=Nc, opts=_merge(
             opts, COARSE_OPTIONS.get(plugin, {})), **common)
@@ -889,24 +901,28 @@ def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
                              "eigenaxis" if free_T else "cubic",
                              perturbation, seed)
         csol, cstats, ctime = _run(cprep, solver, w0c)
-        warm = _merge(_merge(base_opts, WARM_START_OPTIONS.get(plugin, {})),
-                      solver_options or {})
-        prep = _prepare(s, N=N, opts=warm, **common)
-        w0 = _refined_start(s, cprep, csol, prep, N, T_fixed, substeps)
-        sol, stats, solve_time = _run(prep, solver, w0)
+        builds.append(cprep)
         coarse_info = {"coarse_N": Nc,
                        "coarse_iterations": int(cstats.get("iter_count", -1)),
                        "coarse_solve_time": ctime,
                        "coarse_status": _status(cstats)}
-        solve_time += ctime
-        builds = [cprep, prep]
-    else:
+        if cstats.get("success", False):
+            warm = _merge(_merge(base_opts,
+                                 WARM_START_OPTIONS.get(plugin, {})),
+                          solver_options or {})
+            prep = _prepare(s, N=N, opts=warm, **common)
+            w0 = _refined_start(s, cprep, csol, prep, N, T_fixed, substeps)
+            sol, stats, solve_time = _run(prep, solver, w0)
+        else:  # start again from the perturbed guess (time included)
+            Nc = None
+    if sol is None:
         kind = "eigenaxis" if initial_guess == "coarse" else initial_guess
         prep = _prepare(s, N=N, opts=opts, **common)
         w0 = _initial_point(s, prep.built.lay, N, prep.xs, T_ref, free_T,
                             colloc, 3, kind, perturbation, seed)
         sol, stats, solve_time = _run(prep, solver, w0)
-        builds = [prep]
+    builds.append(prep)
+    solve_time += coarse_info.get("coarse_solve_time", 0.0)
     lay, xs = prep.built.lay, prep.xs
     cached = all(b.cached for b in builds)
     build_time = sum(b.built.build_time for b in builds if not b.cached)
@@ -922,13 +938,8 @@ def _solve(s: _Setup, *, objective: str, T_fixed: float | None, N: int,
               "build_time": build_time,
               "solver_time": float(stats.get("t_wall_total", np.nan)),
               "eigenaxis_T": s.T_eig,
-              "initial_guess": ("coarse" if Nc is not None
-                                else "perturbed_eigenaxis"
-                                if perturbation > 0 and initial_guess in (
-                                    "eigenaxis", "coarse")
-                                else "eigenaxis"
-                                if initial_guess == "coarse"
-                                else initial_guess),
+              "initial_guess": _guess_label(initial_guess, Nc,
+                                            perturbation),
               "perturbation": perturbation,
               "nlp_objective": float(sol["f"][0]), **coarse_info}
     traj = SlewTrajectory(
@@ -1102,7 +1113,10 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
         NLP parameters, so one library serves every slew of the same
         shape (N, wheels or torque box, transcription, solver, options).
         The library is cached on disk, named by the SHA-256 of its code:
-        the compile (≈ 3–12 s at -O1) happens once per machine. A dict
+        the compile (≈ 8–16 s per library at -O1 on the benchmark slews;
+        the coarse start needs two) happens once per machine, later
+        processes load it in ≈ 1 s. It is not thread-safe (it changes
+        the working directory while generating the code). A dict
         sets ``compiler`` (default $CC, gcc, cc or clang), ``flags``
         (default ``["-O1"]``) and ``cache_dir`` (default
         $ADCS_CACHE_DIR or ``~/.cache/adcs_toolbox/slews``).

@@ -369,3 +369,17 @@ def test_bad_keep_outs_are_rejected():
     with pytest.raises(InvalidValueError, match="KeepOut"):
         time_optimal_slew(np.eye(3), [1, 0, 0, 0], [0, 1, 0, 0],
                           torque_max=1.0, keep_out=[(0, 1, 0)])
+
+
+def test_failed_coarse_solve_falls_back_to_the_perturbed_guess(monkeypatch):
+    from ocp import slews
+
+    monkeypatch.setitem(slews.COARSE_OPTIONS, "ipopt",
+                        {"ipopt": {"max_iter": 2}})
+    slews._CACHE.clear()
+    r = time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=40,
+                          verify=False)
+    slews._CACHE.clear()
+    assert r.extras["coarse_status"] == "Maximum_Iterations_Exceeded"
+    assert r.extras["initial_guess"] == "perturbed_eigenaxis"
+    assert r.success and r.solve_time > r.extras["coarse_solve_time"]
