@@ -12,6 +12,7 @@ from adcs_common import InvalidValueError, SolverNotFound  # noqa: E402
 from allocation import WheelArray  # noqa: E402
 from ocp import (  # noqa: E402
     KeepOut,
+    meteor_m_spacecraft,
     available_nlp_solvers,
     eigenaxis_slew,
     min_energy_slew,
@@ -165,14 +166,36 @@ def test_plot_helper_draws_four_panels(bw_ms):
     assert "time_optimal" in fig.axes[0].get_title()
 
 
-def test_sqpmethod_solves_the_min_energy_slew_like_ipopt():
+@pytest.mark.parametrize("solver", ["sqpmethod", "sqpmethod:qrqp"])
+def test_sqpmethod_solves_the_min_energy_slew_like_ipopt(solver):
     qf = quat_from_axis_angle([0, 0, 1], 1.0)
     kw = dict(torque_max=10.0, T=2.0, N=20, verify=False)
-    a = min_energy_slew(np.eye(3), Q0, qf, solver="sqpmethod", **kw)
+    a = min_energy_slew(np.eye(3), Q0, qf, solver=solver, **kw)
     b = min_energy_slew(np.eye(3), Q0, qf, solver="ipopt", **kw)
     assert a.success and b.success
     assert a.energy == pytest.approx(b.energy, rel=1e-6)
-    assert a.extras["solver"] == "sqpmethod"
+    assert a.extras["solver"] == solver
+
+
+def test_sqpmethod_qrqp_on_the_meteor_pyramid_matches_ipopt():
+    """Wheel limits through the array, 90° in 250 s, N = 40."""
+    J, arr = meteor_m_spacecraft()
+    qf = quat_from_axis_angle([1, 1, 1], np.deg2rad(90.0))
+    kw = dict(wheels=arr, T=250.0, N=40, verify=False)
+    a = min_energy_slew(J, Q0, qf, solver="sqpmethod:qrqp", **kw)
+    b = min_energy_slew(J, Q0, qf, **kw)
+    assert a.success and b.success
+    assert a.energy == pytest.approx(b.energy, rel=1e-5)
+
+
+def test_a_user_qpsol_replaces_the_default_qpsol_options():
+    qf = quat_from_axis_angle([0, 0, 1], 1.0)
+    r = min_energy_slew(np.eye(3), Q0, qf, torque_max=10.0, T=2.0, N=10,
+                        verify=False, solver="sqpmethod",
+                        solver_options={"qpsol": "qrqp", "qpsol_options": {
+                            "print_iter": False, "print_header": False,
+                            "print_info": False}})
+    assert r.success
 
 
 def test_benchmark_runs_one_configuration():
