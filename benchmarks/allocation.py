@@ -18,6 +18,7 @@ import warnings
 
 import numpy as np
 
+from adcs_common.buffers import BoundCall
 from allocation import (
     QPAllocator,
     WheelArray,
@@ -76,12 +77,9 @@ def run(quick: bool = False) -> list[tuple[str, float]]:
     f = min_norm_function(arr)
     rows.append(("closed form, CasADi Function (numpy in)",
                  per_call(lambda: f(M0), n_calls, repeats)))
-    buf, call = f.buffer()
-    m_in, m_out = M0.copy(), np.zeros(4)
-    buf.set_arg(0, memoryview(m_in))
-    buf.set_res(0, memoryview(m_out))
+    law_call = BoundCall(f, (M0.copy(),), (np.zeros(4),))
     rows.append(("closed form, CasADi Function.buffer",
-                 per_call(call, n_calls * 5, repeats)))
+                 per_call(law_call.trigger, n_calls * 5, repeats)))
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -102,18 +100,12 @@ def run(quick: bool = False) -> list[tuple[str, float]]:
 
     def buffered(f):
         """Return a call of ``f`` through its buffer on the next demand."""
-        buf, call = f.buffer()
-        m_in = Ms[:, 0].copy()
-        buf.set_arg(0, memoryview(m_in))
-        outs = [np.zeros(4), np.zeros(1), np.zeros(1)]
-        for i, o in enumerate(outs):
-            buf.set_res(i, memoryview(o))
+        bound = BoundCall(f, (Ms[:, 0].copy(),),
+                          (np.zeros(4), np.zeros(1), np.zeros(1)))
 
         def run_one():
-            m_in[:] = Ms[:, next(cycle)]
-            call()
-        # the trigger needs its buffer (and Function) alive: keep them
-        run_one.keep = (f, buf, outs)
+            bound.inputs[0][:] = Ms[:, next(cycle)]
+            bound.trigger()
         return run_one
 
     rows.append(("QP conic_allocator_function closed form, buffer",

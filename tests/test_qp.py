@@ -350,3 +350,14 @@ def test_allocate_fast_falls_back_where_the_laws_differ_or_input_is_bad():
     np.testing.assert_array_equal(managed.allocate_fast(*args),
                                   managed.allocate(*args).torques)
     assert managed.fast_fallbacks == 1
+
+
+def test_allocate_fast_keeps_a_bounded_number_of_step_lengths():
+    alloc = QPAllocator(small_pyramid(), solver="daqp")
+    M, h = [0.1, 0.2, -0.1], [1.0, -2.0, 0.5, 3.9]
+    for dt in np.linspace(0.1, 1.0, 10):
+        np.testing.assert_allclose(alloc.allocate_fast(M, h, dt),
+                                   alloc.allocate(M, h, dt).torques,
+                                   atol=1e-12)
+    assert len(alloc._fast) <= 4
+    assert alloc.fast_fallbacks == 0

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from adcs_common.buffers import BoundCall
 from adcs_common.exceptions import InvalidValueError, SolverError
 from adcs_common.validation import (
     as_finite_array,
@@ -39,6 +40,9 @@ _EPIGRAPH_REGULARISATION = 1e-9
 #: the target inside by the relative margin r; ("pin", 0) fixes the wheels
 #: the facet determines (`pin_to_face`) and solves for the others exactly.
 _BOUNDARY_STEPS = (("margin", 1e-9), ("pin", 0.0), ("margin", 1e-6))
+#: Step lengths dt whose fast-path Function `allocate_fast` keeps (each
+#: costs a few ms to build: the fast path is for a fixed control step).
+_FAST_CACHE = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,13 +105,10 @@ class _FastWheelQP:
         self.m = np.zeros(n)
         self.alpha = np.zeros(1)
         self.check = np.zeros(1)
-        self._buf, self.trigger = self.function.buffer()
-        self._buf.set_arg(0, memoryview(self.M))
-        if dt is not None:
-            self._buf.set_arg(1, memoryview(self.h))
-        self._buf.set_res(0, memoryview(self.m))
-        self._buf.set_res(1, memoryview(self.alpha))
-        self._buf.set_res(2, memoryview(self.check))
+        self._call = BoundCall(
+            self.function, (self.M,) if dt is None else (self.M, self.h),
+            (self.m, self.alpha, self.check))
+        self.trigger = self._call.trigger
 
 
 class QPAllocator:
@@ -314,7 +315,8 @@ class QPAllocator:
         """Motor torques of one demand, fast path (same law as `allocate`).
 
         One `casadi.Function.buffer` trigger of `conic_allocator_function`
-        (built on first use for each ``dt``: the weighted QP in closed form
+        (built on first use for each ``dt``, the last 4 kept: meant for a
+        fixed control step; the weighted QP in closed form
         for 3–4 working wheels, the minimum-norm point or daqp for more;
         saturation by the largest attainable scale α), about 2 µs of
         solver instead of `allocate`'s ~200 µs of Python around one. Its
@@ -386,6 +388,8 @@ class QPAllocator:
                                 self.check_tol * self._m_scale
                                 * self.array.n_wheels)
         if dt_ok:                    # a bad dt is not cached
+            while len(self._fast) >= _FAST_CACHE:   # the oldest dt goes
+                self._fast.pop(next(iter(self._fast)))
             self._fast[dt] = fast
         return fast
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from adcs_common.buffers import BoundCall
+
 from ..problem import INF, DutyCycleQP
 
 #: Options set per plugin (printing off, no exception on failure: the
@@ -208,7 +210,7 @@ class FastDuty:
     """
 
     __slots__ = ("function", "theta", "kmax", "duty", "slack", "check",
-                 "trigger", "_buf")
+                 "trigger", "_call")
 
     def __init__(self, qp: DutyCycleQP, kmax: np.ndarray,
                  plugin: str = FAST_PLUGIN, options: dict | None = None,
@@ -225,12 +227,9 @@ class FastDuty:
         self.duty = np.zeros(n)
         self.slack = np.zeros(1)
         self.check = np.zeros(1)
-        self._buf, self.trigger = self.function.buffer()
-        self._buf.set_arg(0, memoryview(self.theta))
-        self._buf.set_arg(1, memoryview(self.kmax))
-        self._buf.set_res(0, memoryview(self.duty))
-        self._buf.set_res(1, memoryview(self.slack))
-        self._buf.set_res(2, memoryview(self.check))
+        self._call = BoundCall(self.function, (self.theta, self.kmax),
+                               (self.duty, self.slack, self.check))
+        self.trigger = self._call.trigger
 
 
 class Backend:
@@ -248,11 +247,9 @@ class Backend:
         self._kmax = np.array(qp.ub[:-1], dtype=float)
         self._x = np.zeros(qp.nx)
         self._viol = np.zeros(1)
-        self._buf, self._trigger = self.function.buffer()
-        self._buf.set_arg(0, memoryview(self._theta))
-        self._buf.set_arg(1, memoryview(self._kmax))
-        self._buf.set_res(0, memoryview(self._x))
-        self._buf.set_res(1, memoryview(self._viol))
+        self._call = BoundCall(self.function, (self._theta, self._kmax),
+                               (self._x, self._viol))
+        self._trigger = self._call.trigger
 
     def set_upper(self, ub: np.ndarray) -> None:
         """Change the duties' upper bounds for the next solves."""
