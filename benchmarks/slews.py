@@ -105,7 +105,7 @@ def run(case: Case, transcription: str, solver: str, expand: bool,
 
     The solver cache is cleared first, so the first call builds the NLP.
     """
-    slews._CACHE.clear()
+    slews.clear_solver_cache()
     solve, build = [], []
     r = None
     for _ in range(repeats + 1):
@@ -137,7 +137,7 @@ def energy_rows(N: int, repeats: int, solvers: list[str]) -> list[dict]:
     qf = quat_from_axis_angle([1, 1, 1], np.deg2rad(90.0))
     out = []
     for solver in solvers:
-        slews._CACHE.clear()
+        slews.clear_solver_cache()
         times = []
         for _ in range(repeats + 1):
             r = min_energy_slew(J, [1, 0, 0, 0], qf, wheels=arr, T=250.0,

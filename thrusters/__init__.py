@@ -24,7 +24,7 @@ from .qp import (
     available_solvers,
     build_qp,
 )
-from .simulation import (
+from .scenarios import (
     ScenarioResult,
     burn_scenario,
     burn_table,

@@ -1,5 +1,5 @@
 """``python -m thrusters``: seed 004 Tables 3 and 5 beside ours."""
 
-from .simulation import main
+from .scenarios import main
 
 main()

@@ -1,0 +1,238 @@
+"""`adcs report`: run the design studies and write an HTML/Markdown report."""
+
+from __future__ import annotations
+
+import base64
+import html
+import importlib
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence, TextIO
+
+from adcs_common.exceptions import InvalidValueError
+
+#: study key -> (module in adcs.studies, title); the order of the report.
+STUDIES: dict[str, tuple[str, str]] = {
+    "wheels": ("wheels", "Meteor-M No. 2 wheel pyramid (seed 001)"),
+    "accuracy": ("accuracy", "Torque accuracy under mounting and "
+                 "scale-factor errors (seed 001)"),
+    "thrusters": ("thrusters", "Six-thruster unit in pulse-cycle mode "
+                  "(seed 004)"),
+    "four_wheel": ("four_wheel", "Four-wheel nonlinear model (Lagrange)"),
+    "chibis": ("chibis", "Chibis-M: coil and wheel failures, gravity boom "
+               "(seed 002)"),
+    "slews": ("slews", "Slews: NLPs and MPC vs eigenaxis and quaternion "
+              "feedback"),
+}
+
+
+@dataclass
+class Table:
+    """A table of the report.
+
+    Attributes
+    ----------
+    title : str
+    columns : list of str
+    rows : list of list
+        Cells: str, int or float (floats are printed with ``digits``).
+    note : str
+        Text under the table.
+    flags : list of bool
+        Per row: True marks an erratum / a paper value not reproduced.
+    digits : int
+        Significant digits for floats.
+    """
+
+    title: str
+    columns: list[str]
+    rows: list[list[Any]]
+    note: str = ""
+    flags: list[bool] = field(default_factory=list)
+    digits: int = 5
+
+    def cell(self, value: Any) -> str:
+        """Format one cell."""
+        if isinstance(value, float):
+            if math.isnan(value):
+                return "—"
+            return f"{value:.{self.digits}g}"
+        return str(value)
+
+
+@dataclass
+class Figure:
+    """A PNG figure saved in the output folder."""
+
+    filename: str
+    caption: str
+
+
+@dataclass
+class Section:
+    """One study's part of the report."""
+
+    key: str
+    title: str
+    intro: str = ""
+    tables: list[Table] = field(default_factory=list)
+    figures: list[Figure] = field(default_factory=list)
+    summary: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def paper_row(quantity: str, paper: float | str, ours: float,
+              note: str = "") -> list[Any]:
+    """Row ``quantity | paper | ours | difference | note``."""
+    diff = ours - paper if isinstance(paper, (int, float)) else float("nan")
+    return [quantity, paper, ours, diff, note]
+
+
+PAPER_COLUMNS = ["quantity", "paper / SPEC", "ours", "ours − paper", "note"]
+
+
+@dataclass(frozen=True)
+class StudyContext:
+    """What a study gets: where to save figures, and the quick switch."""
+
+    out: Path
+    quick: bool
+
+    def savefig(self, fig: Any, name: str) -> str:
+        """Save a matplotlib figure as ``name`` in the output folder."""
+        fig.savefig(self.out / name, dpi=110, bbox_inches="tight")
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+        return name
+
+
+def _md_cell(text: str) -> str:
+    """Escape a Markdown table cell (``|x|`` would split the column)."""
+    return text.replace("|", "\\|")
+
+
+def _markdown(sections: Sequence[Section], title: str) -> str:
+    out = [f"# {title}", ""]
+    for s in sections:
+        out += [f"## {s.title}", "", s.intro, ""]
+        for t in s.tables:
+            out += [f"### {t.title}", "",
+                    "| " + " | ".join(map(_md_cell, t.columns)) + " |",
+                    "|" + "---|" * len(t.columns)]
+            for i, row in enumerate(t.rows):
+                flag = t.flags[i] if i < len(t.flags) else False
+                cells = [_md_cell(t.cell(v)) for v in row]
+                if flag:
+                    cells[0] = "⚠ " + cells[0]
+                out.append("| " + " | ".join(cells) + " |")
+            out += ["", t.note, ""] if t.note else [""]
+        for f in s.figures:
+            out += [f"![{f.caption}]({f.filename})", "", f"*{f.caption}*", ""]
+    return "\n".join(out)
+
+
+_CSS = """body{font-family:sans-serif;max-width:1100px;margin:auto;padding:1em}
+table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;
+padding:3px 8px;text-align:right}td:first-child,th:first-child{text-align:left}
+tr.erratum{background:#fff2cc}figure{display:inline-block;margin:.5em}
+img{max-width:520px}.note{color:#444;font-size:90%}"""
+
+
+def _html(sections: Sequence[Section], title: str, out: Path) -> str:
+    esc = html.escape
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'>"
+             f"<title>{esc(title)}</title><style>{_CSS}</style></head><body>",
+             f"<h1>{esc(title)}</h1><ul>"]
+    parts += [f"<li><a href='#{s.key}'>{esc(s.title)}</a></li>"
+              for s in sections]
+    parts.append("</ul>")
+    for s in sections:
+        parts.append(f"<section id='{s.key}'><h2>{esc(s.title)}</h2>"
+                     f"<p>{esc(s.intro)}</p>")
+        for t in s.tables:
+            parts.append(f"<h3>{esc(t.title)}</h3><table><tr>" + "".join(
+                f"<th>{esc(c)}</th>" for c in t.columns) + "</tr>")
+            for i, row in enumerate(t.rows):
+                flag = t.flags[i] if i < len(t.flags) else False
+                cls = " class='erratum'" if flag else ""
+                cells = [esc(t.cell(v)) for v in row]
+                if flag:
+                    cells[0] = "⚠ " + cells[0]
+                parts.append(f"<tr{cls}>" + "".join(
+                    f"<td>{c}</td>" for c in cells) + "</tr>")
+            parts.append("</table>")
+            if t.note:
+                parts.append(f"<p class='note'>{esc(t.note)}</p>")
+        for f in s.figures:
+            data = base64.b64encode((out / f.filename).read_bytes()).decode()
+            parts.append(f"<figure><img alt='{esc(f.caption)}' "
+                         f"src='data:image/png;base64,{data}'>"
+                         f"<figcaption>{esc(f.caption)}</figcaption></figure>")
+        parts.append(f"<p class='note'>computed in {s.seconds:.1f} s</p>"
+                     "</section>")
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
+               studies: Sequence[str] | None = None,
+               stream: TextIO | None = sys.stdout) -> list[Section]:
+    """Run the studies and write ``report.html`` and ``report.md``.
+
+    Parameters
+    ----------
+    out : str or Path
+        Output folder (created).
+    quick : bool
+        Small settings (fewer directions and samples, coarser maps).
+    studies : sequence of str, optional
+        Keys of `STUDIES` to run (default all, in report order).
+    stream : text stream or None
+        Where progress and the summary are printed.
+
+    Returns
+    -------
+    list of Section
+
+    Raises
+    ------
+    InvalidValueError
+        An unknown study key.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    keys = list(STUDIES) if not studies else list(studies)
+    unknown = [k for k in keys if k not in STUDIES]
+    if unknown:
+        raise InvalidValueError(
+            f"unknown study {unknown}; choose from {', '.join(STUDIES)}")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    ctx = StudyContext(out, quick)
+    say: Callable[[str], None] = (lambda msg: print(msg, file=stream,
+                                                    flush=True)) \
+        if stream is not None else (lambda msg: None)
+    sections = []
+    t_all = time.perf_counter()
+    for i, key in enumerate(keys, 1):
+        module, title = STUDIES[key]
+        say(f"[{i}/{len(keys)}] {title} ...")
+        t0 = time.perf_counter()
+        study = importlib.import_module(f"adcs.studies.{module}")
+        section = study.run(ctx)
+        section.seconds = time.perf_counter() - t0
+        sections.append(section)
+        for line in section.summary:
+            say(f"      {line}")
+        say(f"      done in {section.seconds:.1f} s")
+    title = "ADCS toolbox report" + (" (quick)" if quick else "")
+    (out / "report.md").write_text(_markdown(sections, title))
+    (out / "report.html").write_text(_html(sections, title, out))
+    say(f"wrote {out / 'report.html'} and {out / 'report.md'} "
+        f"in {time.perf_counter() - t_all:.1f} s")
+    return sections

@@ -1,0 +1,106 @@
+"""Study 3: the six-thruster unit in pulse-cycle mode (seed 004)."""
+
+from __future__ import annotations
+
+from thrusters.scenarios import (
+    burn_scenario,
+    burn_table,
+    plot_scenario,
+    reorientation_scenario,
+    reorientation_table,
+)
+
+from adcs.report import PAPER_COLUMNS, Figure, Section, StudyContext, Table
+
+
+def _table(title: str, rows, note: str) -> Table:
+    out, flags = [], []
+    for quantity, paper, ours, diff in rows:
+        bound = "(bound)" in quantity
+        out.append([quantity, "—" if paper is None else paper, ours,
+                    float("nan") if diff is None else diff,
+                    "paper's bound" if bound else ""])
+        flags.append(bound and paper is not None and ours > paper)
+    return Table(title, PAPER_COLUMNS, out, note, flags, digits=4)
+
+
+def mpc_hold_table(ctx: StudyContext) -> Table:
+    """MPC hold under the seed's disturbance, with and without thrusters."""
+    import numpy as np
+
+    from allocation import WheelArray
+    from thrusters import six_thruster_unit
+
+    from ocp.models.rigid import rigid_spacecraft
+    from ocp.mpc.controller import AttitudeMPC, simulate_mpc
+
+    J = np.diag([3.0, 2.5, 3.5])
+    arr = WheelArray.pyramid(m_max=0.005, h_max=0.012)
+    dist = np.array([0.0012, 0.0, 0.0])
+    t_final = 60.0 if ctx.quick else 300.0
+    rows = []
+    for label, unit in (("wheels alone", None),
+                        ("wheels + six-thruster unit", six_thruster_unit())):
+        model = rigid_spacecraft(J, arr, thrusters=unit)
+        r = simulate_mpc(AttitudeMPC(model), [1, 0, 0, 0], [1, 0, 0, 0],
+                         t_final=t_final, disturbance=dist,
+                         estimate_disturbance=True, hold=t_final / 2)
+        rows.append([label, float(np.degrees(r.hold_error)),
+                     r.peak_momentum, r.extras.get("thruster_on_time", 0.0),
+                     1e3 * r.extras.get("propellant", 0.0),
+                     1e3 * r.step_time_median])
+    return Table(
+        f"MPC attitude hold for {t_final:.0f} s under the 0.0012 N·m "
+        "disturbance (horizon 20, dt 0.5 s)",
+        ["actuators", "hold error, last half [deg]", "peak |H_i| [N·m·s]",
+         "valve open [s]", "propellant [g]", "step median [ms]"], rows,
+        "Pyramid wheels with |m_i| ≤ 0.005 N·m, |H_i| ≤ 0.012 N·m·s (the "
+        "paper's momentum bound); duties 0 ≤ k ≤ 1 with the cycle-averaged "
+        "torque and a linear propellant cost. The paper's hold bound is "
+        "0.4°; the wheels alone saturate after about 10 s.",
+        [rows[0][1] > 0.4, rows[1][1] > 0.4], digits=4)
+
+
+def run(ctx: StudyContext) -> Section:
+    """Compute the study."""
+    burn = burn_scenario()
+    reo = reorientation_scenario()
+    plot_scenario(burn, ctx.out / "thrusters_burn.png")
+    plot_scenario(reo, ctx.out / "thrusters_reorientation.png")
+    t3 = _table("Burn (Table 2 inputs): the paper's Table 3 beside ours",
+                burn_table(burn),
+                "54 kg, J = diag(3.0, 2.5, 3.5) kg·m², R = 0.25 m, "
+                "L = 0.3 m (assumed, the paper gives none), disturbance "
+                "0.0012 N·m; duty cycles from eq. (2) with wheel unloading. "
+                "Our thrust deviation is the per-cycle mean with the "
+                "transient model and K_p calibrated from it; the paper's "
+                "came from its firing-test spread.")
+    t5 = _table("Reorientation: the paper's Table 5 beside ours",
+                reorientation_table(reo),
+                "Hold 0-70 s, 170° about X in 70-240 s, hold to 600 s, "
+                "T_T = 2 s, duty cycles from eqs. (8)-(9). Our smooth "
+                "(cycloidal) slew and PD controller use far less propellant "
+                "than the paper's; flagged rows would break the paper's "
+                "bounds.")
+    section = Section(
+        "thrusters", "3. Six-thruster unit in pulse-cycle mode (seed 004)",
+        "The paper's two scenarios simulated cycle by cycle with the "
+        "closed-form duty laws (the QP allocator gives the same duties "
+        "where no bound is active, see the tests), and the MPC holding "
+        "the attitude with wheels and the unit together.",
+        [t3, t5, mpc_hold_table(ctx)],
+        [Figure("thrusters_burn.png", "Burn: thrust, wheel momentum, valve "
+                "on-times, Δv, attitude"),
+         Figure("thrusters_reorientation.png", "Reorientation: thrust, "
+                "wheel momentum, valve on-times, Δv, attitude")])
+    bounds = [r for r in t5.rows if "(bound)" in r[0]]
+    hold = section.tables[-1].rows
+    section.summary = [
+        f"burn Δv {next(r[2] for r in t3.rows if r[0] == 'dV [m/s]'):.3f} "
+        "m/s (paper 4.65)",
+        "reorientation bounds: " + ", ".join(
+            f"{r[0].split(' (')[0]} {r[2]:.3g} ≤ {r[1]}" for r in bounds),
+        f"MPC hold with the unit {hold[1][1]:.3f}° (wheels alone "
+        f"{hold[0][1]:.1f}°)",
+    ]
+    return section

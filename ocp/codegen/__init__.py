@@ -1,0 +1,27 @@
+"""C code generation: export, build and run the generated solvers."""
+
+from .export import (
+    CompilerNotFound,
+    ExportResult,
+    build_exported,
+    compile_shared,
+    daqp_available,
+    default_functions,
+    duty_qp_function,
+    export_c,
+    patch_qrqp,
+    run_driver,
+)
+
+__all__ = [
+    "CompilerNotFound",
+    "ExportResult",
+    "build_exported",
+    "compile_shared",
+    "daqp_available",
+    "default_functions",
+    "duty_qp_function",
+    "export_c",
+    "patch_qrqp",
+    "run_driver",
+]

@@ -1,0 +1,933 @@
+"""Receding-horizon (MPC) attitude control with wheel-level limits (SPEC 4).
+
+The optimal-control problem is formulated once, by multiple shooting over
+``horizon`` RK4 intervals of length ``dt``, with the parameters
+``p = (x, q_f, τ)``: current state, target quaternion and a disturbance
+torque estimate held over the horizon. Decision vector (layout
+``x_0, u_0, x_1, u_1, …, u_{N-1}, x_N``):
+
+.. math::
+    \\min\\ \\sum_{k=1}^{N} c_k\\big(w_q \\|\\mathrm{vec}(q_f^{*}\\otimes
+    q_k)\\|^2 + w_ω \\|ω_k\\|^2\\big)
+    + \\sum_{k=0}^{N-1} w_m \\|m_k / m_{max}\\|^2
+    + w_H \\|H_k / h_{max}\\|^2 + w_p\\, p^T k_k
+
+subject to :math:`x_0 = x`, :math:`x_{k+1} = \\mathrm{RK4}(x_k, m_k, τ)`,
+:math:`|m_{k,i}| \\le m_{max,i}` (0 for a failed wheel),
+:math:`|H_{k,i}| \\le h_{max,i}` and optionally :math:`|ω_{k,j}| \\le
+ω_{max}`; :math:`c_N` is ``terminal`` and the other :math:`c_k` are 1.
+With a thruster set in the model (``rigid_spacecraft(J, wheels,
+thrusters=...)``) the controls are ``u = (m, k)``: duties
+:math:`0 \\le k_{k,i} \\le 1` enter through their cycle-averaged torque
+and the linear propellant term :math:`w_p\\, p^T k` (``p`` the engines'
+propellant rates over the largest one), so the thrusters fire only when
+the wheels alone cannot hold the attitude within their momentum bound
+(unloading under a secular disturbance).
+The cost is a sum of squares (the vector part of the quaternion error is
+linear in q), so a Gauss–Newton Hessian :math:`2 J_r^T J_r` is positive
+semi-definite: ``"sqpmethod"`` is CasADi's SQP with that Hessian and a
+code-generatable conic (``"qrqp"`` default), and with ``rti=True`` makes
+one SQP step per sample (real-time iteration).
+
+Each MPC step is one call of `AttitudeMPC.step_function`, a CasADi
+Function that shifts the previous solution (warm start), solves and
+returns the first control; it exports to C with sqpmethod + qrqp.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import casadi as ca
+import numpy as np
+
+from adcs_common.exceptions import (
+    InfeasibleError,
+    InvalidValueError,
+    SolverError,
+    SolverNotFound,
+)
+from adcs_common.validation import (
+    as_finite_scalar,
+    as_vector,
+    check_nonnegative,
+    check_positive,
+)
+
+from adcs_common.quaternion import quat_conj, quat_mul
+from ocp.models.rigid import SpacecraftModel
+from ocp.models.trajectory import SlewTrajectory
+
+__all__ = [
+    "AttitudeMPC",
+    "ClosedLoopResult",
+    "MPCStep",
+    "MPCWeights",
+    "QP_SOLVERS",
+    "available_mpc_solvers",
+    "closed_loop_table",
+    "compare_slew",
+    "simulate_mpc",
+]
+
+#: Conic plugins accepted by ``solver="sqpmethod"`` (code-generatable).
+QP_SOLVERS = ("qrqp", "daqp")
+#: NLP solver names -> CasADi nlpsol plugin.
+_NLP_PLUGINS = {"ipopt": "ipopt", "sqpmethod": "sqpmethod",
+                "fatrop": "fatrop"}
+#: Largest bound violation [scaled, 1] accepted on a returned plan.
+BOUND_TOL = 1e-6
+#: Largest dynamics defect accepted on a converged (non-RTI) plan.
+DEFECT_TOL = 1e-6
+
+
+def available_mpc_solvers() -> tuple[str, ...]:
+    """MPC solver names whose CasADi plugin loads on this installation."""
+    names = []
+    for name, plugin in _NLP_PLUGINS.items():
+        try:
+            ok = ca.has_nlpsol(plugin)
+        except RuntimeError:
+            ok = False
+        if ok and (name != "sqpmethod"
+                   or any(ca.has_conic(q) for q in QP_SOLVERS)):
+            names.append(name)
+    return tuple(names)
+
+
+@dataclass(frozen=True)
+class MPCWeights:
+    """Weights of the MPC cost (all dimensionless, see module doc).
+
+    Attributes
+    ----------
+    attitude : float
+        :math:`w_q` on :math:`\\|\\mathrm{vec}(q_f^*\\otimes q)\\|^2
+        = \\sin^2(θ/2)` [1].
+    rate : float
+        :math:`w_ω` on :math:`\\|ω\\|^2` [s²/rad²].
+    torque : float
+        :math:`w_m` on :math:`\\|m / m_{max}\\|^2` [1].
+    momentum : float
+        :math:`w_H` on :math:`\\|H / h_{max}\\|^2` [1] (keeps the wheels
+        near zero momentum in holds).
+    terminal : float
+        Factor :math:`c_N` on the last stage's attitude and rate terms.
+    propellant : float
+        :math:`w_p` on the thruster duties weighted by propellant rate
+        (linear; only with a thruster set) [1].
+    """
+
+    attitude: float = 100.0
+    rate: float = 100.0
+    torque: float = 0.01
+    momentum: float = 0.001
+    terminal: float = 10.0
+    propellant: float = 0.1
+
+    def __post_init__(self) -> None:
+        """Check that every weight is finite and non-negative."""
+        for name in ("attitude", "rate", "torque", "momentum", "terminal",
+                     "propellant"):
+            value = as_finite_scalar(getattr(self, name), name)
+            check_nonnegative(value, name)
+        if self.attitude <= 0:
+            raise InvalidValueError(
+                f"attitude weight must be positive, got {self.attitude}")
+
+
+@dataclass(frozen=True, eq=False)
+class MPCStep:
+    """The outcome of one MPC step.
+
+    Attributes
+    ----------
+    u : numpy.ndarray, shape (nu,)
+        First command, to hold over ``dt``: motor torques m [N·m], then
+        the thruster duties [1] when the model has thrusters.
+    plan : numpy.ndarray, shape (nz,)
+        The optimised decision vector (the next step's warm start).
+    cost : float
+        Cost of the plan [1].
+    violation : float
+        Largest bound violation of the plan, scaled by the bound [1].
+    first_violation : float
+        The same over the applied command ``u`` and the state after it.
+    defect : float
+        Largest dynamics defect of the plan (non-zero after a single RTI
+        step) [state units].
+    solve_time : float
+        Wall time of the NLP solver call [s] (shift and checks excluded).
+    iterations : int
+        SQP/IPOPT iterations (-1 when the solver does not report them).
+    status : str
+        The solver's return status.
+    """
+
+    u: np.ndarray
+    plan: np.ndarray
+    cost: float
+    violation: float
+    first_violation: float
+    defect: float
+    solve_time: float
+    iterations: int
+    status: str
+
+
+class AttitudeMPC:
+    """Receding-horizon attitude controller of a wheeled spacecraft.
+
+    Parameters
+    ----------
+    model : SpacecraftModel
+        Spacecraft with a wheel array (`ocp.rigid_spacecraft` with
+        ``wheels``), optionally with a thruster set (duties in [0, 1],
+        propellant in the cost).
+    horizon : int
+        Number of intervals N (>= 2).
+    dt : float
+        Sample time and interval length [s].
+    solver : {"sqpmethod", "ipopt", "fatrop"}
+        NLP solver (default ``"sqpmethod"``: Gauss–Newton SQP with a
+        code-generatable conic).
+    qp_solver : {"qrqp", "daqp"}
+        Conic plugin of ``"sqpmethod"`` (default ``"qrqp"``).
+    rti : bool
+        Real-time iteration: one full SQP step per sample (``"sqpmethod"``
+        only). When that step leaves the applied command or the next
+        state outside the bounds (qrqp can return such a step on
+        degenerate active sets), the step falls back to the full SQP from
+        the same warm start (status ``"rti_fallback:..."``); the exported
+        step Function does the same.
+    weights : MPCWeights, optional
+        Cost weights.
+    rate_max : float, optional
+        Bound on each body-rate component |ω_j| [rad/s].
+    max_iter : int
+        Iteration limit of the NLP solver (ignored with ``rti``).
+    expand : bool
+        Expand the NLP to SX (faster in Python; ``False`` gives ~5x
+        smaller generated C, as RK4 and its derivatives stay functions
+        called per interval).
+    solver_options : dict, optional
+        Options of the CasADi nlpsol, merged over the defaults and
+        forwarded untouched.
+
+    Raises
+    ------
+    SolverNotFound
+        Unknown ``solver`` or ``qp_solver``, or its plugin is missing.
+    InvalidValueError
+        Bad horizon, dt, rate bound or a model without wheels.
+    """
+
+    def __init__(self, model: SpacecraftModel, *, horizon: int = 20,
+                 dt: float = 0.5, solver: str = "sqpmethod",
+                 qp_solver: str = "qrqp", rti: bool = False,
+                 weights: MPCWeights | None = None,
+                 rate_max: float | None = None, max_iter: int = 50,
+                 expand: bool = True,
+                 solver_options: dict | None = None) -> None:
+        if not isinstance(model, SpacecraftModel) or model.wheels is None:
+            raise InvalidValueError(
+                "model must be a SpacecraftModel with a wheel array "
+                "(rigid_spacecraft(inertia, wheels))")
+        if (not isinstance(horizon, (int, np.integer)) or isinstance(
+                horizon, bool) or horizon < 2):
+            raise InvalidValueError(
+                f"horizon must be an integer >= 2, got {horizon!r}")
+        self.dt = as_finite_scalar(dt, "dt")
+        check_positive(self.dt, "dt")
+        if not isinstance(solver, str) or solver not in _NLP_PLUGINS:
+            raise SolverNotFound(str(solver), available_mpc_solvers(),
+                                 "MPC solvers: 'sqpmethod' (with qp_solver "
+                                 "'qrqp' or 'daqp'), 'ipopt', 'fatrop'")
+        if solver not in available_mpc_solvers():
+            raise SolverNotFound(solver, available_mpc_solvers(),
+                                 f"the CasADi plugin {solver!r} is missing")
+        if solver == "sqpmethod" and (qp_solver not in QP_SOLVERS
+                                      or not ca.has_conic(qp_solver)):
+            raise SolverNotFound(
+                f"sqpmethod:{qp_solver}",
+                tuple(f"sqpmethod:{q}" for q in QP_SOLVERS
+                      if ca.has_conic(q)),
+                "qp_solver must be a code-generatable conic")
+        if rti and solver != "sqpmethod":
+            raise InvalidValueError(
+                f"rti=True needs solver='sqpmethod', got {solver!r}")
+        if int(max_iter) < 1:
+            raise InvalidValueError(f"max_iter must be >= 1, got "
+                                    f"{max_iter!r}")
+        self.model = model
+        self.wheels = model.wheels
+        self.horizon = int(horizon)
+        self.solver = solver
+        self.qp_solver = qp_solver if solver == "sqpmethod" else ""
+        self.rti = bool(rti)
+        self.weights = weights if weights is not None else MPCWeights()
+        if not isinstance(self.weights, MPCWeights):
+            raise InvalidValueError(
+                f"weights must be MPCWeights, got {type(weights).__name__}")
+        self.rate_max = None
+        if rate_max is not None:
+            self.rate_max = as_finite_scalar(rate_max, "rate_max")
+            check_positive(self.rate_max, "rate_max")
+        self.max_iter = 1 if self.rti else int(max_iter)
+        self.fallback_max_iter = int(max_iter)
+        self.expand = bool(expand)
+        #: Levenberg–Marquardt term added to the Gauss–Newton Hessian: the
+        #: GN Hessian is singular (no cost on |q| or on x_0), and qrqp then
+        #: declares convergence on points violating the QP's constraints.
+        self.regularization = 1e-4
+        t0 = time.perf_counter()
+        self._build(dict(solver_options or {}))
+        self.build_time = time.perf_counter() - t0
+        self._plan: np.ndarray | None = None
+        self._lam_x = np.zeros(self.nz)
+        self._lam_g = np.zeros(self.ng)
+
+    # ------------------------------------------------------------ layout
+    @property
+    def name(self) -> str:
+        """Label such as ``"sqpmethod+qrqp (RTI)"``."""
+        label = self.solver
+        if self.qp_solver:
+            label += f"+{self.qp_solver}"
+        return label + (" (RTI)" if self.rti else "")
+
+    @property
+    def nz(self) -> int:
+        """Length of the decision vector."""
+        return self._nz
+
+    @property
+    def ng(self) -> int:
+        """Number of equality constraints ((N + 1) · nx)."""
+        return self._ng
+
+    def _stage_slices(self) -> tuple[list[slice], list[slice]]:
+        nx, nu = self.model.nx, self.model.nu
+        xs, us = [], []
+        for k in range(self.horizon + 1):
+            start = k * (nx + nu)
+            xs.append(slice(start, start + nx))
+            if k < self.horizon:
+                us.append(slice(start + nx, start + nx + nu))
+        return xs, us
+
+    def _build(self, user_options: dict) -> None:
+        model, wh, N = self.model, self.wheels, self.horizon
+        nx, nu = model.nx, model.nu
+        nz = (N + 1) * nx + N * nu
+        self._nz, self._ng = nz, (N + 1) * nx
+        xs, us = self._stage_slices()
+        self._xs, self._us = xs, us
+        w = self.weights
+
+        z = ca.MX.sym("z", nz)
+        x_par = ca.MX.sym("x", nx)
+        qf = ca.MX.sym("qf", 4)
+        tau = ca.MX.sym("tau", 3)
+        p = ca.vertcat(x_par, qf, tau)
+        rk4 = model.rk4_step(1)
+        m_max = np.asarray(wh.m_max, dtype=float)
+        h_max = np.asarray(wh.h_max, dtype=float)
+        nw = wh.n_wheels
+        prop = (np.zeros(0) if model.thrusters is None
+                else model.thrusters.propellant_rate())
+        prop = prop / prop.max() if prop.size else prop
+        lin = 0
+        g = [z[xs[0]] - x_par]
+        res = []
+        # fatrop's structure detection needs x_{k+1} - F(x_k, u_k); qrqp
+        # was measured to fail more often on that sign (its active-set
+        # steps on this QP depend on the row signs), so it gets F - x_{k+1}
+        sign = 1.0 if self.solver == "fatrop" else -1.0
+        for k in range(N):
+            g.append(sign * (z[xs[k + 1]]
+                             - rk4(z[xs[k]], z[us[k]], tau, self.dt)))
+            res.append(np.sqrt(w.torque) * z[us[k]][:nw] / ca.DM(m_max))
+            if prop.size:
+                lin = lin + w.propellant * ca.dot(ca.DM(prop),
+                                                  z[us[k]][nw:])
+            res.append(np.sqrt(w.momentum) * z[xs[k]][7:] / ca.DM(h_max))
+        for k in range(1, N + 1):
+            c = w.terminal if k == N else 1.0
+            xk = z[xs[k]]
+            qe = quat_mul(quat_conj(qf), xk[:4])
+            res.append(np.sqrt(c * w.attitude) * qe[1:])
+            res.append(np.sqrt(c * w.rate) * xk[4:7])
+        r = ca.vertcat(*res)
+        gv = ca.vertcat(*g)
+        # the linear propellant term has no curvature: the Gauss–Newton
+        # Hessian of the squares is still the cost's Hessian
+        f = ca.sumsqr(r) + lin
+
+        # bounds on the decision vector
+        inf = np.inf
+        u_lo, u_hi = model.control_bounds()
+        wmax = inf if self.rate_max is None else self.rate_max
+        x_hi = np.r_[np.full(4, inf), np.full(3, wmax), h_max]
+        ub = np.empty(nz)
+        lb = np.empty(nz)
+        for k in range(N + 1):
+            ub[xs[k]] = x_hi
+            lb[xs[k]] = -x_hi
+            if k < N:
+                ub[us[k]] = u_hi
+                lb[us[k]] = u_lo
+        ub[xs[0]] = inf  # x_0 is fixed by its equality row
+        lb[xs[0]] = -inf
+        self.lbz, self.ubz = lb, ub
+        # scale of each bound, for the scaled violation
+        scale = np.ones(nz)
+        for k in range(N + 1):
+            scale[xs[k]] = np.r_[np.ones(4), np.full(3, 1.0 if wmax == inf
+                                                     else wmax), h_max]
+            if k < N:
+                scale[us[k]] = np.r_[m_max, np.ones(len(prop))]
+        self._bound_scale = scale
+
+        nlp = {"x": z, "p": p, "f": f, "g": gv}
+        plugin = _NLP_PLUGINS[self.solver]
+        opts = self._default_options(z, p, r, gv)
+        opts = _merge(opts, user_options)
+        self.nlpsol = ca.nlpsol("mpc_nlp", plugin, nlp, opts)
+        #: RTI only: the full SQP, run from the same warm start when the
+        #: single step leaves the applied command or x_1 outside the
+        #: bounds (qrqp can return such a step on degenerate active sets).
+        self.fallback = None
+        if self.rti:
+            full = _merge(opts, {"max_iter": self.fallback_max_iter,
+                                 "max_iter_ls": 3})
+            self.fallback = ca.nlpsol("mpc_nlp_full", plugin, nlp, full)
+        self._residuals = ca.Function("mpc_residuals", [z, p], [f, gv])
+
+        # the step Function: shift warm start, solve, report
+        z_prev = ca.MX.sym("z_prev", nz)
+        lam_x_prev = ca.MX.sym("lam_x_prev", nz)
+        lam_g_prev = ca.MX.sym("lam_g_prev", self._ng)
+        blk = nx + nu
+        z_sh = ca.vertcat(x_par, z_prev[blk + nx:], z_prev[-(nu + nx):])
+        lx_sh = ca.vertcat(lam_x_prev[blk:], lam_x_prev[-(nu + nx):])
+        lg_sh = ca.vertcat(lam_g_prev[:nx], lam_g_prev[2 * nx:],
+                           lam_g_prev[-nx:])
+        #: ``shift(x, z_prev, lam_x_prev, lam_g_prev) -> (z0, lam_x0,
+        #: lam_g0)``: the previous plan moved one interval ahead, its
+        #: first state replaced by the measured one.
+        self.shift_function = ca.Function(
+            "mpc_shift", [x_par, z_prev, lam_x_prev, lam_g_prev],
+            [z_sh, lx_sh, lg_sh], ["x", "z_prev", "lam_x_prev",
+                                   "lam_g_prev"],
+            ["z0", "lam_x0", "lam_g0"])
+        zs = ca.MX.sym("z", nz)
+        cost, gs = self._residuals(zs, p)
+        viol = ca.mmax(ca.vertcat(
+            ca.fmax(ca.DM(self.lbz) - zs, 0) / ca.DM(scale),
+            ca.fmax(zs - ca.DM(self.ubz), 0) / ca.DM(scale), 0.0))
+        first = np.r_[np.arange(nz)[us[0]], np.arange(nz)[xs[1]]]
+        viol_first = ca.mmax(ca.vertcat(
+            ca.fmax(ca.DM(self.lbz[first]) - zs[first], 0)
+            / ca.DM(scale[first]),
+            ca.fmax(zs[first] - ca.DM(self.ubz[first]), 0)
+            / ca.DM(scale[first]), 0.0))
+        defect = ca.mmax(ca.fabs(gs))
+        #: ``check(z, p) -> (cost, violation, first_violation, defect)``.
+        self.check_function = ca.Function(
+            "mpc_check", [zs, p], [cost, viol, viol_first, defect],
+            ["z", "p"], ["cost", "violation", "first_violation",
+                         "defect"])
+        sh = self.shift_function(x_par, z_prev, lam_x_prev, lam_g_prev)
+        sol = self.nlpsol(x0=sh[0], p=p, lbx=self.lbz, ubx=self.ubz,
+                          lbg=0, ubg=0, lam_x0=sh[1], lam_g0=sh[2])
+        zo, lxo, lgo = sol["x"], sol["lam_x"], sol["lam_g"]
+        if self.fallback is not None:
+            # evaluated only when the RTI step fails its check
+            a = [ca.MX.sym(n, s.sparsity()) for n, s in
+                 (("z0", z_prev), ("lx0", lam_x_prev), ("lg0", lam_g_prev),
+                  ("p", p), ("z", z_prev), ("lx", lam_x_prev),
+                  ("lg", lam_g_prev))]
+            fb = self.fallback(x0=a[0], p=a[3], lbx=self.lbz, ubx=self.ubz,
+                               lbg=0, ubg=0, lam_x0=a[1], lam_g0=a[2])
+            full = ca.Function("mpc_full", a,
+                               [fb["x"], fb["lam_x"], fb["lam_g"]])
+            keep = ca.Function("mpc_keep", a, [a[4], a[5], a[6]])
+            pick = ca.Function.if_else("mpc_pick", full, keep)
+            bad = self.check_function(zo, p)[2] > BOUND_TOL
+            zo, lxo, lgo = pick(bad, sh[0], sh[1], sh[2], p, zo, lxo, lgo)
+        chk = self.check_function(zo, p)
+        self.step_function = ca.Function(
+            "mpc_step",
+            [x_par, qf, tau, z_prev, lam_x_prev, lam_g_prev],
+            [zo[us[0]], zo, lxo, lgo, *chk],
+            ["x", "qf", "tau", "z_prev", "lam_x_prev", "lam_g_prev"],
+            ["u", "z", "lam_x", "lam_g", "cost", "violation",
+             "first_violation", "defect"])
+
+    def _default_options(self, z, p, r, g) -> dict:
+        if self.solver == "ipopt":
+            return {"expand": self.expand, "print_time": False,
+                    "ipopt": {"print_level": 0, "sb": "yes",
+                              "max_iter": self.max_iter, "tol": 1e-8}}
+        if self.solver == "fatrop":
+            return {"expand": self.expand, "print_time": False,
+                    "structure_detection": "auto",
+                    "equality": [True] * self._ng,
+                    "fatrop": {"print_level": 0,
+                               "max_iter": self.max_iter}}
+        lf = ca.MX.sym("lam_f")
+        lg = ca.MX.sym("lam_g", g.shape[0])
+        Jr = ca.jacobian(r, z)
+        hess = ca.Function("gn_hess", [z, p, lf, lg],
+                           [2 * lf * ca.mtimes(Jr.T, Jr)
+                            + self.regularization * ca.DM.eye(z.numel())],
+                           ["x", "p", "lam_f", "lam_g"],
+                           ["hess_gamma_x_x"])
+        qp_opts: dict[str, Any] = {"error_on_fail": False}
+        if self.qp_solver == "qrqp":
+            qp_opts.update(print_iter=False, print_header=False,
+                           print_info=False)
+        opts: dict[str, Any] = {
+            "expand": self.expand, "hess_lag": hess, "qpsol": self.qp_solver,
+            "qpsol_options": qp_opts, "print_header": False,
+            "print_iteration": False, "print_status": False,
+            "print_time": False, "error_on_fail": False,
+            "max_iter": self.max_iter, "tol_pr": 1e-9, "tol_du": 1e-7}
+        if self.rti:
+            opts["max_iter_ls"] = 0
+        return opts
+
+    # ------------------------------------------------------------ calls
+    def initial_guess(self, x) -> np.ndarray:
+        """Decision vector holding state ``x`` with zero torques (nz,)."""
+        x = as_vector(x, self.model.nx, "x")
+        z = np.zeros(self.nz)
+        for s in self._xs:
+            z[s] = x
+        return z
+
+    def reset(self) -> None:
+        """Forget the warm start (the next step starts cold)."""
+        self._plan = None
+        self._lam_x = np.zeros(self.nz)
+        self._lam_g = np.zeros(self.ng)
+
+    def step(self, x, qf, tau=None, *, check: bool = True) -> MPCStep:
+        """One MPC step from state ``x`` towards attitude ``qf``.
+
+        Parameters
+        ----------
+        x : array_like (7 + N,)
+            Current state (q, ω [rad/s], H_w [N·m·s]).
+        qf : array_like (4,)
+            Target quaternion (scalar-first; normalised here).
+        tau : array_like (3,), optional
+            Disturbance torque estimate over the horizon [N·m].
+        check : bool
+            Raise when the plan violates its bounds.
+
+        Returns
+        -------
+        MPCStep
+
+        Raises
+        ------
+        ShapeError, InvalidValueError
+            Bad ``x``, ``qf`` or ``tau`` (the message names it).
+        InfeasibleError
+            No plan meets the bounds over the horizon (e.g. a wheel
+            momentum that cannot be brought inside ``h_max`` in one
+            step, or a rate beyond ``rate_max``).
+        SolverError
+            The solver returned a plan that breaks its constraints.
+        """
+        nx = self.model.nx
+        x = as_vector(x, nx, "x")
+        qf = as_vector(qf, 4, "qf")
+        nq = np.linalg.norm(qf)
+        if nq < 1e-12:
+            raise InvalidValueError("qf must be a non-zero quaternion")
+        qf = qf / nq
+        tau = np.zeros(3) if tau is None else as_vector(tau, 3, "tau")
+        self._check_reachable(x)
+        z_prev = self._plan if self._plan is not None else \
+            self.initial_guess(x)
+        z0, lx0, lg0 = self.shift_function(x, z_prev, self._lam_x,
+                                           self._lam_g)
+        p = np.r_[x, qf, tau]
+        t0 = time.perf_counter()
+        sol = self.nlpsol(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz, lbg=0,
+                          ubg=0, lam_x0=lx0, lam_g0=lg0)
+        solve_time = time.perf_counter() - t0
+        stats = self.nlpsol.stats()
+        z = np.asarray(sol["x"]).ravel()
+        lam_x = np.asarray(sol["lam_x"]).ravel()
+        lam_g = np.asarray(sol["lam_g"]).ravel()
+        u = z[self._us[0]].copy()
+        cost, viol, viol1, defect = (float(o) for o in
+                                     self.check_function(z, p))
+        status = str(stats.get("return_status", "unknown"))
+        iters = int(stats.get("iter_count", -1))
+        if self.fallback is not None and viol1 > BOUND_TOL:
+            sol = self.fallback(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz,
+                                lbg=0, ubg=0, lam_x0=lx0, lam_g0=lg0)
+            solve_time = time.perf_counter() - t0
+            stats = self.fallback.stats()
+            z = np.asarray(sol["x"]).ravel()
+            lam_x = np.asarray(sol["lam_x"]).ravel()
+            lam_g = np.asarray(sol["lam_g"]).ravel()
+            u = z[self._us[0]].copy()
+            cost, viol, viol1, defect = (float(o) for o in
+                                         self.check_function(z, p))
+            status = ("rti_fallback:"
+                      + str(stats.get("return_status", "unknown")))
+            iters = 1 + int(stats.get("iter_count", -1))
+        result = MPCStep(u=u, plan=z, cost=cost, violation=viol,
+                         first_violation=viol1, defect=defect,
+                         solve_time=solve_time, iterations=iters,
+                         status=status)
+        if check:
+            bad = not (np.isfinite(cost) and np.all(np.isfinite(z)))
+            # RTI: only the applied command and the state it leads to are
+            # checked (qrqp can leave a bound violated far in the plan's
+            # tail on degenerate active sets; the tail is a warm start)
+            checked = viol1 if self.rti else viol
+            if bad or checked > BOUND_TOL or (
+                    not self.rti and defect > DEFECT_TOL):
+                self.reset()
+                raise SolverError(
+                    f"MPC step ({self.name}): the plan breaks its "
+                    f"constraints (bound violation {viol:.3g}, dynamics "
+                    f"defect {defect:.3g}, status {status!r})",
+                    solver=self.name, result=result)
+        self._plan, self._lam_x, self._lam_g = z, lam_x, lam_g
+        return result
+
+    def _check_reachable(self, x: np.ndarray) -> None:
+        """Raise `InfeasibleError` when x_1 cannot meet the state bounds."""
+        wh = self.wheels
+        h = x[7:]
+        m_hi = np.where(wh.active, wh.m_max, 0.0)
+        gap = np.abs(h) - m_hi * self.dt - wh.h_max
+        if np.any(gap > 1e-12):
+            i = int(np.argmax(gap))
+            raise InfeasibleError(
+                f"x: wheel {i} momentum {h[i]:.4g} N·m·s cannot return "
+                f"inside h_max = {wh.h_max[i]:.4g} within one step of "
+                f"{self.dt:g} s at m_max = {m_hi[i]:.4g} N·m: the MPC "
+                "horizon is infeasible", problem=x)
+        if self.rate_max is not None:
+            excess = np.max(np.abs(x[4:7])) - self.rate_max
+            # the reachable change of rate in one step
+            J = self.model.inertia
+            reach = np.linalg.norm(wh.working_axes * m_hi, axis=0).sum()
+            if self.model.thrusters is not None:
+                reach += np.linalg.norm(
+                    self.model.thrusters.torque_matrix(), axis=0).sum()
+            dmax = self.dt * reach / np.linalg.eigvalsh(J).min()
+            if excess > dmax:
+                raise InfeasibleError(
+                    f"x: body rate {np.max(np.abs(x[4:7])):.4g} rad/s "
+                    f"exceeds rate_max = {self.rate_max:.4g} rad/s by more "
+                    f"than one step can remove ({dmax:.3g} rad/s): the MPC "
+                    "horizon is infeasible", problem=x)
+
+
+# ---------------------------------------------------------------- closed loop
+@dataclass(frozen=True, eq=False)
+class ClosedLoopResult:
+    """Metrics of a simulated slew-and-hold (or of an open-loop NLP).
+
+    Attributes
+    ----------
+    name : str
+        Controller label.
+    trajectory : SlewTrajectory
+        The simulated trajectory (plant integrated by CVODES).
+    settle_time : float
+        First time after which the error angle stays below
+        ``settle_angle`` [s] (NaN: never).
+    settle_angle : float
+        Threshold of ``settle_time`` [rad].
+    energy : float
+        :math:`\\sum_i\\int m_i^2 dt` [N²·m²·s].
+    peak_torque : float
+        Largest |m_i| [N·m].
+    peak_momentum : float
+        Largest |H_i| [N·m·s].
+    torque_violation : float
+        Largest excess of |m_i| over ``m_max_i`` [N·m] (0: none).
+    momentum_violation : float
+        Largest excess of |H_i| over ``h_max_i`` [N·m·s] (0: none).
+    final_error : float
+        Error angle at the end [rad].
+    hold_error : float
+        Largest error angle over the last ``hold`` seconds [rad].
+    step_time_median, step_time_max : float
+        Per-step controller time [s] (NaN for closed forms).
+    extras : dict
+        Anything else (solver status counts, NLP solve time...).
+    """
+
+    name: str
+    trajectory: SlewTrajectory
+    settle_time: float
+    settle_angle: float
+    energy: float
+    peak_torque: float
+    peak_momentum: float
+    torque_violation: float
+    momentum_violation: float
+    final_error: float
+    hold_error: float
+    step_time_median: float = float("nan")
+    step_time_max: float = float("nan")
+    extras: dict[str, Any] = field(default_factory=dict)
+
+
+def _settle_time(t: np.ndarray, err: np.ndarray, angle: float) -> float:
+    outside = np.flatnonzero(err >= angle)
+    if len(outside) == 0:
+        return 0.0
+    if outside[-1] < len(t) - 1:
+        return float(t[outside[-1] + 1])
+    return float("nan")
+
+
+def _result_from_trajectory(name: str, traj: SlewTrajectory, wheels,
+                            settle_angle: float, hold: float,
+                            step_times=None, extras=None
+                            ) -> ClosedLoopResult:
+    err = traj.error_angle()
+    m = traj.wheel_torque
+    h = traj.wheel_momentum
+    tv = float(np.max(np.abs(m) - wheels.m_max)) if m is not None else 0.0
+    hv = float(np.max(np.abs(h) - wheels.h_max)) if h is not None else 0.0
+    in_hold = traj.t >= traj.t[-1] - hold - 1e-12
+    st = np.asarray(step_times if step_times is not None else [np.nan])
+    return ClosedLoopResult(
+        name=name, trajectory=traj,
+        settle_time=_settle_time(traj.t, err, settle_angle),
+        settle_angle=settle_angle, energy=traj.energy,
+        peak_torque=traj.peak_wheel_torque,
+        peak_momentum=traj.peak_wheel_momentum,
+        torque_violation=max(tv, 0.0), momentum_violation=max(hv, 0.0),
+        final_error=float(err[-1]), hold_error=float(np.max(err[in_hold])),
+        step_time_median=float(np.median(st)),
+        step_time_max=float(np.max(st)), extras=dict(extras or {}))
+
+
+def simulate_mpc(mpc: AttitudeMPC, q0, qf, *, t_final: float, w0=None,
+                 h0=None, disturbance: Callable[[float], Any] | Any = None,
+                 estimate_disturbance: bool = False,
+                 settle_angle: float = np.deg2rad(0.1), hold: float = 0.0,
+                 progress: Callable[[int, int], None] | None = None
+                 ) -> ClosedLoopResult:
+    """Closed-loop simulation of ``mpc`` on the plant (CVODES, ZOH).
+
+    Each sample the controller gets the exact plant state, the command is
+    held over ``mpc.dt`` and the plant (the model's dynamics with the
+    disturbance torque) is integrated by CVODES to 1e-10.
+
+    Parameters
+    ----------
+    mpc : AttitudeMPC
+        The controller (its warm start is reset first).
+    q0, qf : array_like (4,)
+        Initial and target attitude (scalar-first).
+    t_final : float
+        Simulated time [s].
+    w0 : array_like (3,), optional
+        Initial body rate [rad/s] (default zero).
+    h0 : array_like (N,), optional
+        Initial wheel momenta [N·m·s] (default zero).
+    disturbance : callable or array_like (3,), optional
+        External torque on the body [N·m], constant or ``f(t) -> (3,)``.
+    estimate_disturbance : bool
+        Give the controller the true disturbance at each sample (an ideal
+        estimator); otherwise it plans with zero disturbance.
+    settle_angle : float
+        Threshold of the settling time [rad].
+    hold : float
+        Length of the final hold window of ``hold_error`` [s].
+    progress : callable, optional
+        ``progress(k, K)`` after each step.
+
+    Returns
+    -------
+    ClosedLoopResult
+    """
+    model = mpc.model
+    t_final = as_finite_scalar(t_final, "t_final")
+    check_positive(t_final, "t_final")
+    x = model.state(q0, w0, h0)
+    qf = as_vector(qf, 4, "qf")
+    qf = qf / np.linalg.norm(qf)
+    if disturbance is None:
+        def dist(_t):
+            return np.zeros(3)
+    elif callable(disturbance):
+        def dist(t):
+            return as_vector(disturbance(t), 3, "disturbance")
+    else:
+        d = as_vector(disturbance, 3, "disturbance")
+
+        def dist(_t):
+            return d
+    K = int(np.ceil(t_final / mpc.dt - 1e-9))
+    F = model.integrator(mpc.dt)
+    X = np.empty((K + 1, model.nx))
+    U = np.empty((K, model.nu))
+    X[0] = x
+    times, iters, statuses = [], [], {}
+    mpc.reset()
+    for k in range(K):
+        tk = k * mpc.dt
+        tau = dist(tk)
+        s = mpc.step(X[k], qf, tau if estimate_disturbance else None)
+        times.append(s.solve_time)
+        iters.append(s.iterations)
+        statuses[s.status] = statuses.get(s.status, 0) + 1
+        U[k] = s.u
+        xf = F(x0=X[k], p=np.r_[s.u, tau])["xf"]
+        X[k + 1] = np.asarray(xf).ravel()
+        if progress is not None:
+            progress(k + 1, K)
+    t = mpc.dt * np.arange(K + 1)
+    nw = model.n_wheels
+    extras: dict[str, Any] = {"solver": mpc.name, "horizon": mpc.horizon,
+                              "dt": mpc.dt}
+    loop = {"statuses": statuses, "mean_iterations": float(np.mean(iters))}
+    if model.thrusters is not None:
+        duty = U[:, nw:]
+        extras["duty"] = duty
+        loop["propellant"] = float(np.sum(
+            duty @ model.thrusters.propellant_rate()) * mpc.dt)
+        loop["thruster_on_time"] = float(np.sum(duty) * mpc.dt)
+    traj = SlewTrajectory(
+        method="mpc", T=float("nan"), t=t, q=X[:, :4], w=X[:, 4:7],
+        torque=model.body_control_torque(U.T).T, wheel_torque=U[:, :nw],
+        wheel_momentum=X[:, 7:], qf=qf, status="simulated", success=True,
+        solve_time=float(np.sum(times)), iterations=int(np.sum(iters)),
+        extras=extras)
+    return _result_from_trajectory(
+        f"MPC {mpc.name}", traj, mpc.wheels, settle_angle, hold, times,
+        loop)
+
+
+def compare_slew(model: SpacecraftModel, q0, qf, *, t_final: float,
+                 solvers=("sqpmethod", "sqpmethod-rti", "ipopt"),
+                 horizon: int = 20, dt: float = 0.5,
+                 weights: MPCWeights | None = None,
+                 natural_frequency: float | None = None,
+                 damping: float = 0.9, time_optimal: bool = True,
+                 settle_angle: float = np.deg2rad(0.1), hold: float = 0.0,
+                 disturbance=None) -> list[ClosedLoopResult]:
+    """Slew and hold by MPC, quaternion feedback and the time-optimal NLP.
+
+    Parameters
+    ----------
+    model : SpacecraftModel
+        Spacecraft with wheels.
+    q0, qf : array_like (4,)
+        Initial and target attitude.
+    t_final : float
+        Simulated time [s] (the slew and the hold after it).
+    solvers : sequence of str
+        MPC solvers; ``"sqpmethod-rti"`` is sqpmethod with ``rti=True``,
+        ``"sqpmethod-daqp"`` sqpmethod with daqp.
+    horizon, dt, weights
+        MPC settings.
+    natural_frequency : float, optional
+        ω_n of the quaternion feedback [rad/s]; default ``4 / T_eig``
+        with ``T_eig`` the eigenaxis (bang–coast–bang) slew time.
+    damping : float
+        ζ of the quaternion feedback.
+    time_optimal : bool
+        Add the time-optimal NLP (`ocp.slews.nlp.time_optimal_slew`) when that
+        module is installed; its metrics are those of the open-loop plan.
+    settle_angle, hold, disturbance
+        As `simulate_mpc` (the disturbance acts on the MPC runs only: the
+        closed forms are simulated without one).
+
+    Returns
+    -------
+    list of ClosedLoopResult
+    """
+    from ocp.guidance import eigenaxis_slew, quaternion_feedback_slew
+
+    wh = model.wheels
+    if wh is None:
+        raise InvalidValueError("model must have wheels")
+    results = []
+    for name in solvers:
+        solver, _, variant = name.partition("-")
+        kw: dict[str, Any] = {}
+        if variant == "rti":
+            kw["rti"] = True
+        elif variant:
+            kw["qp_solver"] = variant
+        mpc = AttitudeMPC(model, horizon=horizon, dt=dt, solver=solver,
+                          weights=weights, **kw)
+        results.append(simulate_mpc(mpc, q0, qf, t_final=t_final,
+                                    settle_angle=settle_angle, hold=hold,
+                                    disturbance=disturbance))
+    eig = eigenaxis_slew(model.inertia, q0, qf, wheels=wh)
+    wn = (natural_frequency if natural_frequency is not None
+          else 4.0 / max(eig.T, 1e-9))
+    fb = quaternion_feedback_slew(
+        model.inertia, q0, qf, wheels=wh, natural_frequency=wn,
+        damping=damping, t_final=t_final, dt=dt, settle_angle=settle_angle)
+    results.append(_result_from_trajectory(
+        f"quaternion feedback (ω_n={wn:.3g})", fb, wh, settle_angle, hold))
+    if time_optimal:
+        try:
+            from ocp.slews.nlp import time_optimal_slew
+        except ImportError:
+            time_optimal_slew = None
+        if time_optimal_slew is not None:
+            t0 = time.perf_counter()
+            to = time_optimal_slew(model.inertia, q0, qf, wheels=wh, N=100)
+            results.append(_result_from_trajectory(
+                "time-optimal NLP (open loop)", to, wh, settle_angle, 0.0,
+                extras={"solve_time": time.perf_counter() - t0,
+                        "T": to.T}))
+    return results
+
+
+def closed_loop_table(results) -> str:
+    """Markdown table of `ClosedLoopResult` metrics.
+
+    Columns: settle time [s], energy [N²·m²·s], peak |m| [N·m], peak |H|
+    [N·m·s], torque and momentum violations, final and hold errors [deg],
+    median / max step time [ms].
+    """
+    head = ("| controller | settle [s] | energy [N²m²s] | peak abs(m) [Nm] "
+            "| peak abs(H) [Nms] | m viol. | H viol. | final err [deg] | "
+            "hold err [deg] | step median / max [ms] |")
+    lines = [head, "|" + "---|" * 10]
+    for r in results:
+        st = ("–" if not np.isfinite(r.step_time_median) else
+              f"{1e3 * r.step_time_median:.2f} / "
+              f"{1e3 * r.step_time_max:.2f}")
+        lines.append(
+            f"| {r.name} | {r.settle_time:.1f} | {r.energy:.4g} | "
+            f"{r.peak_torque:.4g} | {r.peak_momentum:.4g} | "
+            f"{r.torque_violation:.1e} | {r.momentum_violation:.1e} | "
+            f"{np.rad2deg(r.final_error):.2e} | "
+            f"{np.rad2deg(r.hold_error):.2e} | {st} |")
+    return "\n".join(lines)
+
+
+def _merge(base: dict, extra: dict) -> dict:
+    out = dict(base)
+    for key, value in extra.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+

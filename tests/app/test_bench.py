@@ -1,0 +1,73 @@
+"""Optimizer comparison: certified answers, table, JSON and plot."""
+
+import json
+
+import numpy as np
+import pytest
+
+from adcs_common.exceptions import InvalidValueError
+from adcs.bench import TOL, format_table, kkt_residual, run_bench
+from adcs.cli import main
+
+
+def test_kkt_residual_flags_a_wrong_answer():
+    # min m1² + m2² s.t. m1 + m2 = 1, 0 <= m <= 0.8: optimum (0.5, 0.5)
+    P = 2.0 * np.eye(2)
+    C = np.vstack([[1.0, 1.0], np.eye(2)])
+    cl = np.array([1.0, 0.0, 0.0])
+    cu = np.array([1.0, 0.8, 0.8])
+    assert kkt_residual(P, np.zeros(2), C, cl, cu, [0.5, 0.5]) < 1e-14
+    # feasible but not optimal: stationarity fails
+    assert kkt_residual(P, np.zeros(2), C, cl, cu, [0.7, 0.3]) > 0.1
+    # infeasible point
+    assert kkt_residual(P, np.zeros(2), C, cl, cu, [0.9, 0.1]) > 0.05
+    # active upper bound with the right multiplier sign: q pushes m1 up
+    q = np.array([-10.0, 0.0])
+    assert kkt_residual(P, q, C, cl, cu, [0.8, 0.2]) < 1e-12
+
+
+def test_cli_bench_quick(tmp_path, capsys):
+    code = main(["bench", "--quick", "--out", str(tmp_path),
+                 "--backends", "osqp,quadprog,casadi:qrqp,ipopt,sqpmethod",
+                 "--repetitions", "6", "--no-progress"])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "| wheels | quadprog |" in out
+    data = json.loads((tmp_path / "bench.json").read_text())
+    rows = data["rows"]
+    got = {(r["problem"], r["backend"]) for r in rows}
+    assert ("wheels", "osqp") in got and ("thrusters", "casadi:qrqp") in got
+    assert ("slew", "ipopt") in got and ("slew", "sqpmethod") in got
+    # names a problem does not know are skipped, not failed
+    assert ("wheels", "ipopt") not in got
+    for r in rows:
+        assert r["failures"] == 0 and r["wrong"] == 0, r
+        assert r["max_error"] <= TOL
+        assert r["median_s"] > 0
+    assert (tmp_path / "bench.png").stat().st_size > 1000
+
+
+def test_run_bench_rejects_unknown_problem():
+    with pytest.raises(InvalidValueError, match="problems"):
+        run_bench(problems=["nosuch"], progress=False)
+    with pytest.raises(InvalidValueError, match="repetitions"):
+        run_bench(problems=["wheels"], repetitions=0, progress=False)
+
+
+def test_format_table_has_one_line_per_row():
+    rows = run_bench(problems=["wheels"], backends=["quadprog", "daqp"],
+                     repetitions=3, progress=False)
+    assert format_table(rows).count("\n") == len(rows) + 1
+
+
+def test_fast_wrong_answers_are_reported_wrong():
+    from adcs.bench import bench_thrusters
+
+    rows = {r.backend: r for r in bench_thrusters(
+        ["quadprog", "osqp@loose"], reps=12, seed=3)}
+    assert rows["quadprog"].ok
+    loose = rows["osqp@loose"]
+    # OSQP at eps 1e-3 without polishing: points off the optimum (the
+    # KKT certificate catches them even when the duties look close)
+    assert loose.wrong > 0
+    assert loose.max_kkt > 1e-3
