@@ -31,7 +31,13 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from adcs_common.exceptions import AdcsError, InvalidValueError
+from adcs_common.exceptions import (
+    AdcsError,
+    InvalidValueError,
+    SolverNotFound,
+)
+from adcs_common.paths import output_folder
+from ocp.spacecraft import load_spacecraft
 
 __all__ = [
     "BenchRow",
@@ -53,6 +59,32 @@ TOL = 1e-6
 LOOSE_OSQP = {"eps_abs": 1e-3, "eps_rel": 1e-3, "polishing": False}
 #: Control rows added to the default QP backend lists.
 CONTROLS = ("osqp@loose",)
+
+
+def known_backends() -> tuple[str, ...]:
+    """Every backend name some problem of the bench knows."""
+    from allocation import available_solvers as wheel_solvers
+    from ocp.mpc import available_mpc_solvers
+    from thrusters import available_solvers as duty_solvers
+
+    names = {*wheel_solvers(), *duty_solvers(), *available_mpc_solvers(),
+             *CONTROLS, "sqpmethod-daqp"}
+    return tuple(sorted(names))
+
+
+def _check_backends(backends: Sequence[str] | None) -> None:
+    if backends is None:
+        return
+    if isinstance(backends, str) or not all(isinstance(b, str)
+                                            for b in backends):
+        raise InvalidValueError(
+            f"backends must be a list of names, got {backends!r}")
+    known = known_backends()
+    unknown = [b for b in backends if b not in known]
+    if unknown:
+        raise SolverNotFound(", ".join(unknown), known,
+                             'pip install "adcs-toolbox[solvers]" adds '
+                             "the optional QP backends")
 
 
 def _split(name: str) -> tuple[str, dict]:
@@ -173,23 +205,26 @@ def _progress_fn(enabled: bool) -> Callable[[str], None]:
 
 # -------------------------------------------------------------------- wheels
 def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
-                 seed: int = 0, progress: Callable[[str], None] | None = None
-                 ) -> list[BenchRow]:
+                 seed: int = 0, progress: Callable[[str], None] | None = None,
+                 spacecraft=None) -> list[BenchRow]:
     """Time the bounded wheel-allocation QP across backends.
 
-    Pyramid (δ = 55°, γ = 45°), ``m_max = 0.2`` N·m; ``reps`` attainable
-    demands ``M = A m`` with ``m`` uniform in ``0.97 · [-m_max, m_max]``
-    (most leave the minimum-norm law's reach, so bounds are active).
+    The spacecraft's wheel array (default: the pyramid δ = 55°, γ = 45°,
+    ``m_max = 0.2`` N·m); ``reps`` attainable demands ``M = A m`` with
+    ``m`` uniform in ``0.97 · [-m_max, m_max]`` (0 for a failed wheel;
+    most leave the minimum-norm law's reach, so bounds are active).
     Reference: the first certified backend among quadprog, daqp, clarabel.
     """
     from allocation import QPAllocator, WheelArray, available_solvers
 
     show = progress or _progress_fn(False)
-    arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
+    arr = (WheelArray.pyramid(h_max=4.0, m_max=0.2) if spacecraft is None
+           else load_spacecraft(spacecraft).wheels)
     A = np.asarray(arr.axes)
     n = arr.n_wheels
+    m_cap = arr.m_max * arr.active
     rng = np.random.default_rng(seed)
-    demands = [A @ (0.97 * arr.m_max * rng.uniform(-1, 1, n))
+    demands = [A @ (0.97 * m_cap * rng.uniform(-1, 1, n))
                for _ in range(reps)]
     names = (list(backends) if backends
              else list(available_solvers()) + list(CONTROLS))
@@ -197,8 +232,8 @@ def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
     C = np.vstack([A, np.eye(n)])
 
     def cert(M, m):
-        cl = np.r_[M, -arr.m_max]
-        cu = np.r_[M, arr.m_max]
+        cl = np.r_[M, -m_cap]
+        cu = np.r_[M, m_cap]
         return kkt_residual(P, np.zeros(n), C, cl, cu, m)
 
     ref_name = next((s for s in ("quadprog", "daqp", "clarabel")
@@ -246,11 +281,12 @@ def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
 # ----------------------------------------------------------------- thrusters
 def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
                     seed: int = 0,
-                    progress: Callable[[str], None] | None = None
-                    ) -> list[BenchRow]:
+                    progress: Callable[[str], None] | None = None,
+                    spacecraft=None) -> list[BenchRow]:
     """Time the thruster duty-cycle QP across backends.
 
-    Six-thruster unit of seed 004, T_T = 2 s, ``h_max = 0.012`` N·m·s,
+    The spacecraft's thruster set (none: no rows), by default the
+    six-thruster unit of seed 004, T_T = 2 s, ``h_max = 0.012`` N·m·s,
     weighted torque tracking, momentum box; random cycles with P_T in
     [0, 0.739] N, torques up to 0.05 N·m, momenta inside the bound.
     Each answer (duties and slack) is KKT-certified on the canonical QP
@@ -261,7 +297,11 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
     from thrusters.qp.problem import INF
 
     show = progress or _progress_fn(False)
-    unit = six_thruster_unit()
+    unit = (six_thruster_unit() if spacecraft is None
+            else load_spacecraft(spacecraft).thrusters)
+    if unit is None:
+        show("[thrusters] skipped: the spacecraft has no thrusters")
+        return []
     h_max = 0.012
     rng = np.random.default_rng(seed)
     cases = [(rng.choice([0.0, rng.uniform(0.0, 0.739)]),
@@ -337,8 +377,10 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
 # ---------------------------------------------------------------------- slew
 def bench_slew(backends: Sequence[str] | None = None, reps: int = 5,
                progress: Callable[[str], None] | None = None,
-               quick: bool = False) -> list[BenchRow]:
+               quick: bool = False, spacecraft=None) -> list[BenchRow]:
     """Time the MPC slew NLP (horizon 20, 90° from rest), cold-started.
+
+    On the spacecraft's inertia and wheels (default: the ``demo`` craft).
 
     Backends: ``"ipopt"``, ``"sqpmethod"`` (Gauss–Newton + qrqp),
     ``"sqpmethod-daqp"`` (dense: ~10 s per cold solve, left out with
@@ -346,15 +388,13 @@ def bench_slew(backends: Sequence[str] | None = None, reps: int = 5,
     relative cost difference to IPOPT at ``tol = 1e-12`` (plus the scaled
     bound violation of the plan).
     """
-    from allocation import WheelArray
-
     from adcs_common.quaternion import quat_from_axis_angle
     from ocp.models.rigid import rigid_spacecraft
     from ocp.mpc.controller import AttitudeMPC, available_mpc_solvers
 
     show = progress or _progress_fn(False)
-    model = rigid_spacecraft(np.diag([3.0, 2.5, 3.5]),
-                             WheelArray.pyramid(h_max=0.2, m_max=0.05))
+    sc = load_spacecraft("demo" if spacecraft is None else spacecraft)
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
     x0 = model.state([1.0, 0.0, 0.0, 0.0])
     qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
     ref = AttitudeMPC(model, solver="ipopt", max_iter=3000,
@@ -435,7 +475,8 @@ def _plot(rows: Sequence[BenchRow], path: Path) -> None:
 def run_bench(out_dir=None, *, problems: Sequence[str] = PROBLEMS,
               backends: Sequence[str] | None = None,
               repetitions: int | None = None, quick: bool = False,
-              progress: bool = True, seed: int = 0) -> list[BenchRow]:
+              progress: bool = True, seed: int = 0,
+              spacecraft=None) -> list[BenchRow]:
     """Run the benchmark, print the table, write JSON and PNG.
 
     Parameters
@@ -457,6 +498,10 @@ def run_bench(out_dir=None, *, problems: Sequence[str] = PROBLEMS,
         Print progress to stderr.
     seed : int
         Seed of the random problems.
+    spacecraft : ocp.spacecraft.Spacecraft, str or pathlib.Path, optional
+        The craft whose wheels, thrusters and inertia are benchmarked (a
+        catalogue name or a TOML file); default: the pyramid, the
+        six-thruster unit and the ``demo`` craft of earlier figures.
 
     Returns
     -------
@@ -478,22 +523,24 @@ def run_bench(out_dir=None, *, problems: Sequence[str] = PROBLEMS,
     if int(reps) < 1:
         raise InvalidValueError(f"repetitions must be >= 1, got {reps!r}")
     reps = int(reps)
+    _check_backends(backends)
+    if spacecraft is not None:
+        spacecraft = load_spacecraft(spacecraft)
     show = _progress_fn(progress)
     rows: list[BenchRow] = []
     if "wheels" in probs:
-        show("[wheels] bounded allocation QP, 4-wheel pyramid")
-        rows += bench_wheels(backends, reps, seed, show)
+        show("[wheels] bounded allocation QP")
+        rows += bench_wheels(backends, reps, seed, show, spacecraft)
     if "thrusters" in probs:
         show("[thrusters] duty-cycle QP, six-thruster unit")
-        rows += bench_thrusters(backends, reps, seed, show)
+        rows += bench_thrusters(backends, reps, seed, show, spacecraft)
     if "slew" in probs:
         show("[slew] MPC slew NLP, horizon 20")
         rows += bench_slew(backends, max(reps // 5, 2) if not quick else 2,
-                           show, quick)
+                           show, quick, spacecraft)
     print(format_table(rows))
     if out_dir is not None:
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
+        out = output_folder(out_dir, "out")
         (out / "bench.json").write_text(json.dumps(
             {"tolerance": TOL, "repetitions": reps,
              "rows": [asdict(r) for r in rows]}, indent=2))

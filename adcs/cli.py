@@ -19,22 +19,29 @@ def _report(args: argparse.Namespace) -> int:
     studies = None
     if args.studies:
         studies = [s.strip() for s in args.studies.split(",") if s.strip()]
-    run_report(args.out, quick=args.quick, studies=studies)
+    run_report(args.out, quick=args.quick, studies=studies,
+               spacecraft=args.spacecraft)
     return 0
 
 
 def _export(args: argparse.Namespace) -> int:
     from allocation import WheelArray
-    from thrusters import six_thruster_unit
 
     from ocp.codegen.export import export_c, run_driver
+    from ocp.spacecraft import load_spacecraft
 
-    wheels = WheelArray.pyramid(h_max=args.h_max, m_max=args.m_max)
+    sc = load_spacecraft(args.spacecraft)
+    if args.h_max is not None or args.m_max is not None:
+        w = sc.wheels
+        h = w.h_max if args.h_max is None else args.h_max
+        m = w.m_max if args.m_max is None else args.m_max
+        sc = sc.with_wheels(WheelArray(w.axes, h, m, w.failed, w.names,
+                                       w.scale))
     variants = [v.strip() for v in args.mpc.split(",") if v.strip()]
-    print(f"adcs export: generating C in {args.out} ...", flush=True)
-    res = export_c(args.out, wheels=wheels, thrusters=six_thruster_unit(),
-                   dt=args.dt, horizon=args.horizon, mpc_variants=variants,
-                   build=args.build or args.run)
+    print(f"adcs export: generating C for {sc.name!r} in {args.out} ...",
+          flush=True)
+    res = export_c(args.out, sc, dt=args.dt, horizon=args.horizon,
+                   mpc_variants=variants, build=args.build or args.run)
     for p in (res.source, res.header, res.driver, res.makefile,
               res.readme):
         print(f"  wrote {p}")
@@ -56,8 +63,23 @@ def _bench(args: argparse.Namespace) -> int:
                 or None)
     run_bench(args.out, problems=problems, backends=backends,
               repetitions=args.repetitions, quick=args.quick,
-              progress=not args.no_progress)
+              progress=not args.no_progress, spacecraft=args.spacecraft)
     return 0
+
+
+def _spacecraft(args: argparse.Namespace) -> int:
+    from ocp.spacecraft import list_spacecraft, spacecraft_toml
+
+    if args.list or args.name is None:
+        for name, description in list_spacecraft().items():
+            print(f"{name:14s} {description}")
+        return 0
+    print(spacecraft_toml(args.name), end="")
+    return 0
+
+
+SPACECRAFT_HELP = ("the spacecraft: a built-in name (adcs spacecraft "
+                   "--list) or a TOML file")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -77,6 +99,9 @@ def build_parser() -> argparse.ArgumentParser:
                      "--list")
     rep.add_argument("--list", action="store_true",
                      help="list the studies and exit")
+    rep.add_argument("--spacecraft", default=None,
+                     help=SPACECRAFT_HELP + " (default demo), for the "
+                     "studies that apply to any craft")
     rep.set_defaults(func=_report)
 
     exp = sub.add_parser("export", help="generate C code (allocation "
@@ -84,10 +109,12 @@ def build_parser() -> argparse.ArgumentParser:
                          "driver")
     exp.add_argument("--out", default="adcs-c",
                      help="output folder (default ./adcs-c)")
-    exp.add_argument("--h-max", type=float, default=0.2,
-                     help="wheel momentum bound [N·m·s] (pyramid)")
-    exp.add_argument("--m-max", type=float, default=0.05,
-                     help="wheel torque bound [N·m] (pyramid)")
+    exp.add_argument("--spacecraft", default="demo",
+                     help=SPACECRAFT_HELP + " (default demo)")
+    exp.add_argument("--h-max", type=float, default=None,
+                     help="override every wheel's momentum bound [N·m·s]")
+    exp.add_argument("--m-max", type=float, default=None,
+                     help="override every wheel's torque bound [N·m]")
     exp.add_argument("--dt", type=float, default=0.5,
                      help="sample time [s]")
     exp.add_argument("--horizon", type=int, default=20,
@@ -117,7 +144,18 @@ def build_parser() -> argparse.ArgumentParser:
                      help="small settings (CI, a first look)")
     ben.add_argument("--no-progress", action="store_true",
                      help="do not print progress")
+    ben.add_argument("--spacecraft", default=None,
+                     help=SPACECRAFT_HELP + " (default: the pyramid, the "
+                     "six-thruster unit and the demo craft)")
     ben.set_defaults(func=_bench)
+
+    scp = sub.add_parser("spacecraft", help="list the built-in spacecraft "
+                         "or print one's TOML")
+    scp.add_argument("name", nargs="?", default=None,
+                     help="a built-in name or a TOML file to print")
+    scp.add_argument("--list", action="store_true",
+                     help="list the built-in spacecraft")
+    scp.set_defaults(func=_spacecraft)
     return parser
 
 

@@ -13,9 +13,12 @@ from pathlib import Path
 from typing import Any, Callable, Sequence, TextIO
 
 from adcs_common.exceptions import InvalidValueError
+from adcs_common.paths import output_folder
+from ocp.spacecraft import load_spacecraft
 
 #: study key -> (module in adcs.studies, title); the order of the report.
 STUDIES: dict[str, tuple[str, str]] = {
+    "spacecraft": ("spacecraft", "Your spacecraft through every tool"),
     "wheels": ("wheels", "Meteor-M No. 2 wheel pyramid (seed 001)"),
     "accuracy": ("accuracy", "Torque accuracy under mounting and "
                  "scale-factor errors (seed 001)"),
@@ -96,10 +99,16 @@ PAPER_COLUMNS = ["quantity", "paper / SPEC", "ours", "ours − paper", "note"]
 
 @dataclass(frozen=True)
 class StudyContext:
-    """What a study gets: where to save figures, and the quick switch."""
+    """What a study gets: figure folder, quick switch, the user's craft.
+
+    ``spacecraft`` (a `Spacecraft`, catalogue name, TOML path or None) is
+    used by the studies that apply to any craft; the paper studies stay
+    on their papers' craft.
+    """
 
     out: Path
     quick: bool
+    spacecraft: Any = None
 
     def savefig(self, fig: Any, name: str) -> str:
         """Save a matplotlib figure as ``name`` in the output folder."""
@@ -180,7 +189,8 @@ def _html(sections: Sequence[Section], title: str, out: Path) -> str:
 
 def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
                studies: Sequence[str] | None = None,
-               stream: TextIO | None = sys.stdout) -> list[Section]:
+               stream: TextIO | None = sys.stdout,
+               spacecraft: Any = None) -> list[Section]:
     """Run the studies and write ``report.html`` and ``report.md``.
 
     Parameters
@@ -193,6 +203,9 @@ def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
         Keys of `STUDIES` to run (default all, in report order).
     stream : text stream or None
         Where progress and the summary are printed.
+    spacecraft : ocp.spacecraft.Spacecraft, str or pathlib.Path, optional
+        The craft of the studies that apply to any craft (a catalogue
+        name or a TOML file; default the built-in ``demo``).
 
     Returns
     -------
@@ -211,9 +224,10 @@ def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
     if unknown:
         raise InvalidValueError(
             f"unknown study {unknown}; choose from {', '.join(STUDIES)}")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    ctx = StudyContext(out, quick)
+    if spacecraft is not None:
+        spacecraft = load_spacecraft(spacecraft)
+    out = output_folder(out, "out")
+    ctx = StudyContext(out, quick, spacecraft)
     say: Callable[[str], None] = (lambda msg: print(msg, file=stream,
                                                     flush=True)) \
         if stream is not None else (lambda msg: None)

@@ -19,6 +19,8 @@ from adcs_common.exceptions import InfeasibleError, InvalidValueError
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 from allocation import WheelArray, min_norm_gains
 
+from ocp.spacecraft.definition import Spacecraft, spacecraft_parts
+
 from adcs_common.quaternion import quat_conj, quat_mul, rotation_between
 from ocp.models.rigid import SpacecraftModel, check_inertia, rigid_spacecraft
 from ocp.models.trajectory import SlewTrajectory
@@ -224,8 +226,8 @@ def eigenaxis_slew(inertia, q0, qf, *, wheels: WheelArray | None = None,
 
     Parameters
     ----------
-    inertia : array_like (3, 3) or (3,)
-        J [kg·m²].
+    inertia : array_like (3, 3) or (3,), or ocp.spacecraft.Spacecraft
+        J [kg·m²], or a `Spacecraft` (its wheels are used).
     q0, qf : array_like (4,)
         Initial and final attitude (scalar-first); the shorter rotation is
         taken.
@@ -248,6 +250,9 @@ def eigenaxis_slew(inertia, q0, qf, *, wheels: WheelArray | None = None,
     InfeasibleError
         The actuators cannot turn the body about the eigenaxis.
     """
+    if isinstance(inertia, Spacecraft) and rate_max is None:
+        rate_max = inertia.rate_max
+    inertia, wheels, _ = spacecraft_parts(inertia, wheels)
     J = check_inertia(inertia)
     q0 = _unit_quat(q0, "q0")
     qf = _unit_quat(qf, "qf")
@@ -380,6 +385,7 @@ def quaternion_feedback_slew(inertia, q0, qf, *,
         ``status`` is ``"settled"`` (``T`` the settling time) or
         ``"not_settled"`` (``T`` NaN, ``success`` False).
     """
+    inertia, wheels, _ = spacecraft_parts(inertia, wheels)
     J = check_inertia(inertia)
     q0 = _unit_quat(q0, "q0")
     qf = _unit_quat(qf, "qf")

@@ -45,11 +45,13 @@ import casadi as ca
 import numpy as np
 
 from adcs_common.exceptions import AdcsError, InvalidValueError
+from adcs_common.paths import output_folder
 from adcs_common.validation import as_finite_scalar, check_positive
 from allocation import WheelArray, conic_allocator_function, min_norm_function
 from allocation.qp.conic_function import conic_c_flags, wheel_qp_method
 
 from ocp.models.rigid import SpacecraftModel, rigid_spacecraft
+from ocp.spacecraft import load_spacecraft
 
 __all__ = [
     "CompilerNotFound",
@@ -292,7 +294,8 @@ def _renamed(f: ca.Function, name: str) -> ca.Function:
     return ca.Function(name, args, f.call(args), f.name_in(), f.name_out())
 
 
-def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
+def export_c(out_dir, spacecraft=None, *,
+             wheels: WheelArray | None = None, thrusters=None,
              inertia=None, cycle: float = 2.0,
              thruster_h_max: float = 0.012, dt: float = 0.5,
              horizon: int = 20,
@@ -308,7 +311,11 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
     ----------
     out_dir : str or pathlib.Path
         Output folder (created).
-    wheels : WheelArray
+    spacecraft : ocp.spacecraft.Spacecraft, str or pathlib.Path, optional
+        The craft (a `Spacecraft`, a catalogue name or a TOML file): its
+        wheels, thrusters and inertia. Give it or ``wheels`` (with the
+        optional ``thrusters`` and ``inertia``), not both.
+    wheels : WheelArray, optional
         Wheel array of the allocation laws, model and MPC.
     thrusters : thrusters.ThrusterSet, optional
         Thruster set of the duty-cycle QP (skipped when None).
@@ -358,8 +365,15 @@ def export_c(out_dir, *, wheels: WheelArray, thrusters=None,
         ``build`` is True and ``cc`` is not on PATH (the sources are
         written first).
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    if spacecraft is not None:
+        if wheels is not None or thrusters is not None or inertia is not None:
+            raise InvalidValueError(
+                "give spacecraft= or wheels=/thrusters=/inertia=, not both")
+        sc = load_spacecraft(spacecraft)
+        wheels, thrusters, inertia = sc.wheels, sc.thrusters, sc.inertia
+    elif wheels is None:
+        raise InvalidValueError("give spacecraft= or wheels= (a WheelArray)")
+    out = output_folder(out_dir, "out_dir")
     if int(repeats) < 1:
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)

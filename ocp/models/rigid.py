@@ -35,6 +35,8 @@ from adcs_common.validation import as_finite_array, as_vector, check_positive
 from allocation import WheelArray
 from thrusters import ThrusterSet
 
+from ocp.spacecraft.definition import spacecraft_parts
+
 from adcs_common.quaternion import quat_rate, quat_to_dcm
 from ocp.models.angles import ek_angle_rates
 
@@ -342,8 +344,9 @@ def rigid_spacecraft(inertia, wheels: WheelArray | None = None, *,
 
     Parameters
     ----------
-    inertia : array_like (3, 3) or (3,)
-        Inertia J [kg·m²] (rotor spin inertia excluded, see module doc).
+    inertia : array_like (3, 3) or (3,), or ocp.spacecraft.Spacecraft
+        Inertia J [kg·m²] (rotor spin inertia excluded, see module doc),
+        or a whole `Spacecraft` (its wheels and thrusters are used).
     wheels : WheelArray, optional
         Wheel array; its scale factors and failures enter ``Ḣ_w = s m``.
     torque_max : float or array_like (3,), optional
@@ -365,6 +368,7 @@ def rigid_spacecraft(inertia, wheels: WheelArray | None = None, *,
         Both ``wheels`` and ``torque_max``, none of the three actuators, a
         torque box with thrusters, or bad values.
     """
+    inertia, wheels, thrusters = spacecraft_parts(inertia, wheels, thrusters)
     J = check_inertia(inertia)
     if wheels is not None and torque_max is not None:
         raise InvalidValueError(

@@ -58,6 +58,7 @@ from adcs_common.validation import (
 
 from adcs_common.quaternion import quat_conj, quat_mul
 from ocp.models.rigid import SpacecraftModel
+from ocp.spacecraft.definition import Spacecraft
 from ocp.models.trajectory import SlewTrajectory
 
 __all__ = [
@@ -182,10 +183,11 @@ class AttitudeMPC:
 
     Parameters
     ----------
-    model : SpacecraftModel
+    model : SpacecraftModel or ocp.spacecraft.Spacecraft
         Spacecraft with a wheel array (`ocp.rigid_spacecraft` with
         ``wheels``), optionally with a thruster set (duties in [0, 1],
-        propellant in the cost).
+        propellant in the cost); a `Spacecraft` gives its model and its
+        ``rate_max`` (unless ``rate_max`` is given).
     horizon : int
         Number of intervals N (>= 2).
     dt : float
@@ -231,6 +233,10 @@ class AttitudeMPC:
                  rate_max: float | None = None, max_iter: int = 50,
                  expand: bool = True,
                  solver_options: dict | None = None) -> None:
+        if isinstance(model, Spacecraft):
+            if rate_max is None:
+                rate_max = model.rate_max
+            model = model.model()
         if not isinstance(model, SpacecraftModel) or model.wheels is None:
             raise InvalidValueError(
                 "model must be a SpacecraftModel with a wheel array "

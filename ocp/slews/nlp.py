@@ -43,6 +43,8 @@ from adcs_common.exceptions import (
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 from allocation import WheelArray, min_norm_gains
 
+from ocp.spacecraft.definition import Spacecraft, spacecraft_parts
+
 from adcs_common.quaternion import (
     quat_conj,
     quat_mul,
@@ -230,6 +232,9 @@ class _Setup:
 
 def _setup(inertia, q0, qf, wheels, torque_max, h0, rate_max,
            keep_out=None) -> _Setup:
+    if isinstance(inertia, Spacecraft) and rate_max is None:
+        rate_max = inertia.rate_max
+    inertia, wheels, _ = spacecraft_parts(inertia, wheels)
     J = check_inertia(inertia)
     q0 = _unit_quat(q0, "q0")
     qf = _unit_quat(qf, "qf")
@@ -1082,8 +1087,9 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
 
     Parameters
     ----------
-    inertia : array_like (3, 3) or (3,)
-        J [kg·m²].
+    inertia : array_like (3, 3) or (3,), or ocp.spacecraft.Spacecraft
+        J [kg·m²], or a `Spacecraft` (its wheels, and its ``rate_max``
+        unless given here).
     q0, qf : array_like (4,)
         Initial and final attitude (scalar-first, body to reference).
     torque_max : float or array_like (3,), optional

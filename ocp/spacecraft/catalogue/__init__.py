@@ -1,0 +1,1 @@
+"""Built-in spacecraft: TOML files read by `load_spacecraft`."""

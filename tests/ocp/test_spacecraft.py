@@ -1,0 +1,208 @@
+"""One spacecraft definition: Python, TOML files, the catalogue."""
+
+import numpy as np
+import pytest
+
+from allocation import WheelArray
+from ocp import eigenaxis_slew, rigid_spacecraft, time_optimal_slew
+from ocp.missions.four_wheel_lagrange import FOUR_WHEEL_INERTIA
+from ocp.mpc import AttitudeMPC
+from ocp.slews.compare import (
+    METEOR_M_INERTIA,
+    four_wheel_slew_spacecraft,
+    meteor_m_spacecraft,
+)
+from ocp.spacecraft import (
+    Spacecraft,
+    SpacecraftFileError,
+    list_spacecraft,
+    load_spacecraft,
+    spacecraft_from_toml,
+)
+from thrusters import six_thruster_unit
+
+MY_SAT = """
+name = "my-sat"
+inertia = [[120.0, 1.2, 0.0], [1.2, 95.0, 0.0], [0.0, 0.0, 80.0]]
+[wheels]
+pyramid = { delta_deg = 55.0, gamma_deg = 45.0 }
+h_max = 4.0
+m_max = 0.2
+failed = [2]
+[thrusters]
+kind = "six_thruster_unit"
+R = 0.25
+L = 0.3
+thrust = 0.5
+"""
+
+
+def test_the_issue_example_file_loads_with_wheel_2_failed():
+    sc = spacecraft_from_toml(MY_SAT)
+    assert sc.name == "my-sat"
+    np.testing.assert_array_equal(sc.inertia[0], [120.0, 1.2, 0.0])
+    assert sc.wheels.failed == (1,)            # wheel 2, 0-based 1
+    ref = WheelArray.pyramid(np.deg2rad(55), np.deg2rad(45), h_max=4.0,
+                             m_max=0.2)
+    np.testing.assert_array_equal(sc.wheels.axes, ref.axes)
+    np.testing.assert_array_equal(sc.thrusters.torque_matrix(),
+                                  six_thruster_unit().torque_matrix())
+
+
+def test_a_diagonal_inertia_and_per_wheel_capacities():
+    sc = spacecraft_from_toml("""
+name = "d"
+inertia = [10.0, 20.0, 30.0]
+[wheels]
+axes = [[2, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]]
+h_max = [1.0, 2.0, 3.0, 4.0]
+m_max = 0.1
+""")
+    np.testing.assert_array_equal(sc.inertia, np.diag([10.0, 20.0, 30.0]))
+    np.testing.assert_array_equal(sc.wheels.h_max, [1.0, 2.0, 3.0, 4.0])
+    np.testing.assert_allclose(sc.wheels.axes[:, 3], np.ones(3) / 3**0.5,
+                               rtol=1e-15)
+    assert sc.thrusters is None
+
+
+@pytest.mark.parametrize("name", sorted(list_spacecraft()))
+def test_every_built_in_round_trips_through_toml(name, tmp_path):
+    sc = load_spacecraft(name)
+    path = tmp_path / f"{name}.toml"
+    sc.save(path)
+    back = load_spacecraft(path)
+    assert back.name == sc.name and back.description == sc.description
+    np.testing.assert_array_equal(back.inertia, sc.inertia)
+    np.testing.assert_array_equal(back.wheels.axes, sc.wheels.axes)
+    np.testing.assert_array_equal(back.wheels.h_max, sc.wheels.h_max)
+    np.testing.assert_array_equal(back.wheels.m_max, sc.wheels.m_max)
+    assert back.wheels.failed == sc.wheels.failed
+    if sc.thrusters is not None:
+        np.testing.assert_allclose(back.thrusters.torque_matrix(),
+                                   sc.thrusters.torque_matrix(),
+                                   rtol=1e-15, atol=1e-18)
+        assert back.thrusters.pairs == sc.thrusters.pairs
+
+
+def test_catalogue_equals_what_the_code_used():
+    J, wheels = meteor_m_spacecraft()
+    mm = load_spacecraft("Meteor-M")             # names are case-blind
+    np.testing.assert_array_equal(mm.inertia, METEOR_M_INERTIA)
+    np.testing.assert_array_equal(mm.wheels.axes, wheels.axes)
+    np.testing.assert_array_equal(mm.wheels.h_max, wheels.h_max)
+    J4, w4 = four_wheel_slew_spacecraft()
+    fw = load_spacecraft("four-wheel")
+    np.testing.assert_allclose(fw.inertia, J4, rtol=1e-15, atol=0)
+    np.testing.assert_allclose(fw.wheels.axes, w4.axes, atol=1e-16)
+    np.testing.assert_array_equal(fw.wheels.m_max, w4.m_max)
+    assert not np.allclose(fw.inertia, FOUR_WHEEL_INERTIA)  # rotors added
+    demo = load_spacecraft("demo")
+    np.testing.assert_array_equal(demo.inertia, np.diag([3.0, 2.5, 3.5]))
+    np.testing.assert_array_equal(
+        demo.wheels.axes, WheelArray.pyramid(h_max=0.2, m_max=0.05).axes)
+    np.testing.assert_array_equal(demo.thrusters.torque_matrix(),
+                                  six_thruster_unit().torque_matrix())
+
+
+def test_bilimoria_wie_craft_gives_the_benchmark_time():
+    sc = load_spacecraft("bilimoria-wie")
+    traj = time_optimal_slew(sc, [1, 0, 0, 0], [0, 1, 0, 0], N=40)
+    assert traj.success
+    assert traj.T == pytest.approx(3.2430, abs=3e-3)   # paper: 3.2430 s
+
+
+def test_every_tool_takes_a_spacecraft():
+    sc = spacecraft_from_toml(MY_SAT)
+    model = rigid_spacecraft(sc)
+    assert model.n_wheels == 4 and model.thrusters is not None
+    ref = rigid_spacecraft(sc.inertia, sc.wheels, thrusters=sc.thrusters)
+    x = model.state([1, 0, 0, 0], [0.01, -0.02, 0.03], [0.1, 0, -0.2, 0.3])
+    u = np.r_[0.05, 0.0, -0.1, 0.02, np.full(6, 0.3)]
+    np.testing.assert_array_equal(model.dynamics(x, u, np.zeros(3)),
+                                  ref.dynamics(x, u, np.zeros(3)))
+    qf = [np.cos(0.5), np.sin(0.5), 0, 0]
+    assert eigenaxis_slew(sc, [1, 0, 0, 0], qf).T == pytest.approx(
+        eigenaxis_slew(sc.inertia, [1, 0, 0, 0], qf, wheels=sc.wheels).T,
+        rel=1e-15)
+    mpc = AttitudeMPC(sc, horizon=5)
+    assert mpc.model.n_wheels == 4
+    with pytest.raises(ValueError, match="Spacecraft"):
+        rigid_spacecraft(sc, sc.wheels)
+
+
+def test_rate_limit_of_the_craft_reaches_the_slew():
+    base = load_spacecraft("demo")
+    slow = Spacecraft(base.name, base.inertia, base.wheels,
+                      rate_max=np.deg2rad(1.0))
+    qf = [np.cos(0.5), np.sin(0.5), 0, 0]
+    t_fast = eigenaxis_slew(base, [1, 0, 0, 0], qf).T
+    t_slow = eigenaxis_slew(slow, [1, 0, 0, 0], qf)
+    assert t_slow.T > t_fast
+    assert t_slow.peak_rate == pytest.approx(np.deg2rad(1.0), rel=1e-9)
+
+
+BAD = [
+    ("", "not valid TOML", "name = \n"),
+    ("inertia", "missing", 'name = "x"\n[wheels]\naxes=[[1,0,0]]\n'
+     "h_max=1\nm_max=1\n"),
+    ("inertia", "positive definite", 'name = "x"\ninertia = [1, -2, 3]\n'
+     "[wheels]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\nh_max=1\nm_max=1\n"),
+    ("inertia", "symmetric", 'name = "x"\ninertia = [[1, 2, 0], [0, 1, 0],'
+     " [0, 0, 1]]\n[wheels]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\nh_max=1\n"
+     "m_max=1\n"),
+    ("wheels.axes", "zero spin axis", 'name = "x"\ninertia = [1, 2, 3]\n'
+     "[wheels]\naxes=[[1,0,0],[0,0,0],[0,0,1]]\nh_max=1\nm_max=1\n"),
+    ("wheels.failed", "out of range", 'name = "x"\ninertia = [1, 2, 3]\n'
+     "[wheels]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\nh_max=1\nm_max=1\n"
+     "failed = [4]\n"),
+    ("wheels.failed", "numbers", 'name = "x"\ninertia = [1, 2, 3]\n'
+     "[wheels]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\nh_max=1\nm_max=1\n"
+     "failed = [1.5]\n"),
+    ("thrusters.kind", "unknown thruster kind", 'name = "x"\n'
+     "inertia = [1, 2, 3]\n[wheels]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\n"
+     'h_max=1\nm_max=1\n[thrusters]\nkind = "ion"\n'),
+    ("wheels.m_max", "missing", 'name = "x"\ninertia = [1, 2, 3]\n'
+     "[wheels]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\nh_max=1\n"),
+    ("wheels", "m_max must be positive", 'name = "x"\ninertia = [1, 2, 3]\n'
+     "[wheels]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\nh_max=1\nm_max=-1\n"),
+    ("wheels.h_max", "must be a number", 'name = "x"\ninertia = [1, 2, 3]\n'
+     '[wheels]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\nh_max="big"\nm_max=1\n'),
+    ("", "unknown key", 'name = "x"\nmass = 3\ninertia = [1, 2, 3]\n'
+     "[wheels]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\nh_max=1\nm_max=1\n"),
+    ("wheels", "exactly one layout", 'name = "x"\ninertia = [1, 2, 3]\n'
+     "[wheels]\nh_max=1\nm_max=1\n"),
+]
+
+
+@pytest.mark.parametrize("key, problem, text", BAD,
+                         ids=[f"{k or 'file'}-{p}" for k, p, _ in BAD])
+def test_a_bad_file_gets_one_error_naming_the_key(key, problem, text):
+    with pytest.raises(SpacecraftFileError, match=problem) as info:
+        spacecraft_from_toml(text, "my.toml")
+    assert info.value.key == key
+    assert str(info.value).startswith("my.toml: ")
+
+
+def test_unknown_names_and_unreadable_files(tmp_path):
+    with pytest.raises(SpacecraftFileError, match="built-ins: "):
+        load_spacecraft("no-such-craft")
+    with pytest.raises(SpacecraftFileError, match="cannot be read"):
+        load_spacecraft(tmp_path / "missing.toml")
+    with pytest.raises(SpacecraftFileError, match="catalogue name"):
+        load_spacecraft(None)
+    with pytest.raises(SpacecraftFileError, match="is a folder"):
+        load_spacecraft("demo").save(tmp_path)
+
+
+@pytest.mark.parametrize("field, value, match", [
+    ("inertia", np.diag([1.0, np.nan, 1.0]), "finite"),
+    ("wheels", "pyramid", "WheelArray"),
+    ("rate_max", -1.0, "rate_max"),
+    ("name", "", "name"),
+])
+def test_spacecraft_checks_its_fields(field, value, match):
+    kw = dict(name="x", inertia=np.eye(3),
+              wheels=WheelArray.pyramid(h_max=1.0, m_max=0.1))
+    kw[field] = value
+    with pytest.raises(ValueError, match=match):
+        Spacecraft(**kw)
