@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.optimize import linprog, lsq_linear, minimize
+from scipy.optimize import linprog
 
 from thrusters import (
     DutyCycleAllocator,
@@ -44,14 +44,15 @@ TOL = 1e-6
 
 
 def reference(qp, theta):
-    """Exact optimum of the canonical QP at ``theta``.
+    """Exact optimum of the canonical QP at ``theta``, certified.
 
-    SLSQP (started at HiGHS's LP vertex) guesses the active set; a primal
-    active-set loop then solves the KKT system exactly on it, adding
-    violated and dropping wrong-sign constraints; the result is certified
-    (feasible, multipliers of the right sign by bounded least squares).
-    P is positive definite, so a KKT point is the unique optimum.
+    quadprog (Goldfarb–Idnani dual active set, exact, and not a backend
+    the fast path uses) solves the QP; the answer is then certified here:
+    feasible, stationary with multipliers of the right sign, and
+    complementary. P is positive definite, so a KKT point is the unique
+    optimum.
     """
+    quadprog = pytest.importorskip("quadprog")
     q, l, u = qp.vectors(theta)
     ne = qp.n_eq
     up = qp.upper_rows.copy()
@@ -64,53 +65,15 @@ def reference(qp, theta):
     G = np.vstack([A[up], -A[lo], E, -E])
     h = np.concatenate([u[up], -l[lo], ub, -qp.lb])
     Aeq, beq = A[:ne], l[:ne]
-    lp = linprog(q, A_ub=G, b_ub=h, A_eq=Aeq, b_eq=beq,
-                 bounds=[(None, None)] * qp.nx, method="highs")
-    assert lp.status == 0
-    res = minimize(lambda x: 0.5 * x @ qp.P @ x + q @ x, lp.x,
-                   jac=lambda x: qp.P @ x + q, method="SLSQP",
-                   constraints=[{"type": "eq", "fun": lambda x: Aeq @ x - beq,
-                                 "jac": lambda x: Aeq},
-                                {"type": "ineq", "fun": lambda x: h - G @ x,
-                                 "jac": lambda x: -G}],
-                   options={"ftol": 1e-16, "maxiter": 2000})
-    W = set(np.flatnonzero(h - G @ res.x < 1e-8))
-    for _ in range(50):
-        idx = sorted(W)
-        C = np.vstack([Aeq, G[idx]])
-        d = np.concatenate([beq, h[idx]])
-        m = C.shape[0]
-        K = np.block([[qp.P, C.T], [C, np.zeros((m, m))]])
-        sol = np.linalg.lstsq(K, np.concatenate([-q, d]), rcond=None)[0]
-        x = sol[:qp.nx]
-        if np.abs(C @ x - d).max() > 1e-8:       # inconsistent working set
-            W.discard(idx[int(np.argmax(np.abs(G[idx] @ x - h[idx])))])
-            continue
-        viol = G @ x - h
-        viol[idx] = 0.0
-        if viol.max() > 1e-9:
-            W.add(int(np.argmax(viol)))
-            continue
-        # multipliers of the working set (equalities free, G rows >= 0)
-        B = np.hstack([Aeq.T, G[idx].T])
-        grad = qp.P @ x + q
-        lam_all = np.linalg.lstsq(B, -grad, rcond=None)[0]
-        scale = 1.0 + np.linalg.norm(grad) + np.linalg.norm(lam_all)
-        stationary = np.linalg.norm(B @ lam_all + grad) < 1e-9 * scale
-        lam = lam_all[ne:]
-        if stationary and (lam.size == 0 or lam.min() >= -1e-9 * scale):
-            break
-        # degenerate working sets have many multipliers: look for a
-        # sign-correct one before dropping a constraint
-        lo_b = np.concatenate([np.full(ne, -np.inf), np.zeros(len(idx))])
-        cert = lsq_linear(B, -grad, bounds=(lo_b, np.inf), tol=1e-15)
-        if np.sqrt(2 * cert.cost) < 1e-9 * scale:
-            break
-        W.discard(idx[int(np.argmin(lam))])
-    else:
-        raise AssertionError("reference active-set loop did not converge")
-    assert np.all(G @ x <= h + 1e-8)
-    assert np.allclose(Aeq @ x, beq, atol=1e-8)
+    C = np.vstack([Aeq, -G])                   # quadprog: C x >= b
+    b = np.concatenate([beq, -h])
+    x, _, _, _, lam, _ = quadprog.solve_qp(qp.P, -q, C.T, b, meq=ne)
+    scale = 1.0 + np.linalg.norm(q) + np.linalg.norm(lam)
+    assert np.all(G @ x <= h + 1e-9)
+    assert np.allclose(Aeq @ x, beq, atol=1e-9)
+    assert np.linalg.norm(qp.P @ x + q - C.T @ lam) < 1e-9 * scale
+    assert np.all(lam[ne:] >= -1e-12 * scale)
+    assert np.all(np.abs(lam[ne:] * (G @ x - h)) < 1e-9 * scale)
     return x
 
 
