@@ -74,7 +74,7 @@ def check_inertia(inertia, name: str = "inertia") -> np.ndarray:
     return J
 
 
-def _effective_torque_matrix(wheels: WheelArray) -> tuple[np.ndarray,
+def effective_torque_matrix(wheels: WheelArray) -> tuple[np.ndarray,
                                                            np.ndarray]:
     """(axes A (3, N), per-wheel torque factor scale·active (N,))."""
     return np.array(wheels.axes), wheels.scale * wheels.active
@@ -409,7 +409,7 @@ def rigid_spacecraft(inertia, wheels: WheelArray | None = None, *,
         if not isinstance(wheels, WheelArray):
             raise InvalidValueError(
                 f"wheels must be a WheelArray, got {type(wheels).__name__}")
-        A, s = _effective_torque_matrix(wheels)
+        A, s = effective_torque_matrix(wheels)
         n = wheels.n_wheels
         h = ca.SX.sym("h", n)
         u = ca.SX.sym("u", n)
@@ -452,7 +452,7 @@ def euler_krylov_model(inertia, wheels: WheelArray | None = None
         wdot = Jinv @ (-ca.cross(w, Jdm @ w) + u + tau)
         xdot = ca.vertcat(ek_angle_rates(ang, w), wdot)
     else:
-        A, s = _effective_torque_matrix(wheels)
+        A, s = effective_torque_matrix(wheels)
         h = ca.SX.sym("h", wheels.n_wheels)
         u = ca.SX.sym("u", wheels.n_wheels)
         m = ca.DM(s) * u

@@ -108,7 +108,7 @@ def compare_slews(inertia, wheels: WheelArray, axis, angles_deg, *,
                   feedback_frequency: float | None = None,
                   settle_angle: float = np.deg2rad(0.1),
                   ) -> tuple[list[SlewComparisonRow],
-                             list[SlewTrajectory]]:
+                  list[SlewTrajectory]]:
     """Compare slew laws on one spacecraft for several angles.
 
     For each angle about the body ``axis``: the eigenaxis bang–coast–bang

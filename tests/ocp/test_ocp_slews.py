@@ -252,7 +252,7 @@ def test_cached_solver_gives_the_fresh_result_for_another_target():
     Its target, initial state and scales are parameters; the answer
     agrees with a fresh build.
     """
-    from ocp.slews import nlp as slews
+    from ocp import slews
 
     arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
     kw = dict(wheels=arr, N=30, verify=False)
@@ -271,18 +271,24 @@ def test_cached_solver_gives_the_fresh_result_for_another_target():
 
 
 def test_parametric_dynamics_match_the_model():
+    """The NLP's dynamics with the slew data as parameters = the model."""
     from ocp import rigid_spacecraft
-    from ocp.slews import nlp as slews
+    from ocp.slews.build import slew_data
+    from ocp.slews.setup import setup_slew
+    from ocp.slews.transcription import (
+        param_sizes,
+        rigid_dynamics,
+        split_parameters,
+    )
 
     arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
     model = rigid_spacecraft(J_METEOR, arr)
-    s = slews._setup(J_METEOR, Q0, Q_180X, arr, None, None, None)
-    sizes = slews._param_sizes(model.nx, model.nu, model.n_wheels)
-    d = slews._split(slews._slew_data(s, 1.0, np.r_[Q0, np.zeros(7)]),
-                     sizes)
+    s = setup_slew(J_METEOR, Q0, Q_180X, arr, None, None, None)
+    sizes = param_sizes(model.nx, model.nu, model.n_wheels)
+    d = split_parameters(slew_data(s, 1.0, np.r_[Q0, np.zeros(7)]), sizes)
     rng = np.random.default_rng(1)
     x, u = rng.normal(size=model.nx), rng.normal(size=model.nu)
-    f = slews._rigid_dynamics(ca.DM(x), ca.DM(u), {
+    f = rigid_dynamics(ca.DM(x), ca.DM(u), {
         k: ca.DM(v) for k, v in d.items()}, model.n_wheels)
     ref = model.dynamics(x, u, np.zeros(3))
     np.testing.assert_allclose(np.asarray(f).ravel(),
@@ -298,7 +304,7 @@ jit_needs_cc = pytest.mark.skipif(
 @pytest.mark.slow
 @jit_needs_cc
 def test_jit_library_is_cached_and_solves_like_the_sx_graph(tmp_path):
-    from ocp.slews import nlp as slews
+    from ocp import slews
 
     kw = dict(torque_max=1.0, N=20, verify=False)
     ref = time_optimal_slew(np.eye(3), Q0, Q_180X, **kw)
@@ -396,9 +402,10 @@ def test_bad_keep_outs_are_rejected():
 
 
 def test_failed_coarse_solve_falls_back_to_the_perturbed_guess(monkeypatch):
-    from ocp.slews import nlp as slews
+    from ocp import slews
+    from ocp.slews.solvers import COARSE_OPTIONS
 
-    monkeypatch.setitem(slews.COARSE_OPTIONS, "ipopt",
+    monkeypatch.setitem(COARSE_OPTIONS, "ipopt",
                         {"ipopt": {"max_iter": 2}})
     slews.clear_solver_cache()
     r = time_optimal_slew(np.eye(3), Q0, Q_180X, torque_max=1.0, N=40,
