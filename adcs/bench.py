@@ -390,7 +390,7 @@ def bench_slew(backends: Sequence[str] | None = None, reps: int = 5,
     """
     from adcs_common.quaternion import quat_from_axis_angle
     from ocp.models.rigid import rigid_spacecraft
-    from ocp.mpc.controller import AttitudeMPC, available_mpc_solvers
+    from ocp.mpc import AttitudeMPC, available_mpc_solvers
 
     show = progress or _progress_fn(False)
     sc = load_spacecraft("demo" if spacecraft is None else spacecraft)

@@ -29,7 +29,7 @@ import numpy as np
 
 from allocation import WheelArray
 from ocp import quat_from_axis_angle, rigid_spacecraft
-from ocp.mpc.controller import AttitudeMPC, available_mpc_solvers, simulate_mpc
+from ocp.mpc import AttitudeMPC, available_mpc_solvers, simulate_mpc
 
 
 def run(quick: bool = False, with_c: bool = True, daqp: bool = False,

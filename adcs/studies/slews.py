@@ -19,7 +19,7 @@ def mpc_table(ctx: StudyContext) -> Table:
     from adcs_common.quaternion import quat_from_axis_angle
     from ocp.guidance import eigenaxis_slew
     from ocp.models.rigid import rigid_spacecraft
-    from ocp.mpc.controller import compare_slew
+    from ocp.mpc import compare_slew
 
     wheels = WheelArray.pyramid(np.deg2rad(55), np.deg2rad(45), h_max=0.2,
                                 m_max=0.05)

@@ -32,7 +32,7 @@ def mpc_hold_table(ctx: StudyContext) -> Table:
     from thrusters import six_thruster_unit
 
     from ocp.models.rigid import rigid_spacecraft
-    from ocp.mpc.controller import AttitudeMPC, simulate_mpc
+    from ocp.mpc import AttitudeMPC, simulate_mpc
 
     J = np.diag([3.0, 2.5, 3.5])
     arr = WheelArray.pyramid(m_max=0.005, h_max=0.012)

@@ -1,15 +1,17 @@
 """Receding-horizon attitude control (MPC) and its closed loop."""
 
-from .controller import (
-    AttitudeMPC,
+from .closed_loop import (
     ClosedLoopResult,
-    MPCStep,
-    MPCWeights,
-    QP_SOLVERS,
-    available_mpc_solvers,
     closed_loop_table,
     compare_slew,
     simulate_mpc,
+)
+from .controller import (
+    QP_SOLVERS,
+    AttitudeMPC,
+    MPCStep,
+    MPCWeights,
+    available_mpc_solvers,
 )
 
 __all__ = [

@@ -37,8 +37,7 @@ returns the first control; it exports to C with sqpmethod + qrqp.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -52,130 +51,31 @@ from adcs_common.exceptions import (
 from adcs_common.validation import (
     as_finite_scalar,
     as_vector,
-    check_nonnegative,
     check_positive,
 )
 
 from adcs_common.quaternion import quat_conj, quat_mul
 from ocp.models.rigid import SpacecraftModel
 from ocp.spacecraft.definition import Spacecraft
-from ocp.models.trajectory import SlewTrajectory
+from adcs_common.options import merge_options
+from .problem import (
+    BOUND_TOL,
+    DEFECT_TOL,
+    MPCStep,
+    MPCWeights,
+    QP_SOLVERS,
+    NLP_PLUGINS,
+    available_mpc_solvers,
+)
+
 
 __all__ = [
     "AttitudeMPC",
-    "ClosedLoopResult",
     "MPCStep",
     "MPCWeights",
     "QP_SOLVERS",
     "available_mpc_solvers",
-    "closed_loop_table",
-    "compare_slew",
-    "simulate_mpc",
 ]
-
-#: Conic plugins accepted by ``solver="sqpmethod"`` (code-generatable).
-QP_SOLVERS = ("qrqp", "daqp")
-#: NLP solver names -> CasADi nlpsol plugin.
-_NLP_PLUGINS = {"ipopt": "ipopt", "sqpmethod": "sqpmethod",
-                "fatrop": "fatrop"}
-#: Largest bound violation [scaled, 1] accepted on a returned plan.
-BOUND_TOL = 1e-6
-#: Largest dynamics defect accepted on a converged (non-RTI) plan.
-DEFECT_TOL = 1e-6
-
-
-def available_mpc_solvers() -> tuple[str, ...]:
-    """MPC solver names whose CasADi plugin loads on this installation."""
-    names = []
-    for name, plugin in _NLP_PLUGINS.items():
-        try:
-            ok = ca.has_nlpsol(plugin)
-        except RuntimeError:
-            ok = False
-        if ok and (name != "sqpmethod"
-                   or any(ca.has_conic(q) for q in QP_SOLVERS)):
-            names.append(name)
-    return tuple(names)
-
-
-@dataclass(frozen=True)
-class MPCWeights:
-    """Weights of the MPC cost (all dimensionless, see module doc).
-
-    Attributes
-    ----------
-    attitude : float
-        :math:`w_q` on :math:`\\|\\mathrm{vec}(q_f^*\\otimes q)\\|^2
-        = \\sin^2(θ/2)` [1].
-    rate : float
-        :math:`w_ω` on :math:`\\|ω\\|^2` [s²/rad²].
-    torque : float
-        :math:`w_m` on :math:`\\|m / m_{max}\\|^2` [1].
-    momentum : float
-        :math:`w_H` on :math:`\\|H / h_{max}\\|^2` [1] (keeps the wheels
-        near zero momentum in holds).
-    terminal : float
-        Factor :math:`c_N` on the last stage's attitude and rate terms.
-    propellant : float
-        :math:`w_p` on the thruster duties weighted by propellant rate
-        (linear; only with a thruster set) [1].
-    """
-
-    attitude: float = 100.0
-    rate: float = 100.0
-    torque: float = 0.01
-    momentum: float = 0.001
-    terminal: float = 10.0
-    propellant: float = 0.1
-
-    def __post_init__(self) -> None:
-        """Check that every weight is finite and non-negative."""
-        for name in ("attitude", "rate", "torque", "momentum", "terminal",
-                     "propellant"):
-            value = as_finite_scalar(getattr(self, name), name)
-            check_nonnegative(value, name)
-        if self.attitude <= 0:
-            raise InvalidValueError(
-                f"attitude weight must be positive, got {self.attitude}")
-
-
-@dataclass(frozen=True, eq=False)
-class MPCStep:
-    """The outcome of one MPC step.
-
-    Attributes
-    ----------
-    u : numpy.ndarray, shape (nu,)
-        First command, to hold over ``dt``: motor torques m [N·m], then
-        the thruster duties [1] when the model has thrusters.
-    plan : numpy.ndarray, shape (nz,)
-        The optimised decision vector (the next step's warm start).
-    cost : float
-        Cost of the plan [1].
-    violation : float
-        Largest bound violation of the plan, scaled by the bound [1].
-    first_violation : float
-        The same over the applied command ``u`` and the state after it.
-    defect : float
-        Largest dynamics defect of the plan (non-zero after a single RTI
-        step) [state units].
-    solve_time : float
-        Wall time of the NLP solver call [s] (shift and checks excluded).
-    iterations : int
-        SQP/IPOPT iterations (-1 when the solver does not report them).
-    status : str
-        The solver's return status.
-    """
-
-    u: np.ndarray
-    plan: np.ndarray
-    cost: float
-    violation: float
-    first_violation: float
-    defect: float
-    solve_time: float
-    iterations: int
-    status: str
 
 
 class AttitudeMPC:
@@ -247,7 +147,7 @@ class AttitudeMPC:
                 f"horizon must be an integer >= 2, got {horizon!r}")
         self.dt = as_finite_scalar(dt, "dt")
         check_positive(self.dt, "dt")
-        if not isinstance(solver, str) or solver not in _NLP_PLUGINS:
+        if not isinstance(solver, str) or solver not in NLP_PLUGINS:
             raise SolverNotFound(str(solver), available_mpc_solvers(),
                                  "MPC solvers: 'sqpmethod' (with qp_solver "
                                  "'qrqp' or 'daqp'), 'ipopt', 'fatrop'")
@@ -325,26 +225,44 @@ class AttitudeMPC:
         return xs, us
 
     def _build(self, user_options: dict) -> None:
-        model, wh, N = self.model, self.wheels, self.horizon
+        model, N = self.model, self.horizon
         nx, nu = model.nx, model.nu
         nz = (N + 1) * nx + N * nu
         self._nz, self._ng = nz, (N + 1) * nx
-        xs, us = self._stage_slices()
-        self._xs, self._us = xs, us
-        w = self.weights
-
+        self._xs, self._us = self._stage_slices()
         z = ca.MX.sym("z", nz)
         x_par = ca.MX.sym("x", nx)
         qf = ca.MX.sym("qf", 4)
         tau = ca.MX.sym("tau", 3)
         p = ca.vertcat(x_par, qf, tau)
+        r, gv, f = self._objective(z, x_par, qf, tau)
+        self.lbz, self.ubz, self._bound_scale = self._bounds()
+        nlp = {"x": z, "p": p, "f": f, "g": gv}
+        plugin = NLP_PLUGINS[self.solver]
+        opts = merge_options(self._default_options(z, p, r, gv), user_options)
+        self.nlpsol = ca.nlpsol("mpc_nlp", plugin, nlp, opts)
+        #: RTI only: the full SQP, run from the same warm start when the
+        #: single step leaves the applied command or x_1 outside the
+        #: bounds (qrqp can return such a step on degenerate active sets).
+        self.fallback = None
+        if self.rti:
+            full = merge_options(opts, {"max_iter": self.fallback_max_iter,
+                                 "max_iter_ls": 3})
+            self.fallback = ca.nlpsol("mpc_nlp_full", plugin, nlp, full)
+        self._residuals = ca.Function("mpc_residuals", [z, p], [f, gv])
+        self._build_shift(x_par)
+        self._build_check(p)
+        self._build_step(x_par, qf, tau, p)
+
+    def _objective(self, z, x_par, qf, tau):
+        """Least-squares residuals ``r``, dynamics rows and the cost."""
+        model, wh, N, w = self.model, self.wheels, self.horizon, self.weights
+        xs, us = self._xs, self._us
         rk4 = model.rk4_step(1)
         m_max = np.asarray(wh.m_max, dtype=float)
         h_max = np.asarray(wh.h_max, dtype=float)
         nw = wh.n_wheels
-        prop = (np.zeros(0) if model.thrusters is None
-                else model.thrusters.propellant_rate())
-        prop = prop / prop.max() if prop.size else prop
+        prop = self._propellant_weights()
         lin = 0
         g = [z[xs[0]] - x_par]
         res = []
@@ -367,52 +285,43 @@ class AttitudeMPC:
             res.append(np.sqrt(c * w.attitude) * qe[1:])
             res.append(np.sqrt(c * w.rate) * xk[4:7])
         r = ca.vertcat(*res)
-        gv = ca.vertcat(*g)
         # the linear propellant term has no curvature: the Gauss–Newton
         # Hessian of the squares is still the cost's Hessian
-        f = ca.sumsqr(r) + lin
+        return r, ca.vertcat(*g), ca.sumsqr(r) + lin
 
-        # bounds on the decision vector
+    def _propellant_weights(self) -> np.ndarray:
+        """Propellant rate of each thruster over the largest (none: ())."""
+        thr = self.model.thrusters
+        prop = np.zeros(0) if thr is None else thr.propellant_rate()
+        return prop / prop.max() if prop.size else prop
+
+    def _bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(lbz, ubz, scale)`` of the decision vector."""
+        model, N, wh = self.model, self.horizon, self.wheels
+        xs, us = self._xs, self._us
         inf = np.inf
+        h_max = np.asarray(wh.h_max, dtype=float)
+        m_max = np.asarray(wh.m_max, dtype=float)
         u_lo, u_hi = model.control_bounds()
         wmax = inf if self.rate_max is None else self.rate_max
         x_hi = np.r_[np.full(4, inf), np.full(3, wmax), h_max]
-        ub = np.empty(nz)
-        lb = np.empty(nz)
+        ub = np.empty(self._nz)
+        lb = np.empty(self._nz)
+        scale = np.ones(self._nz)   # of each bound, for the violation
+        n_thr = len(self._propellant_weights())
         for k in range(N + 1):
-            ub[xs[k]] = x_hi
-            lb[xs[k]] = -x_hi
-            if k < N:
-                ub[us[k]] = u_hi
-                lb[us[k]] = u_lo
-        ub[xs[0]] = inf  # x_0 is fixed by its equality row
-        lb[xs[0]] = -inf
-        self.lbz, self.ubz = lb, ub
-        # scale of each bound, for the scaled violation
-        scale = np.ones(nz)
-        for k in range(N + 1):
+            ub[xs[k]], lb[xs[k]] = x_hi, -x_hi
             scale[xs[k]] = np.r_[np.ones(4), np.full(3, 1.0 if wmax == inf
                                                      else wmax), h_max]
             if k < N:
-                scale[us[k]] = np.r_[m_max, np.ones(len(prop))]
-        self._bound_scale = scale
+                ub[us[k]], lb[us[k]] = u_hi, u_lo
+                scale[us[k]] = np.r_[m_max, np.ones(n_thr)]
+        ub[xs[0]] = inf  # x_0 is fixed by its equality row
+        lb[xs[0]] = -inf
+        return lb, ub, scale
 
-        nlp = {"x": z, "p": p, "f": f, "g": gv}
-        plugin = _NLP_PLUGINS[self.solver]
-        opts = self._default_options(z, p, r, gv)
-        opts = _merge(opts, user_options)
-        self.nlpsol = ca.nlpsol("mpc_nlp", plugin, nlp, opts)
-        #: RTI only: the full SQP, run from the same warm start when the
-        #: single step leaves the applied command or x_1 outside the
-        #: bounds (qrqp can return such a step on degenerate active sets).
-        self.fallback = None
-        if self.rti:
-            full = _merge(opts, {"max_iter": self.fallback_max_iter,
-                                 "max_iter_ls": 3})
-            self.fallback = ca.nlpsol("mpc_nlp_full", plugin, nlp, full)
-        self._residuals = ca.Function("mpc_residuals", [z, p], [f, gv])
-
-        # the step Function: shift warm start, solve, report
+    def _build_shift(self, x_par) -> None:
+        nx, nu, nz = self.model.nx, self.model.nu, self._nz
         z_prev = ca.MX.sym("z_prev", nz)
         lam_x_prev = ca.MX.sym("lam_x_prev", nz)
         lam_g_prev = ca.MX.sym("lam_g_prev", self._ng)
@@ -429,12 +338,16 @@ class AttitudeMPC:
             [z_sh, lx_sh, lg_sh], ["x", "z_prev", "lam_x_prev",
                                    "lam_g_prev"],
             ["z0", "lam_x0", "lam_g0"])
+
+    def _build_check(self, p) -> None:
+        nz, scale = self._nz, self._bound_scale
         zs = ca.MX.sym("z", nz)
         cost, gs = self._residuals(zs, p)
         viol = ca.mmax(ca.vertcat(
             ca.fmax(ca.DM(self.lbz) - zs, 0) / ca.DM(scale),
             ca.fmax(zs - ca.DM(self.ubz), 0) / ca.DM(scale), 0.0))
-        first = np.r_[np.arange(nz)[us[0]], np.arange(nz)[xs[1]]]
+        first = np.r_[np.arange(nz)[self._us[0]],
+                      np.arange(nz)[self._xs[1]]]
         viol_first = ca.mmax(ca.vertcat(
             ca.fmax(ca.DM(self.lbz[first]) - zs[first], 0)
             / ca.DM(scale[first]),
@@ -446,6 +359,13 @@ class AttitudeMPC:
             "mpc_check", [zs, p], [cost, viol, viol_first, defect],
             ["z", "p"], ["cost", "violation", "first_violation",
                          "defect"])
+
+    def _build_step(self, x_par, qf, tau, p) -> None:
+        """Build the step Function: shift the warm start, solve, report."""
+        nz, us = self._nz, self._us
+        z_prev = ca.MX.sym("z_prev", nz)
+        lam_x_prev = ca.MX.sym("lam_x_prev", nz)
+        lam_g_prev = ca.MX.sym("lam_g_prev", self._ng)
         sh = self.shift_function(x_par, z_prev, lam_x_prev, lam_g_prev)
         sol = self.nlpsol(x0=sh[0], p=p, lbx=self.lbz, ubx=self.ubz,
                           lbg=0, ubg=0, lam_x0=sh[1], lam_g0=sh[2])
@@ -640,300 +560,3 @@ class AttitudeMPC:
                     f"exceeds rate_max = {self.rate_max:.4g} rad/s by more "
                     f"than one step can remove ({dmax:.3g} rad/s): the MPC "
                     "horizon is infeasible", problem=x)
-
-
-# ---------------------------------------------------------------- closed loop
-@dataclass(frozen=True, eq=False)
-class ClosedLoopResult:
-    """Metrics of a simulated slew-and-hold (or of an open-loop NLP).
-
-    Attributes
-    ----------
-    name : str
-        Controller label.
-    trajectory : SlewTrajectory
-        The simulated trajectory (plant integrated by CVODES).
-    settle_time : float
-        First time after which the error angle stays below
-        ``settle_angle`` [s] (NaN: never).
-    settle_angle : float
-        Threshold of ``settle_time`` [rad].
-    energy : float
-        :math:`\\sum_i\\int m_i^2 dt` [N²·m²·s].
-    peak_torque : float
-        Largest |m_i| [N·m].
-    peak_momentum : float
-        Largest |H_i| [N·m·s].
-    torque_violation : float
-        Largest excess of |m_i| over ``m_max_i`` [N·m] (0: none).
-    momentum_violation : float
-        Largest excess of |H_i| over ``h_max_i`` [N·m·s] (0: none).
-    final_error : float
-        Error angle at the end [rad].
-    hold_error : float
-        Largest error angle over the last ``hold`` seconds [rad].
-    step_time_median, step_time_max : float
-        Per-step controller time [s] (NaN for closed forms).
-    extras : dict
-        Anything else (solver status counts, NLP solve time...).
-    """
-
-    name: str
-    trajectory: SlewTrajectory
-    settle_time: float
-    settle_angle: float
-    energy: float
-    peak_torque: float
-    peak_momentum: float
-    torque_violation: float
-    momentum_violation: float
-    final_error: float
-    hold_error: float
-    step_time_median: float = float("nan")
-    step_time_max: float = float("nan")
-    extras: dict[str, Any] = field(default_factory=dict)
-
-
-def _settle_time(t: np.ndarray, err: np.ndarray, angle: float) -> float:
-    outside = np.flatnonzero(err >= angle)
-    if len(outside) == 0:
-        return 0.0
-    if outside[-1] < len(t) - 1:
-        return float(t[outside[-1] + 1])
-    return float("nan")
-
-
-def _result_from_trajectory(name: str, traj: SlewTrajectory, wheels,
-                            settle_angle: float, hold: float,
-                            step_times=None, extras=None
-                            ) -> ClosedLoopResult:
-    err = traj.error_angle()
-    m = traj.wheel_torque
-    h = traj.wheel_momentum
-    tv = float(np.max(np.abs(m) - wheels.m_max)) if m is not None else 0.0
-    hv = float(np.max(np.abs(h) - wheels.h_max)) if h is not None else 0.0
-    in_hold = traj.t >= traj.t[-1] - hold - 1e-12
-    st = np.asarray(step_times if step_times is not None else [np.nan])
-    return ClosedLoopResult(
-        name=name, trajectory=traj,
-        settle_time=_settle_time(traj.t, err, settle_angle),
-        settle_angle=settle_angle, energy=traj.energy,
-        peak_torque=traj.peak_wheel_torque,
-        peak_momentum=traj.peak_wheel_momentum,
-        torque_violation=max(tv, 0.0), momentum_violation=max(hv, 0.0),
-        final_error=float(err[-1]), hold_error=float(np.max(err[in_hold])),
-        step_time_median=float(np.median(st)),
-        step_time_max=float(np.max(st)), extras=dict(extras or {}))
-
-
-def simulate_mpc(mpc: AttitudeMPC, q0, qf, *, t_final: float, w0=None,
-                 h0=None, disturbance: Callable[[float], Any] | Any = None,
-                 estimate_disturbance: bool = False,
-                 settle_angle: float = np.deg2rad(0.1), hold: float = 0.0,
-                 progress: Callable[[int, int], None] | None = None
-                 ) -> ClosedLoopResult:
-    """Closed-loop simulation of ``mpc`` on the plant (CVODES, ZOH).
-
-    Each sample the controller gets the exact plant state, the command is
-    held over ``mpc.dt`` and the plant (the model's dynamics with the
-    disturbance torque) is integrated by CVODES to 1e-10.
-
-    Parameters
-    ----------
-    mpc : AttitudeMPC
-        The controller (its warm start is reset first).
-    q0, qf : array_like (4,)
-        Initial and target attitude (scalar-first).
-    t_final : float
-        Simulated time [s].
-    w0 : array_like (3,), optional
-        Initial body rate [rad/s] (default zero).
-    h0 : array_like (N,), optional
-        Initial wheel momenta [N·m·s] (default zero).
-    disturbance : callable or array_like (3,), optional
-        External torque on the body [N·m], constant or ``f(t) -> (3,)``.
-    estimate_disturbance : bool
-        Give the controller the true disturbance at each sample (an ideal
-        estimator); otherwise it plans with zero disturbance.
-    settle_angle : float
-        Threshold of the settling time [rad].
-    hold : float
-        Length of the final hold window of ``hold_error`` [s].
-    progress : callable, optional
-        ``progress(k, K)`` after each step.
-
-    Returns
-    -------
-    ClosedLoopResult
-    """
-    model = mpc.model
-    t_final = as_finite_scalar(t_final, "t_final")
-    check_positive(t_final, "t_final")
-    x = model.state(q0, w0, h0)
-    qf = as_vector(qf, 4, "qf")
-    qf = qf / np.linalg.norm(qf)
-    if disturbance is None:
-        def dist(_t):
-            return np.zeros(3)
-    elif callable(disturbance):
-        def dist(t):
-            return as_vector(disturbance(t), 3, "disturbance")
-    else:
-        d = as_vector(disturbance, 3, "disturbance")
-
-        def dist(_t):
-            return d
-    K = int(np.ceil(t_final / mpc.dt - 1e-9))
-    F = model.integrator(mpc.dt)
-    X = np.empty((K + 1, model.nx))
-    U = np.empty((K, model.nu))
-    X[0] = x
-    times, iters, statuses = [], [], {}
-    mpc.reset()
-    for k in range(K):
-        tk = k * mpc.dt
-        tau = dist(tk)
-        s = mpc.step(X[k], qf, tau if estimate_disturbance else None)
-        times.append(s.solve_time)
-        iters.append(s.iterations)
-        statuses[s.status] = statuses.get(s.status, 0) + 1
-        U[k] = s.u
-        xf = F(x0=X[k], p=np.r_[s.u, tau])["xf"]
-        X[k + 1] = np.asarray(xf).ravel()
-        if progress is not None:
-            progress(k + 1, K)
-    t = mpc.dt * np.arange(K + 1)
-    nw = model.n_wheels
-    extras: dict[str, Any] = {"solver": mpc.name, "horizon": mpc.horizon,
-                              "dt": mpc.dt}
-    loop = {"statuses": statuses, "mean_iterations": float(np.mean(iters))}
-    if model.thrusters is not None:
-        duty = U[:, nw:]
-        extras["duty"] = duty
-        loop["propellant"] = float(np.sum(
-            duty @ model.thrusters.propellant_rate()) * mpc.dt)
-        loop["thruster_on_time"] = float(np.sum(duty) * mpc.dt)
-    traj = SlewTrajectory(
-        method="mpc", T=float("nan"), t=t, q=X[:, :4], w=X[:, 4:7],
-        torque=model.body_control_torque(U.T).T, wheel_torque=U[:, :nw],
-        wheel_momentum=X[:, 7:], qf=qf, status="simulated", success=True,
-        solve_time=float(np.sum(times)), iterations=int(np.sum(iters)),
-        extras=extras)
-    return _result_from_trajectory(
-        f"MPC {mpc.name}", traj, mpc.wheels, settle_angle, hold, times,
-        loop)
-
-
-def compare_slew(model: SpacecraftModel, q0, qf, *, t_final: float,
-                 solvers=("sqpmethod", "sqpmethod-rti", "ipopt"),
-                 horizon: int = 20, dt: float = 0.5,
-                 weights: MPCWeights | None = None,
-                 natural_frequency: float | None = None,
-                 damping: float = 0.9, time_optimal: bool = True,
-                 settle_angle: float = np.deg2rad(0.1), hold: float = 0.0,
-                 disturbance=None) -> list[ClosedLoopResult]:
-    """Slew and hold by MPC, quaternion feedback and the time-optimal NLP.
-
-    Parameters
-    ----------
-    model : SpacecraftModel
-        Spacecraft with wheels.
-    q0, qf : array_like (4,)
-        Initial and target attitude.
-    t_final : float
-        Simulated time [s] (the slew and the hold after it).
-    solvers : sequence of str
-        MPC solvers; ``"sqpmethod-rti"`` is sqpmethod with ``rti=True``,
-        ``"sqpmethod-daqp"`` sqpmethod with daqp.
-    horizon, dt, weights
-        MPC settings.
-    natural_frequency : float, optional
-        ω_n of the quaternion feedback [rad/s]; default ``4 / T_eig``
-        with ``T_eig`` the eigenaxis (bang–coast–bang) slew time.
-    damping : float
-        ζ of the quaternion feedback.
-    time_optimal : bool
-        Add the time-optimal NLP (`ocp.slews.nlp.time_optimal_slew`) when that
-        module is installed; its metrics are those of the open-loop plan.
-    settle_angle, hold, disturbance
-        As `simulate_mpc` (the disturbance acts on the MPC runs only: the
-        closed forms are simulated without one).
-
-    Returns
-    -------
-    list of ClosedLoopResult
-    """
-    from ocp.guidance import eigenaxis_slew, quaternion_feedback_slew
-
-    wh = model.wheels
-    if wh is None:
-        raise InvalidValueError("model must have wheels")
-    results = []
-    for name in solvers:
-        solver, _, variant = name.partition("-")
-        kw: dict[str, Any] = {}
-        if variant == "rti":
-            kw["rti"] = True
-        elif variant:
-            kw["qp_solver"] = variant
-        mpc = AttitudeMPC(model, horizon=horizon, dt=dt, solver=solver,
-                          weights=weights, **kw)
-        results.append(simulate_mpc(mpc, q0, qf, t_final=t_final,
-                                    settle_angle=settle_angle, hold=hold,
-                                    disturbance=disturbance))
-    eig = eigenaxis_slew(model.inertia, q0, qf, wheels=wh)
-    wn = (natural_frequency if natural_frequency is not None
-          else 4.0 / max(eig.T, 1e-9))
-    fb = quaternion_feedback_slew(
-        model.inertia, q0, qf, wheels=wh, natural_frequency=wn,
-        damping=damping, t_final=t_final, dt=dt, settle_angle=settle_angle)
-    results.append(_result_from_trajectory(
-        f"quaternion feedback (ω_n={wn:.3g})", fb, wh, settle_angle, hold))
-    if time_optimal:
-        try:
-            from ocp.slews.nlp import time_optimal_slew
-        except ImportError:
-            time_optimal_slew = None
-        if time_optimal_slew is not None:
-            t0 = time.perf_counter()
-            to = time_optimal_slew(model.inertia, q0, qf, wheels=wh, N=100)
-            results.append(_result_from_trajectory(
-                "time-optimal NLP (open loop)", to, wh, settle_angle, 0.0,
-                extras={"solve_time": time.perf_counter() - t0,
-                        "T": to.T}))
-    return results
-
-
-def closed_loop_table(results) -> str:
-    """Markdown table of `ClosedLoopResult` metrics.
-
-    Columns: settle time [s], energy [N²·m²·s], peak |m| [N·m], peak |H|
-    [N·m·s], torque and momentum violations, final and hold errors [deg],
-    median / max step time [ms].
-    """
-    head = ("| controller | settle [s] | energy [N²m²s] | peak abs(m) [Nm] "
-            "| peak abs(H) [Nms] | m viol. | H viol. | final err [deg] | "
-            "hold err [deg] | step median / max [ms] |")
-    lines = [head, "|" + "---|" * 10]
-    for r in results:
-        st = ("–" if not np.isfinite(r.step_time_median) else
-              f"{1e3 * r.step_time_median:.2f} / "
-              f"{1e3 * r.step_time_max:.2f}")
-        lines.append(
-            f"| {r.name} | {r.settle_time:.1f} | {r.energy:.4g} | "
-            f"{r.peak_torque:.4g} | {r.peak_momentum:.4g} | "
-            f"{r.torque_violation:.1e} | {r.momentum_violation:.1e} | "
-            f"{np.rad2deg(r.final_error):.2e} | "
-            f"{np.rad2deg(r.hold_error):.2e} | {st} |")
-    return "\n".join(lines)
-
-
-def _merge(base: dict, extra: dict) -> dict:
-    out = dict(base)
-    for key, value in extra.items():
-        if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = _merge(out[key], value)
-        else:
-            out[key] = value
-    return out
-

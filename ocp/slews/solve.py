@@ -26,11 +26,12 @@ from .build import (
     options_key,
     slew_data,
 )
+from adcs_common.options import merge_options
+
 from .setup import SlewSetup, initial_guess_states
 from .solvers import (
     COARSE_OPTIONS,
     WARM_START_OPTIONS,
-    merge_options,
     solver_entry,
     with_user_options,
 )

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import casadi as ca
+
+from adcs_common.options import merge_options
 from adcs_common.exceptions import (
     SolverNotFound,
 )
@@ -54,15 +56,6 @@ def solver_entry(name: str) -> tuple[str, dict]:
         raise SolverNotFound(name, available_nlp_solvers(),
                              hint=f"CasADi plugin {plugin!r} is missing")
     return plugin, opts
-
-
-def merge_options(base: dict, extra: dict) -> dict:
-    """Merge nested option dicts, ``extra`` winning."""
-    out = dict(base)
-    for k, v in extra.items():
-        out[k] = (merge_options(out[k], v) if isinstance(v, dict)
-                  and isinstance(out.get(k), dict) else v)
-    return out
 
 
 def with_user_options(base: dict, user: dict | None) -> dict:

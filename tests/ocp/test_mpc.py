@@ -12,7 +12,7 @@ from adcs_common.exceptions import (
 )
 from allocation import WheelArray
 from ocp import quat_from_axis_angle, rigid_spacecraft
-from ocp.mpc.controller import (
+from ocp.mpc import (
     AttitudeMPC,
     available_mpc_solvers,
     closed_loop_table,

@@ -1,0 +1,125 @@
+"""What an MPC is made of: solver names, cost weights, the step record."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import casadi as ca
+import numpy as np
+from adcs_common.exceptions import (
+    InvalidValueError,
+)
+from adcs_common.validation import (
+    as_finite_scalar,
+    check_nonnegative,
+)
+
+
+#: Conic plugins accepted by ``solver="sqpmethod"`` (code-generatable).
+QP_SOLVERS = ("qrqp", "daqp")
+
+
+#: NLP solver names -> CasADi nlpsol plugin.
+NLP_PLUGINS = {"ipopt": "ipopt", "sqpmethod": "sqpmethod",
+                "fatrop": "fatrop"}
+
+
+#: Largest bound violation [scaled, 1] accepted on a returned plan.
+BOUND_TOL = 1e-6
+
+
+#: Largest dynamics defect accepted on a converged (non-RTI) plan.
+DEFECT_TOL = 1e-6
+
+
+def available_mpc_solvers() -> tuple[str, ...]:
+    """MPC solver names whose CasADi plugin loads on this installation."""
+    names = []
+    for name, plugin in NLP_PLUGINS.items():
+        try:
+            ok = ca.has_nlpsol(plugin)
+        except RuntimeError:
+            ok = False
+        if ok and (name != "sqpmethod"
+                   or any(ca.has_conic(q) for q in QP_SOLVERS)):
+            names.append(name)
+    return tuple(names)
+
+
+@dataclass(frozen=True)
+class MPCWeights:
+    """Weights of the MPC cost (all dimensionless, see module doc).
+
+    Attributes
+    ----------
+    attitude : float
+        :math:`w_q` on :math:`\\|\\mathrm{vec}(q_f^*\\otimes q)\\|^2
+        = \\sin^2(θ/2)` [1].
+    rate : float
+        :math:`w_ω` on :math:`\\|ω\\|^2` [s²/rad²].
+    torque : float
+        :math:`w_m` on :math:`\\|m / m_{max}\\|^2` [1].
+    momentum : float
+        :math:`w_H` on :math:`\\|H / h_{max}\\|^2` [1] (keeps the wheels
+        near zero momentum in holds).
+    terminal : float
+        Factor :math:`c_N` on the last stage's attitude and rate terms.
+    propellant : float
+        :math:`w_p` on the thruster duties weighted by propellant rate
+        (linear; only with a thruster set) [1].
+    """
+
+    attitude: float = 100.0
+    rate: float = 100.0
+    torque: float = 0.01
+    momentum: float = 0.001
+    terminal: float = 10.0
+    propellant: float = 0.1
+
+    def __post_init__(self) -> None:
+        """Check that every weight is finite and non-negative."""
+        for name in ("attitude", "rate", "torque", "momentum", "terminal",
+                     "propellant"):
+            value = as_finite_scalar(getattr(self, name), name)
+            check_nonnegative(value, name)
+        if self.attitude <= 0:
+            raise InvalidValueError(
+                f"attitude weight must be positive, got {self.attitude}")
+
+
+@dataclass(frozen=True, eq=False)
+class MPCStep:
+    """The outcome of one MPC step.
+
+    Attributes
+    ----------
+    u : numpy.ndarray, shape (nu,)
+        First command, to hold over ``dt``: motor torques m [N·m], then
+        the thruster duties [1] when the model has thrusters.
+    plan : numpy.ndarray, shape (nz,)
+        The optimised decision vector (the next step's warm start).
+    cost : float
+        Cost of the plan [1].
+    violation : float
+        Largest bound violation of the plan, scaled by the bound [1].
+    first_violation : float
+        The same over the applied command ``u`` and the state after it.
+    defect : float
+        Largest dynamics defect of the plan (non-zero after a single RTI
+        step) [state units].
+    solve_time : float
+        Wall time of the NLP solver call [s] (shift and checks excluded).
+    iterations : int
+        SQP/IPOPT iterations (-1 when the solver does not report them).
+    status : str
+        The solver's return status.
+    """
+
+    u: np.ndarray
+    plan: np.ndarray
+    cost: float
+    violation: float
+    first_violation: float
+    defect: float
+    solve_time: float
+    iterations: int
+    status: str
