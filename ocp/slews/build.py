@@ -5,14 +5,20 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import shutil
-import subprocess
 import tempfile
 import time
 from dataclasses import dataclass
-from pathlib import Path
 import casadi as ca
 import numpy as np
+from adcs_common.codegen import (
+    CompileError,
+    CompilerNotFound,
+    find_compiler,
+    cached_library,
+    compile_c,
+    generate_c,
+    solver_dependencies,
+)
 from adcs_common.exceptions import (
     InvalidValueError,
     SolverError,
@@ -191,29 +197,20 @@ def compiled_nlpsol(plugin: str, nlp: dict, opts: dict,
     ``jit["cache_dir"]``.
     """
     S0 = ca.nlpsol("slew", plugin, nlp, opts)
-    cache = Path(jit["cache_dir"]).expanduser()
-    cache.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=cache) as tmp:
-        cwd = os.getcwd()
-        os.chdir(tmp)  # generate_dependencies writes to the cwd
-        try:
-            S0.generate_dependencies("slew_nlp.c")
-        finally:
-            os.chdir(cwd)
-        src = Path(tmp, "slew_nlp.c")
-        cmd = [jit["compiler"], *jit["flags"], "-shared", "-fPIC"]
+    with tempfile.TemporaryDirectory() as tmp:
+        src = generate_c(solver_dependencies(S0), tmp, "slew_nlp")
+        flags = list(jit["flags"])
         key = hashlib.sha256(src.read_bytes() + " ".join(
-            cmd + [ca.__version__]).encode()).hexdigest()[:20]
-        lib = cache / f"slew_{key}.so"
-        if not lib.exists():
-            out = Path(tmp, "lib.so")
-            run = subprocess.run([*cmd, "-o", str(out), str(src), "-lm"],
-                                 capture_output=True, text=True)
-            if run.returncode != 0:
-                raise SolverError("compiling the slew NLP failed: "
-                                  + run.stderr.strip()[-500:],
-                                  solver=plugin)
-            os.replace(out, lib)  # atomic: concurrent builds are safe
+            [jit["compiler"], *flags, ca.__version__]).encode()).hexdigest()
+        try:
+            lib = cached_library(
+                jit["cache_dir"], f"slew_{key[:20]}",
+                lambda out: compile_c([src], out, cc=jit["compiler"],
+                                      opt=flags[0] if flags else "-O1",
+                                      flags=flags[1:]))
+        except CompileError as exc:
+            raise SolverError(f"compiling the slew NLP failed: {exc}",
+                              solver=plugin) from None
     return ca.nlpsol("slew", plugin, str(lib), opts)
 
 
@@ -221,8 +218,11 @@ def jit_settings(jit) -> dict | None:
     """None (no JIT) or the compiler, flags and cache directory."""
     if jit is False or jit is None:
         return None
-    cfg = {"compiler": os.environ.get("CC") or shutil.which("gcc")
-           or shutil.which("cc") or shutil.which("clang"),
+    try:
+        cc = find_compiler()
+    except CompilerNotFound:
+        cc = None
+    cfg = {"compiler": cc,
            "flags": ["-O1"],
            "cache_dir": os.environ.get("ADCS_CACHE_DIR",
                                        "~/.cache/adcs_toolbox/slews")}

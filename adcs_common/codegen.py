@@ -1,0 +1,200 @@
+"""Compiling CasADi-generated C: one compiler lookup, one build, one cache.
+
+Every package that turns a ``casadi.Function`` into a shared library goes
+through here: `find_compiler` (``$CC``, then ``cc``, ``gcc``, ``clang``),
+`generate_c` (writes into a folder, never changes the working directory,
+so it is safe from threads), `compile_c` (one error type,
+`CompileError`, with the compiler's output) and `cached_library`, which
+keeps libraries in a folder only the user can write and checks each
+library's SHA-256 before it is loaded.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import stat
+import subprocess
+import tempfile
+from pathlib import Path
+from typing import Callable, Sequence
+
+import casadi as ca
+
+from .exceptions import AdcsError
+
+__all__ = [
+    "CompileError",
+    "CompilerNotFound",
+    "UnsafeCacheError",
+    "cached_library",
+    "compile_c",
+    "find_compiler",
+    "generate_c",
+    "private_folder",
+    "solver_dependencies",
+]
+
+
+class CompilerNotFound(AdcsError, RuntimeError):
+    """No C compiler to build generated code with.
+
+    Attributes
+    ----------
+    cc : str
+        The compiler asked for (or the ones tried).
+    """
+
+    def __init__(self, cc: str) -> None:
+        super().__init__(
+            f"C compiler {cc!r} not found on PATH; install one (e.g. "
+            "apt-get install gcc) or name another with cc= / $CC")
+        self.cc = cc
+
+
+class CompileError(AdcsError, RuntimeError):
+    """The C compiler failed; the message ends with its output."""
+
+
+class UnsafeCacheError(AdcsError, PermissionError):
+    """A cache folder others could write to: its code will not be run."""
+
+
+def find_compiler(cc: str | None = None) -> str:
+    """Return the C compiler ``cc``, else ``$CC``, ``cc``, ``gcc``, ``clang``.
+
+    Raises
+    ------
+    CompilerNotFound
+        None of them is on PATH.
+    """
+    names = [cc] if cc else [os.environ.get("CC"), "cc", "gcc", "clang"]
+    for name in filter(None, names):
+        path = shutil.which(name)
+        if path:
+            return path
+    raise CompilerNotFound(cc or "cc/gcc/clang")
+
+
+def solver_dependencies(solver: ca.Function) -> list[ca.Function]:
+    """List the Functions ``solver.generate_dependencies`` writes, in order.
+
+    An nlpsol built on an oracle loads them back from a library
+    (``ca.nlpsol(name, plugin, library, opts)``).
+    """
+    return [solver.oracle()] + [solver.get_function(n)
+                                for n in solver.get_function()]
+
+
+def generate_c(functions: Sequence[ca.Function], folder, name: str,
+               options: dict | None = None) -> Path:
+    """Write the C of ``functions`` to ``folder/name.c`` (no ``chdir``)."""
+    cg = ca.CodeGenerator(f"{name}.c", dict(options or {}))
+    for f in functions:
+        cg.add(f)
+    cg.generate(f"{Path(folder)}/")
+    return Path(folder) / f"{name}.c"
+
+
+def compile_c(sources: Sequence, output, *, cc: str | None = None,
+              opt: str = "-O2", shared: bool = True,
+              flags: Sequence[str] = (), libs: Sequence[str] = ("-lm",),
+              timeout: float = 900.0) -> Path:
+    """Compile C ``sources`` to ``output`` (a shared library by default).
+
+    Parameters
+    ----------
+    sources : sequence of path
+        C files (or objects) to build.
+    output : path
+        The library or executable to write.
+    cc : str, optional
+        Compiler (default: `find_compiler`).
+    opt : str
+        Optimisation flag, e.g. ``"-O1"`` (quick to build), ``"-O3"``.
+    shared : bool
+        Build a shared library (``-shared -fPIC``); else an executable.
+    flags, libs : sequence of str
+        Extra compiler flags (before the sources) and libraries (after).
+
+    Raises
+    ------
+    CompilerNotFound, CompileError
+    """
+    cmd = [find_compiler(cc), opt, *(["-shared", "-fPIC"] if shared
+                                     else []), *flags,
+           *[str(s) for s in sources], "-o", str(output), *libs]
+    run = subprocess.run(cmd, capture_output=True, text=True,
+                         timeout=timeout)
+    if run.returncode != 0:
+        raise CompileError(f"compilation failed: {' '.join(cmd)}\n"
+                           f"{run.stderr.strip()[-2000:]}")
+    return Path(output)
+
+
+def private_folder(path) -> Path:
+    """Create (mode 0700) or check a folder only the user can write.
+
+    Raises
+    ------
+    UnsafeCacheError
+        The folder belongs to someone else or its group or others may
+        write to it (a library planted there would run with the user's
+        rights).
+    """
+    p = Path(path).expanduser()
+    p.mkdir(mode=0o700, parents=True, exist_ok=True)
+    st = p.stat()
+    if hasattr(os, "getuid") and st.st_uid != os.getuid():
+        raise UnsafeCacheError(
+            f"cache folder {p} belongs to uid {st.st_uid}, not to you: "
+            "its libraries will not be loaded")
+    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        raise UnsafeCacheError(
+            f"cache folder {p} is writable by others (mode "
+            f"{stat.filemode(st.st_mode)}): chmod go-w it, or choose "
+            "another folder")
+    return p
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def cached_library(folder, stem: str,
+                   build: Callable[[Path], None]) -> Path:
+    """Return a shared library of a private cache, checked before use.
+
+    ``folder/stem.so`` is used when its SHA-256 equals the one recorded
+    in ``folder/stem.sha256`` when it was built; otherwise (missing,
+    changed or tampered with) ``build(path)`` writes a new one into a
+    temporary file of the cache, which is made owner-only and moved into
+    place atomically, with its digest.
+
+    Raises
+    ------
+    UnsafeCacheError
+        ``folder`` is not private to the user (`private_folder`).
+    """
+    cache = private_folder(folder)
+    lib = cache / f"{stem}.so"
+    record = cache / f"{stem}.sha256"
+    if lib.exists() and record.exists():
+        if record.read_text().strip() == _digest(lib):
+            return lib
+    fd, tmp = tempfile.mkstemp(suffix=".so", dir=cache)
+    os.close(fd)
+    try:
+        build(Path(tmp))
+        os.chmod(tmp, 0o600)
+        digest = _digest(Path(tmp))
+        fd, tmp_rec = tempfile.mkstemp(suffix=".sha256", dir=cache)
+        with os.fdopen(fd, "w") as fh:
+            fh.write(digest + "\n")
+        os.replace(tmp, lib)   # atomic: concurrent builds are safe
+        os.replace(tmp_rec, record)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return lib

@@ -1,0 +1,58 @@
+"""What an export wrote: file names, build flags, the result record."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+import casadi as ca
+import numpy as np
+
+
+#: Base name of the generated source and header.
+SOURCE = "adcs_codegen"
+
+
+#: Optimisation flags of the builds (driver, object, shared library).
+OPT_FLAGS = ("-O3",)
+
+
+@dataclass(frozen=True, eq=False)
+class ExportResult:
+    """What `export_c` wrote (and built).
+
+    Attributes
+    ----------
+    out_dir : pathlib.Path
+        The output folder.
+    functions : dict of str to casadi.Function
+        The exported Functions by C name (the Python reference of each).
+    samples : dict of str to list of numpy.ndarray
+        The sample inputs compiled into the driver (by C name; keys
+        ``"name:label"`` are extra cases of ``name`` the driver also times,
+        e.g. ``"wheel_qp:saturated"``).
+    source, header, driver, makefile, readme : pathlib.Path
+        The files written.
+    executable : pathlib.Path or None
+        The built driver (None unless ``build=True``).
+    shared_library : pathlib.Path or None
+        The built shared library (None unless ``build=True``).
+    extras : dict
+        ``wheel_qp_plugin`` (conic of ``wheel_qp``), ``wheel_qp_method``
+        (`allocation.qp.conic_function.wheel_qp_method`: ``"closed
+        form"``, ``"min-norm check + conic"`` or ``"conic"``), ``cflags``
+        and ``ldflags`` (what the build adds for daqp: empty and ``-lm``
+        for qrqp or a closed form), ``qrqp_patched`` (`patch_qrqp` was
+        applied).
+    """
+
+    out_dir: Path
+    functions: dict[str, ca.Function]
+    samples: dict[str, list[np.ndarray]]
+    source: Path
+    header: Path
+    driver: Path
+    makefile: Path
+    readme: Path
+    executable: Path | None = None
+    shared_library: Path | None = None
+    extras: dict = field(default_factory=dict)

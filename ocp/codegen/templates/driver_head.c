@@ -1,0 +1,58 @@
+/* Test driver of the generated ADCS functions (written by
+ * ocp.codegen.export_c). Calls each function on sample inputs, prints the
+ * outputs and times REPEATS calls with clock_gettime (CLOCK_MONOTONIC).
+ * Output lines "TIME <name> median_us=... max_us=... calls=..." are parsed
+ * by ocp.codegen.export.run_driver. */
+#define _POSIX_C_SOURCE 199309L
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include "adcs_codegen.h"
+
+typedef int (*eval_t)(const casadi_real**, casadi_real**, casadi_int*,
+                      casadi_real*, int);
+typedef int (*work_t)(casadi_int*, casadi_int*, casadi_int*, casadi_int*);
+typedef int (*checkout_t)(void);
+typedef void (*release_t)(int);
+
+static double now_us(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return 1e6 * (double)t.tv_sec + 1e-3 * (double)t.tv_nsec;
+}
+
+static int cmp_double(const void* a, const void* b) {
+  double x = *(const double*)a, y = *(const double*)b;
+  return (x > y) - (x < y);
+}
+
+static void time_call(const char* name, eval_t f, work_t work,
+                      checkout_t checkout, release_t release,
+                      const casadi_real** arg, int n_in, casadi_real** res,
+                      int n_out, int reps) {
+  casadi_int sz_arg, sz_res, sz_iw, sz_w;
+  work(&sz_arg, &sz_res, &sz_iw, &sz_w);
+  const casadi_real** a = malloc(sizeof(casadi_real*) * (sz_arg + n_in));
+  casadi_real** r = malloc(sizeof(casadi_real*) * (sz_res + n_out));
+  casadi_int* iw = malloc(sizeof(casadi_int) * (sz_iw + 1));
+  casadi_real* w = malloc(sizeof(casadi_real) * (sz_w + 1));
+  double* t = malloc(sizeof(double) * reps);
+  int i, mem = checkout(), flag = 0;
+  for (i = 0; i < n_in; ++i) a[i] = arg[i];
+  for (i = 0; i < n_out; ++i) r[i] = res[i];
+  for (i = 0; i < reps; ++i) {
+    double t0 = now_us();
+    flag |= f(a, r, iw, w, mem);
+    t[i] = now_us() - t0;
+  }
+  release(mem);
+  qsort(t, reps, sizeof(double), cmp_double);
+  printf("TIME %s median_us=%.3f max_us=%.3f calls=%d\n", name,
+         t[reps / 2], t[reps - 1], reps);
+  printf("  %s flag=%d first output:", name, flag);
+  for (i = 0; i < 4; ++i) printf(" %.10g", res[0][i]);
+  printf("\n");
+  free(a); free(r); free(iw); free(w); free(t);
+}

@@ -1,0 +1,92 @@
+"""Compiling generated C: one path, a private cache, checked libraries."""
+
+import os
+import shutil
+import threading
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from adcs_common.codegen import (
+    CompileError,
+    CompilerNotFound,
+    UnsafeCacheError,
+    cached_library,
+    compile_c,
+    find_compiler,
+    generate_c,
+    solver_dependencies,
+)
+
+pytestmark = pytest.mark.skipif(
+    not any(shutil.which(c) for c in ("cc", "gcc", "clang")),
+    reason="needs a C compiler")
+
+X = ca.SX.sym("x", 3)
+F = ca.Function("f", [X], [ca.sin(X) * 2.0])
+
+
+def _build(folder):
+    src = generate_c([F], folder, "f")
+    return lambda out: compile_c([src], out, opt="-O1")
+
+
+def test_generated_library_equals_the_function(tmp_path):
+    lib = cached_library(tmp_path / "cache", "f", _build(tmp_path))
+    ext = ca.external("f", str(lib))
+    x = np.array([0.1, -0.7, 2.0])
+    np.testing.assert_array_equal(np.asarray(ext(x)).ravel(),
+                                  np.asarray(F(x)).ravel())
+    assert (tmp_path / "cache").stat().st_mode & 0o777 == 0o700
+    assert lib.stat().st_mode & 0o777 == 0o600
+
+
+def test_generation_never_changes_the_working_directory(tmp_path):
+    cwd = os.getcwd()
+    seen = []
+
+    def watch():
+        for _ in range(200):
+            seen.append(os.getcwd())
+
+    t = threading.Thread(target=watch)
+    t.start()
+    x = ca.SX.sym("x", 2)
+    S = ca.nlpsol("s", "ipopt", {"x": x, "f": ca.sumsqr(x - 1)},
+                  {"print_time": False, "ipopt": {"print_level": 0}})
+    src = generate_c(solver_dependencies(S), tmp_path, "s_nlp")
+    t.join()
+    assert set(seen) == {cwd} and src.exists()
+    lib = compile_c([src], tmp_path / "s_nlp.so")
+    S2 = ca.nlpsol("s", "ipopt", str(lib),
+                   {"print_time": False, "ipopt": {"print_level": 0}})
+    np.testing.assert_allclose(np.asarray(S2(x0=0)["x"]).ravel(), [1, 1],
+                               atol=1e-8)
+
+
+def test_a_cache_others_can_write_to_is_refused(tmp_path):
+    cache = tmp_path / "shared"
+    cache.mkdir()
+    cache.chmod(0o777)
+    with pytest.raises(UnsafeCacheError, match="writable by others"):
+        cached_library(cache, "f", _build(tmp_path))
+    assert not (cache / "f.so").exists()
+
+
+def test_a_tampered_library_is_rebuilt_not_loaded(tmp_path):
+    cache = tmp_path / "cache"
+    lib = cached_library(cache, "f", _build(tmp_path))
+    good = lib.read_bytes()
+    lib.write_bytes(b"\x7fELF planted by someone else")
+    again = cached_library(cache, "f", _build(tmp_path))
+    assert again == lib and again.read_bytes() == good
+
+
+def test_compiler_errors_are_the_toolboxs_own(tmp_path):
+    bad = tmp_path / "bad.c"
+    bad.write_text("int main( {")
+    with pytest.raises(CompileError, match="compilation failed"):
+        compile_c([bad], tmp_path / "bad.so")
+    with pytest.raises(CompilerNotFound, match="no-such-cc"):
+        find_compiler("no-such-cc")
