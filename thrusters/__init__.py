@@ -27,13 +27,15 @@ from .qp import (
 from .scenarios import (
     ScenarioResult,
     burn_scenario,
+    reorientation_scenario,
+)
+from .symbolic import force_torque_function, six_unit_function
+from .tables import (
     burn_table,
     format_table,
     plot_scenario,
-    reorientation_scenario,
     reorientation_table,
 )
-from .symbolic import force_torque_function, six_unit_function
 from .unit import (
     G0,
     KGF_PER_CM2,

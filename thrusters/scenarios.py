@@ -7,36 +7,57 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adcs_common.exceptions import InvalidValueError
+from adcs_common.quaternion import (
+    quat_conj,
+    quat_from_axis_angle,
+    quat_mul,
+    quat_to_dcm,
+)
+from adcs_common.rigid_body import body_rates, rk4_step
 from adcs_common.validation import as_finite_array
 
 from thrusters.laws import reorientation_law, unloading_law
 from thrusters.qp import DutyCycleAllocator, MinOnTimeCarry
 from thrusters.unit import G0, ThrusterSet, six_thruster_unit
 
+
 #: Spacecraft of seed 004 (mass from Table 2's Δv; inertia, R and L are
 #: not given by the seed: SPEC section 2's stated values).
 MASS = 54.0                                   # [kg]
+
+
 INERTIA = np.diag([3.0, 2.5, 3.5])            # [kg·m²]
+
+
 #: Disturbance torque of the burn (thrust mismatch and misalignment,
 #: 0.0012 N·m in the seed), direction chosen in the XZ plane [N·m].
 BURN_DISTURBANCE = 0.0012 * np.array([0.8, 0.0, -0.6])
 
+
 #: Seed 004 Table 2 (burn inputs) and Table 3 (achieved accuracy).
 TABLE2 = {"T_imp": 340.0, "T_T": 10.0, "P_T": 0.739, "H_max": 0.012,
           "yaw": 64.51, "pitch": 35.32, "dV": 4.65}
+
+
 TABLE3 = {"thrust_dev_max": 0.0021, "thrust_dev_max_pct": 0.28,
           "thrust_dev_mean": 0.00026, "thrust_dev_mean_pct": 0.035,
           "yaw_err_max": 0.135, "yaw_err_mean": 0.0091,
           "pitch_err_max": 0.106, "pitch_err_mean": 0.0065,
           "dV_err": 0.025, "dV_err_pct": 0.54}
+
+
 #: Seed 004 Table 5 (reorientation and hold, T_T = 2 s): per group
 #: (Δv [m/s], max and mean group thrust in a cycle [N]) and per engine
 #: (valve openings, total / max / mean open time [ms]).
 TABLE5_GROUPS = {"group 1": (0.15967, 0.11947, 0.01432),
                  "group 2": (0.15999, 0.12004, 0.01435)}
+
+
 TABLE5_ENGINES = {"D1": (148, 12078, 745, 40), "D2": (102, 6917, 698, 23),
                   "D3": (110, 7741, 400, 26), "D4": (121, 10078, 745, 33),
                   "D5": (149, 8007, 659, 27), "D6": (170, 8956, 494, 30)}
+
+
 #: Seed 004 text bounds of the reorientation run.
 REORIENT_BOUNDS = {"hold_error_deg": 0.4, "propellant_g": 8.0,
                    "max_open_ms": 750.0, "residual_dv": 3.22e-4,
@@ -45,37 +66,10 @@ REORIENT_BOUNDS = {"hold_error_deg": 0.4, "propellant_g": 8.0,
 
 # ----------------------------------------------------------------------
 # rigid body
-def _qmul(p, q):
-    w1, x1, y1, z1 = p
-    w2, x2, y2, z2 = q
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-
-
-def _qconj(q):
-    return np.array([q[0], -q[1], -q[2], -q[3]])
-
-
-def _rot(q):
-    """Rotation matrix inertial_from_body of unit quaternion q (w first)."""
-    w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 def _error_vector(q, q_ref):
     """Small-angle attitude error 2 vec(q_ref* q), sign-fixed [rad]."""
-    e = _qmul(_qconj(q_ref), q)
+    e = quat_mul(quat_conj(q_ref), q)
     return 2.0 * np.sign(e[0] if e[0] != 0 else 1.0) * e[1:]
-
-
-def _axis_angle_q(axis, angle):
-    axis = np.asarray(axis, dtype=float)
-    return np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis])
 
 
 @dataclass
@@ -87,29 +81,13 @@ class _Body:
     w: np.ndarray = field(default_factory=lambda: np.zeros(3))
     Hw: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
-    def __post_init__(self) -> None:
-        self.Jinv = np.linalg.inv(self.J)
-
-    def _deriv(self, q, w, Hw, tau_ext, u_w):
-        # J w' = -w x (J w + Hw) + tau_ext - u_w ;  Hw' = u_w
-        wdot = self.Jinv @ (-np.cross(w, self.J @ w + Hw) + tau_ext - u_w)
-        qdot = 0.5 * _qmul(q, np.concatenate([[0.0], w]))
-        return qdot, wdot, u_w
-
     def step(self, dt, tau_ext, u_w):
         """RK4 step with torques held over ``dt`` [s]."""
-        q, w, H = self.q, self.w, self.Hw
-        k1 = self._deriv(q, w, H, tau_ext, u_w)
-        k2 = self._deriv(q + 0.5 * dt * k1[0], w + 0.5 * dt * k1[1],
-                         H + 0.5 * dt * k1[2], tau_ext, u_w)
-        k3 = self._deriv(q + 0.5 * dt * k2[0], w + 0.5 * dt * k2[1],
-                         H + 0.5 * dt * k2[2], tau_ext, u_w)
-        k4 = self._deriv(q + dt * k3[0], w + dt * k3[1], H + dt * k3[2],
-                         tau_ext, u_w)
-        self.q = q + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-        self.q /= np.linalg.norm(self.q)
-        self.w = w + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-        self.Hw = H + dt / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
+        def f(q, w, H):
+            return (*body_rates(self.J, q, w, H, tau_ext, u_w), u_w)
+
+        q, self.w, self.Hw = rk4_step(f, (self.q, self.w, self.Hw), dt)
+        self.q = q / np.linalg.norm(q)
 
 
 @dataclass(frozen=True, eq=False)
@@ -266,7 +244,7 @@ def _simulate(name, unit, cycle, n_cycles, t_end, dt, allocate,
             body.w, body.J @ body.w + body.Hw)
         u_w = np.where(wheel_axes, np.clip(-tau_c, -u_max, u_max), 0.0)
         body.step(dt, tau, u_w)
-        v = v + _rot(body.q) @ F_body * dt / m
+        v = v + quat_to_dcm(body.q) @ F_body * dt / m
         used = float(dI.sum()) * per_impulse
         prop += used
         m -= used
@@ -453,7 +431,7 @@ def reorientation_scenario(allocation: str = "law", solver: str = "osqp",
              if allocation == "qp" else None)
 
     def q_ref(t):
-        return _axis_angle_q(axis, slew_profile(t)[0])
+        return quat_from_axis_angle(axis, slew_profile(t)[0])
 
     def w_ref(t):
         return axis * slew_profile(t)[1]
@@ -479,210 +457,3 @@ def reorientation_scenario(allocation: str = "law", solver: str = "osqp",
         (J.diagonal() * 0.09, J.diagonal() * 0.54, 0.02),
         lambda t: dist, MASS, J, MinOnTimeCarry(cal, T),
         jitter=float(valve_jitter), seed=seed)
-
-
-# ----------------------------------------------------------------------
-# tables
-def _row(quantity, paper, ours):
-    diff = None if paper is None else ours - paper
-    return (quantity, paper, float(ours), diff)
-
-
-def burn_table(result: ScenarioResult) -> list[tuple]:
-    """Table 3 of seed 004 beside ours: rows (quantity, paper, ours, diff).
-
-    Yaw error is the rotation of the thrust axis (+Y) about body Z, pitch
-    error about body X (for small errors these are the deviations of the
-    thrust vector's yaw and pitch angles); statistics over the burn.
-    Thrust deviation: per-cycle true mean thrust (transients included)
-    minus P_T. Δv error: |Δv| at the end minus P_T T_imp / m0. Wheel
-    momentum: at cycle starts (where the laws act), and its peak within
-    the cycles, over the whole burn and after the first 8 cycles.
-    """
-    P_T = TABLE2["P_T"]
-    dev = np.abs(result.net_thrust - P_T)
-    burn = result.t <= TABLE2["T_imp"]
-    yaw = np.rad2deg(np.abs(result.attitude_error[burn, 2]))
-    pitch = np.rad2deg(np.abs(result.attitude_error[burn, 0]))
-    dv_req = P_T * TABLE2["T_imp"] / MASS
-    dv = float(np.linalg.norm(result.velocity[-1]))
-    return [
-        _row("thrust deviation max [N]", TABLE3["thrust_dev_max"],
-             dev.max()),
-        _row("thrust deviation max [%]", TABLE3["thrust_dev_max_pct"],
-             100 * dev.max() / P_T),
-        _row("thrust deviation mean [N]", TABLE3["thrust_dev_mean"],
-             dev.mean()),
-        _row("thrust deviation mean [%]", TABLE3["thrust_dev_mean_pct"],
-             100 * dev.mean() / P_T),
-        _row("yaw error max [deg]", TABLE3["yaw_err_max"], yaw.max()),
-        _row("yaw error mean [deg]", TABLE3["yaw_err_mean"], yaw.mean()),
-        _row("pitch error max [deg]", TABLE3["pitch_err_max"], pitch.max()),
-        _row("pitch error mean [deg]", TABLE3["pitch_err_mean"],
-             pitch.mean()),
-        _row("dV error [m/s]", TABLE3["dV_err"], abs(dv - dv_req)),
-        _row("dV error [%]", TABLE3["dV_err_pct"],
-             100 * abs(dv - dv_req) / dv_req),
-        _row("dV [m/s]", TABLE2["dV"], dv),
-        _row("max |H_X|, |H_Z| at cycle starts [N·m·s]", TABLE2["H_max"],
-             _cycle_start_momentum(result)),
-        _row("max |H_X|, |H_Z| during the burn [N·m·s]", TABLE2["H_max"],
-             np.abs(result.wheel_momentum[burn][:, [0, 2]]).max()),
-        _row("same, steady state (t > 80 s) [N·m·s]", TABLE2["H_max"],
-             np.abs(result.wheel_momentum[burn & (result.t > 80.0)][
-                 :, [0, 2]]).max()),
-    ]
-
-
-def _cycle_start_momentum(result):
-    idx = np.searchsorted(result.t, result.cycle_start[1:] - 1e-9)
-    idx = np.append(idx, len(result.t) - 1)
-    return float(np.max(np.abs(result.wheel_momentum[idx][:, [0, 2]])))
-
-
-def reorientation_table(result: ScenarioResult) -> list[tuple]:
-    """Table 5 of seed 004 beside ours, plus the text's bounds.
-
-    Rows (quantity, paper, ours, diff). Group Δv: the group's impulse
-    over the initial mass; group thrust: per-cycle mean thrust of the
-    group; per engine: valve openings N_K, total, max and mean open time
-    [ms] (commanded). Then: hold error (max over 0-70 s and 240-600 s),
-    propellant, max valve open time, residual |Δv|, peak |H_Y|.
-    """
-    rows = []
-    gt = result.group_thrust
-    for gi, (gname, paper) in enumerate(TABLE5_GROUPS.items()):
-        dv = gt[:, gi].sum() * result.cycle / MASS
-        rows.append(_row(f"{gname} dV [m/s]", paper[0], dv))
-        rows.append(_row(f"{gname} max thrust in a cycle [N]", paper[1],
-                         gt[:, gi].max()))
-        rows.append(_row(f"{gname} mean thrust [N]", paper[2],
-                         gt[:, gi].mean()))
-    ms = 1e3 * result.on_time
-    for i, name in enumerate(result.unit.names):
-        paper = TABLE5_ENGINES.get(name, (None,) * 4)
-        opened = ms[:, i] > 0
-        nk = int(opened.sum())
-        rows.append(_row(f"{name} valve openings", paper[0], nk))
-        rows.append(_row(f"{name} total open [ms]", paper[1],
-                         ms[:, i].sum()))
-        rows.append(_row(f"{name} max open [ms]", paper[2], ms[:, i].max()))
-        rows.append(_row(f"{name} mean open [ms]", paper[3],
-                         ms[opened, i].mean() if nk else 0.0))
-    hold = (result.t <= 70.0) | (result.t >= 240.0)
-    err = np.rad2deg(np.linalg.norm(result.attitude_error[hold], axis=1))
-    rows += [
-        _row("hold error max [deg] (bound)", REORIENT_BOUNDS[
-            "hold_error_deg"], err.max()),
-        _row("propellant [g] (bound)", REORIENT_BOUNDS["propellant_g"],
-             1e3 * result.propellant),
-        _row("max valve open per cycle [ms] (bound)",
-             REORIENT_BOUNDS["max_open_ms"], ms.max()),
-        _row("residual |dV| [m/s]", REORIENT_BOUNDS["residual_dv"],
-             np.linalg.norm(result.velocity[-1])),
-        _row("peak |H_Y| [N·m·s]", REORIENT_BOUNDS["H_y_peak"],
-             np.abs(result.wheel_momentum[:, 1]).max()),
-        _row("final X angle [deg]", 170.0,
-             np.rad2deg(result.angle[-1, 0]) % 360),
-    ]
-    return rows
-
-
-def format_table(rows: list[tuple], title: str = "") -> str:
-    """Rows (quantity, paper, ours, diff) as a fixed-width text table."""
-    def f(v):
-        if v is None:
-            return "-"
-        return f"{v:.4g}"
-    w = max(len(r[0]) for r in rows)
-    lines = [title] if title else []
-    lines.append(f"{'quantity':<{w}}  {'paper':>10}  {'ours':>10}  "
-                 f"{'ours-paper':>10}")
-    for q, p, o, d in rows:
-        lines.append(f"{q:<{w}}  {f(p):>10}  {f(o):>10}  {f(d):>10}")
-    return "\n".join(lines)
-
-
-# ----------------------------------------------------------------------
-# plots
-def plot_scenario(result: ScenarioResult, path) -> None:
-    """Thrust, wheel momentum, valve on-times, Δv and attitude to ``path``.
-
-    Parameters
-    ----------
-    result : ScenarioResult
-    path : str or path-like
-        Output file (format from the suffix, e.g. ``.png``, ``.pdf``).
-    """
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(5, 1, figsize=(8, 13), sharex=True)
-    tc = result.cycle_start
-    gt = result.group_thrust
-    ax[0].step(tc, gt[:, 0], where="post", label="group 1 (+Y)")
-    ax[0].step(tc, gt[:, 1], where="post", label="group 2 (-Y)")
-    ax[0].set_ylabel("mean thrust in cycle [N]")
-    ax[0].legend()
-    for j, lab in enumerate("XYZ"):
-        ax[1].plot(result.t, result.wheel_momentum[:, j], label=f"H_{lab}")
-    ax[1].set_ylabel("wheel momentum [N·m·s]")
-    ax[1].legend()
-    for i, name in enumerate(result.unit.names):
-        ax[2].step(tc, 1e3 * result.on_time[:, i], where="post", label=name)
-    ax[2].set_ylabel("valve open [ms]")
-    ax[2].legend(ncol=3)
-    ax[3].plot(result.t, np.linalg.norm(result.velocity, axis=1))
-    ax[3].set_ylabel("|Δv| [m/s]")
-    if result.name == "burn":
-        for j, lab in enumerate("XYZ"):
-            ax[4].plot(result.t, np.rad2deg(result.attitude_error[:, j]),
-                       label=f"error about {lab}")
-        ax[4].set_ylabel("attitude error [deg]")
-    else:
-        for j, lab in enumerate("XYZ"):
-            ax[4].plot(result.t, np.rad2deg(result.angle[:, j]),
-                       label=f"angle {lab}")
-        ax[4].set_ylabel("attitude [deg]")
-    ax[4].legend()
-    ax[4].set_xlabel("t [s]")
-    fig.suptitle(f"seed 004 {result.name} scenario")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-
-
-def main(argv=None) -> None:
-    """Print Tables 3 and 5 beside ours; ``--plots DIR`` saves the plots.
-
-    Run as ``python -m thrusters [--allocation law|qp] [--solver NAME]
-    [--plots DIR]``.
-    """
-    import argparse
-    from pathlib import Path
-
-    ap = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
-    ap.add_argument("--allocation", choices=("law", "qp"), default="law")
-    ap.add_argument("--solver", default="osqp")
-    ap.add_argument("--plots", default=None)
-    args = ap.parse_args(argv)
-    burn = burn_scenario(allocation=args.allocation, solver=args.solver)
-    print(format_table(burn_table(burn),
-                       f"Seed 004 Table 3 (burn, {args.allocation})"))
-    print()
-    reo = reorientation_scenario(allocation=args.allocation,
-                                 solver=args.solver)
-    print(format_table(reorientation_table(reo),
-                       f"Seed 004 Table 5 (reorientation, "
-                       f"{args.allocation})"))
-    if args.plots:
-        out = Path(args.plots)
-        out.mkdir(parents=True, exist_ok=True)
-        plot_scenario(burn, out / "thrusters_burn.png")
-        plot_scenario(reo, out / "thrusters_reorientation.png")
-
-
-if __name__ == "__main__":
-    main()

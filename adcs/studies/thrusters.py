@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from thrusters.scenarios import (
+from thrusters import (
     burn_scenario,
     burn_table,
     plot_scenario,

@@ -37,6 +37,7 @@ from thrusters import ThrusterSet
 
 from ocp.spacecraft.definition import spacecraft_parts
 
+from adcs_common.rigid_body import body_rates
 from adcs_common.quaternion import quat_rate, quat_to_dcm
 from ocp.models.angles import ek_angle_rates
 
@@ -111,17 +112,14 @@ def dynamics_numpy(inertia, x, u, tau_ext=None, axes=None,
         tau = tau + T @ u[len(u) - T.shape[1]:]
         u = u[:len(u) - T.shape[1]]
     q, w = x[:4], x[4:7]
-    qw, qv = q[0], q[1:]
-    qdot = np.concatenate([[-0.5 * qv @ w],
-                           0.5 * (qw * w + np.cross(qv, w))])
     if axes is None:
-        wdot = np.linalg.solve(J, -np.cross(w, J @ w) + tau
-                               + (u if len(u) else 0.0))
+        box = u if len(u) else np.zeros(3)
+        qdot, wdot = body_rates(J, q, w, np.zeros(3), tau + box,
+                                np.zeros(3))
         return np.concatenate([qdot, wdot])
     A = np.asarray(axes, dtype=float)
     m = u if torque_factor is None else np.asarray(torque_factor) * u
-    h = x[7:]
-    wdot = np.linalg.solve(J, -np.cross(w, J @ w + A @ h) - A @ m + tau)
+    qdot, wdot = body_rates(J, q, w, A @ x[7:], tau, A @ m)
     return np.concatenate([qdot, wdot, m])
 
 

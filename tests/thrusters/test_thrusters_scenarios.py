@@ -10,12 +10,14 @@ from thrusters.scenarios import (
     TABLE2,
     TABLE3,
     burn_scenario,
+    reorientation_scenario,
+    slew_profile,
+)
+from thrusters.tables import (
     burn_table,
     format_table,
     plot_scenario,
-    reorientation_scenario,
     reorientation_table,
-    slew_profile,
 )
 
 
@@ -188,11 +190,11 @@ def test_plot_writes_file(tmp_path, burn, reorient):
 
 def test_main_prints_both_tables(capsys, tmp_path, monkeypatch, burn,
                                  reorient):
-    import thrusters.scenarios as sim
+    import thrusters.__main__ as cli
     # reuse the module's runs (main's own runs are the same calls)
-    monkeypatch.setattr(sim, "burn_scenario", lambda **kw: burn)
-    monkeypatch.setattr(sim, "reorientation_scenario", lambda **kw: reorient)
-    sim.main(["--plots", str(tmp_path)])
+    monkeypatch.setattr(cli, "burn_scenario", lambda **kw: burn)
+    monkeypatch.setattr(cli, "reorientation_scenario", lambda **kw: reorient)
+    cli.main(["--plots", str(tmp_path)])
     out = capsys.readouterr().out
     assert "Table 3" in out and "Table 5" in out
     assert (tmp_path / "thrusters_burn.png").exists()
