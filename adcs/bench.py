@@ -334,7 +334,7 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
         th = ref_alloc.theta(P_T, M, H, tau)
         r = ref_alloc.solve_theta(th)
         q, cl, cu = data(th)
-        if not r.found or kkt_residual(qp.P, q, C, cl, cu,
+        if not r.success or kkt_residual(qp.P, q, C, cl, cu,
                                        point(r)) > TOL:
             raise AdcsError(f"thrusters: reference {ref_name} failed its "
                             "KKT check")
@@ -356,7 +356,7 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
                 t0 = time.perf_counter()
                 r = alloc.solve_theta(th)
                 dt = time.perf_counter() - t0
-            if not r.found:
+            if not r.success:
                 fails += 1
                 continue
             x = point(r)

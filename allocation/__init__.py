@@ -40,7 +40,7 @@ from .laws import (
 )
 from .plots import plot_accuracy_histogram, plot_envelope
 from .qp import (
-    AllocationResult,
+    WheelAllocation,
     QPAllocator,
     available_solvers,
     conic_allocator_function,
@@ -64,7 +64,6 @@ from .symbolic import (
 __all__ = [
     "AccuracyResult",
     "AdcsError",
-    "AllocationResult",
     "EQ9_GAINS",
     "Envelope",
     "ErrorSummary",
@@ -80,6 +79,7 @@ __all__ = [
     "SolverError",
     "SolverNotFound",
     "TorqueError",
+    "WheelAllocation",
     "WheelArray",
     "WheelMotor",
     "actual_axes",

@@ -17,7 +17,7 @@ from .laws import (
     unloading_law,
 )
 from .qp import (
-    AllocationResult,
+    DutyAllocation,
     DutyCycleAllocator,
     DutyCycleQP,
     MinOnTimeCarry,
@@ -46,7 +46,7 @@ from .unit import (
 
 __all__ = [
     "AdcsError",
-    "AllocationResult",
+    "DutyAllocation",
     "DutyCycleAllocator",
     "DutyCycleQP",
     "G0",

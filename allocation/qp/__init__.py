@@ -1,8 +1,8 @@
-"""Bounded QP wheel allocation with pluggable backends."""
+"""Bounded QP wheel allocation on the shared QP layer."""
 
-from .allocator import AllocationResult, QPAllocator
-from .backends import available_solvers
+from .allocator import QPAllocator, WheelAllocation
 from .conic_function import conic_allocator_function
+from .solvers import available_solvers
 
-__all__ = ["AllocationResult", "QPAllocator", "available_solvers",
+__all__ = ["QPAllocator", "WheelAllocation", "available_solvers",
            "conic_allocator_function"]

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from adcs_common.buffers import BoundCall
 from adcs_common.exceptions import InvalidValueError, SolverError
+from adcs_common.qp import QP, Backend, QPSolution, make_backend
 from adcs_common.validation import (
     as_finite_array,
     as_finite_scalar,
@@ -19,9 +20,8 @@ from adcs_common.validation import (
 
 from ..arrays import WheelArray
 from ..electrical import WheelMotor
-from .backends import Backend, get_backend
+from .solvers import available_solvers
 from .problem import (
-    QPData,
     facet_normals,
     max_scale,
     pin_to_face,
@@ -46,8 +46,12 @@ _FAST_CACHE = 4
 
 
 @dataclass(frozen=True, eq=False)
-class AllocationResult:
-    """Outcome of one allocation.
+class WheelAllocation:
+    """Outcome of one wheel allocation (`QPAllocator.allocate`).
+
+    Every answer is checked (bounds, A m = target) before it is returned;
+    a backend failure raises `SolverError`, so ``success`` is always True
+    on a result you hold: ``status`` says which answer it is.
 
     Attributes
     ----------
@@ -59,8 +63,8 @@ class AllocationResult:
         ``"optimal"``: A m = M within tolerance; ``"saturated"``: M is not
         attainable and ``achieved`` is the documented substitute (see
         ``mode``).
-    residual : (3,) ndarray
-        Shortfall ``M - achieved`` [N·m].
+    shortfall : (3,) ndarray
+        ``M - achieved`` [N·m] (zero when optimal).
     alpha : float
         ``achieved·M / |M|²``: 1 when optimal, the scale reached in mode
         ``"scale"`` (within 1e-9 of the largest attainable), the component
@@ -76,18 +80,30 @@ class AllocationResult:
         Iterations of the last QP (-1 if the backend does not say).
     momentum_after : (N,) ndarray or None
         ``h + m dt`` when momentum and dt were given [N·m·s].
+    residual : float
+        Largest constraint violation of the returned torques (bounds and
+        ``A m = target``) [N·m], the quantity the check bounds.
+    extras : dict
+        The backend's own status text and anything else it reports.
     """
 
     torques: np.ndarray
     achieved: np.ndarray
     status: str
-    residual: np.ndarray
+    shortfall: np.ndarray
     alpha: float
     mode: str
     solve_time: float
     solver: str
     iterations: int = -1
     momentum_after: np.ndarray | None = None
+    residual: float = 0.0
+    extras: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        """The answer passed its checks (always, else SolverError)."""
+        return self.status in ("optimal", "saturated")
 
 
 class _FastWheelQP:
@@ -222,8 +238,8 @@ class QPAllocator:
 
     # ------------------------------------------------------------- helpers
     def _make_backend(self, k: int, n_eq: int) -> Backend:
-        return get_backend(self.solver, self._nvar, k, n_eq,
-                           self.solver_options)
+        return make_backend(self.solver, self._nvar, k, n_eq,
+                            self.solver_options, available_solvers())
 
     def _cost(self, h: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         depends_on_h = self.momentum_target is not None
@@ -256,7 +272,7 @@ class QPAllocator:
                           np.hstack([np.diag(eta * speed), -eye])])
         return rows, np.zeros(2 * n)
 
-    def _data(self, P, q, C_eq, b_eq, lo, hi, h) -> QPData:
+    def _data(self, P, q, C_eq, b_eq, lo, hi, h) -> QP:
         n = self.array.n_wheels
         lb = np.concatenate([lo, np.full(self._nvar - n, -np.inf)])
         ub = np.concatenate([hi, np.full(self._nvar - n, np.inf)])
@@ -268,11 +284,11 @@ class QPAllocator:
             C = np.vstack([C, rows])
             l_rows = np.concatenate([l_rows, np.full(len(rhs), -np.inf)])
             u_rows = np.concatenate([u_rows, rhs])
-        return QPData(P, q, C, l_rows, u_rows, lb, ub, len(b_eq))
+        return QP(P, q, C, l_rows, u_rows, lb, ub, len(b_eq))
 
-    def _solve(self, backend: Backend, data: QPData):
+    def _solve(self, backend: Backend, data: QP) -> QPSolution:
         res = backend.solve(data)
-        if not res.found:
+        if not res.success:
             raise SolverError(
                 f"{backend.name} failed on the allocation QP "
                 f"(status {res.status!r})", solver=backend.name, result=res)
@@ -394,7 +410,7 @@ class QPAllocator:
         return fast
 
     def allocate(self, torque, wheel_momentum=None,
-                 dt: float | None = None) -> AllocationResult:
+                 dt: float | None = None) -> WheelAllocation:
         """Allocate one demanded array torque.
 
         Parameters
@@ -410,7 +426,7 @@ class QPAllocator:
 
         Returns
         -------
-        AllocationResult
+        WheelAllocation
 
         Raises
         ------
@@ -469,9 +485,13 @@ class QPAllocator:
             alpha = max(float(target @ M) / nm, 0.0) if nm > 0 else 0.0
         achieved = self._axes @ m
         after = None if dt is None else h + m * dt
-        return AllocationResult(
+        return WheelAllocation(
             torques=m, achieved=achieved, status=status,
-            residual=M - achieved, alpha=float(alpha), mode=mode,
+            shortfall=M - achieved, alpha=float(alpha), mode=mode,
             solve_time=time.perf_counter() - t0,
             solver=self._backend.name, iterations=res.iterations,
-            momentum_after=after)
+            momentum_after=after,
+            residual=float(max(np.max(np.maximum(lo_s - m, m - hi_s)),
+                               np.max(np.abs(self._axes @ m - target)),
+                               0.0)),
+            extras=dict(res.extras))

@@ -9,7 +9,9 @@ from adcs_common.exceptions import InvalidValueError, SolverNotFound
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 
 from ..arrays import WheelArray
-from .backends import INSTALL_HINT, _casadi_names, available_solvers
+from adcs_common.qp import INSTALL_HINT
+
+from .solvers import available_solvers
 from .problem import facet_normals
 
 _MARGIN = 1e-9
@@ -119,7 +121,7 @@ def conic_allocator_function(array: WheelArray, weights=None, *,
         violation).
     """
     array.require_full_rank()
-    if f"casadi:{plugin}" not in _casadi_names():
+    if f"casadi:{plugin}" not in available_solvers():
         raise SolverNotFound(f"casadi:{plugin}", available_solvers(),
                              INSTALL_HINT)
     n = array.n_wheels

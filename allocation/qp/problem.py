@@ -1,19 +1,13 @@
-r"""QP data of the wheel allocator and the saturation geometry it needs.
+r"""The wheel allocation QP's bounds and saturation geometry.
 
-Every allocation QP here has the form
-
-.. math::
-    \min_x \tfrac12 x^T P x + q^T x \quad\text{s.t.}\quad
-    l \le C x \le u,\; lb \le x \le ub
-
-with ``x = m`` (motor torques, N) or ``x = (m, s)`` when the power cost adds
+The allocator poses its QP in the shared form (`adcs_common.qp.QP`) with
+``x = m`` (motor torques, N·m) or ``x = (m, s)`` when the power cost adds
 N epigraph variables; the first three rows of C are the equality
 ``A m = t`` (t the torque target).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -24,34 +18,6 @@ from ..zonotope import zonotope_facets
 
 #: Relative tolerance used to accept a point on the attainable set.
 _BOUNDARY_TOL = 1e-12
-
-
-@dataclass(frozen=True)
-class QPData:
-    """One QP in the solver-neutral form above (dense arrays).
-
-    Attributes
-    ----------
-    P : (n, n) ndarray
-    q : (n,) ndarray
-    C : (k, n) ndarray
-    l, u : (k,) ndarray
-        Row bounds; rows with ``l == u`` are equalities (the first
-        ``n_eq``), the others have ``l = -inf``.
-    lb, ub : (n,) ndarray
-        Variable bounds.
-    n_eq : int
-        Number of leading equality rows.
-    """
-
-    P: np.ndarray
-    q: np.ndarray
-    C: np.ndarray
-    l: np.ndarray  # noqa: E741 (OSQP's name for the lower row bound)
-    u: np.ndarray
-    lb: np.ndarray
-    ub: np.ndarray
-    n_eq: int
 
 
 def torque_bounds(array: WheelArray, wheel_momentum=None, dt=None,

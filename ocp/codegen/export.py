@@ -145,7 +145,7 @@ def duty_qp_function(unit, cycle: float, h_max: float, *,
         `DutyCycleAllocator.set_pressure`).
     """
     from thrusters import build_qp
-    from thrusters.qp.backends.casadi_conic_ import conic_function
+    from thrusters.qp.casadi_functions import conic_function
 
     return conic_function(build_qp(unit, cycle, h_max, **qp_options),
                           plugin)

@@ -86,7 +86,7 @@ def test_saturated_demand_keeps_its_direction(solver):
     assert res.alpha == pytest.approx(reach / 3.0, rel=1e-8)
     np.testing.assert_allclose(np.cross(res.achieved, WORST), 0, atol=1e-8)
     assert np.all(np.abs(res.torques) <= 1.0)
-    np.testing.assert_allclose(res.residual, 3.0 * WORST - res.achieved)
+    np.testing.assert_allclose(res.shortfall, 3.0 * WORST - res.achieved)
 
 
 def test_min_norm_law_reaches_only_1_334_in_the_worst_direction():

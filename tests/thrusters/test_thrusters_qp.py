@@ -106,7 +106,7 @@ def test_every_backend_matches_exact_reference(solver, case):
         warnings.simplefilter("ignore")
         res = alloc.solve(P_T, M, H, tau)
     x_ref = reference(alloc.qp, alloc.theta(P_T, M, H, tau))
-    assert res.found, res.status
+    assert res.success, res.status
     np.testing.assert_allclose(res.duty, x_ref[:-1], atol=TOL)
     assert res.momentum_excess == pytest.approx(x_ref[-1] * H_MAX,
                                                 abs=TOL * H_MAX)
@@ -166,7 +166,7 @@ def test_where_eq2_must_clip_the_qp_keeps_the_momentum_bound():
 def test_infeasible_thrust_demand_returns_status_not_nan():
     alloc = DutyCycleAllocator(UNIT, 10.0, H_MAX)
     res = alloc.solve(5.0)                     # > 3 x 0.5 N
-    assert res.status == "infeasible" and not res.found
+    assert res.status == "infeasible" and not res.success
     assert np.all(res.duty == 0.0) and np.all(np.isfinite(res.duty))
     with pytest.raises(InfeasibleError):
         alloc.duty(5.0)
@@ -176,7 +176,7 @@ def test_infeasible_momentum_bound_is_relaxed_and_reported():
     alloc = DutyCycleAllocator(UNIT, 10.0, H_MAX, tracking="weighted")
     # |M_X| <= 2 x 0.108 N·m at most: 3 N·m·s cannot be unloaded in 10 s
     res = alloc.solve(0.739, (0.0, 0.0), (3.0, 0.0, 0.0))
-    assert res.status == "bound_relaxed" and res.found
+    assert res.status == "bound_relaxed" and res.success
     assert res.momentum_excess > 0.5
     assert np.all(np.isfinite(res.duty))
     assert res.momentum_after[0] == pytest.approx(H_MAX + res.momentum_excess)
@@ -220,7 +220,7 @@ def test_property_duty_bounds_and_momentum_bound_when_feasible(
         P_T, mx, mz, hx, hz, tx):
     H, tau = (hx, 0.0, hz), (tx, 0.0, 0.0)
     res = ALLOC_W.solve(P_T, (mx, mz), H, tau)
-    assert res.found
+    assert res.success
     assert np.all((res.duty >= 0) & (res.duty <= 1))
     assert res.achieved[0] == pytest.approx(P_T, abs=1e-7)
     if momentum_feasible(P_T, H, tau, 10.0):
@@ -235,7 +235,7 @@ def test_property_duty_bounds_and_momentum_bound_when_feasible(
        st.floats(-0.01, 0.01))
 def test_property_reorientation_net_thrust_zero(mx, mz, hx, hz):
     res = ALLOC_R.solve(0.0, (mx, mz), (hx, 0.0, hz))
-    assert res.found
+    assert res.success
     assert np.all((res.duty >= 0) & (res.duty <= 1))
     assert abs(UNIT.force_matrix()[1] @ res.duty) < 1e-8
 
@@ -427,7 +427,7 @@ def test_duty_fast_matches_exact_reference_on_random_cycles(T, tracking,
 
 
 def test_duty_fast_falls_back_when_the_check_fails():
-    from thrusters.qp.backends.casadi_conic_ import FastDuty
+    from thrusters.qp.casadi_functions import FastDuty
 
     alloc = DutyCycleAllocator(UNIT, 2.0, H_MAX, solver="daqp",
                                tracking="weighted")
@@ -491,7 +491,7 @@ def test_duty_fast_follows_set_pressure():
 
 
 def test_duty_function_without_jit_gives_the_same_answer():
-    from thrusters.qp.backends.casadi_conic_ import duty_function
+    from thrusters.qp.casadi_functions import duty_function
 
     alloc = DutyCycleAllocator(UNIT, 2.0, H_MAX, solver="daqp",
                                tracking="weighted")

@@ -1,15 +1,15 @@
-"""Duty-cycle QP: canonical problem, backends and the allocator."""
+"""Duty-cycle QP: canonical problem, the allocator, its backends."""
 
 from .allocator import (
-    AllocationResult,
+    DutyAllocation,
     DutyCycleAllocator,
     MinOnTimeCarry,
 )
-from .backends import available_solvers
 from .problem import DutyCycleQP, build_qp
+from .solvers import available_solvers
 
 __all__ = [
-    "AllocationResult",
+    "DutyAllocation",
     "DutyCycleAllocator",
     "DutyCycleQP",
     "MinOnTimeCarry",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.optimize import linprog
@@ -11,10 +12,13 @@ from scipy.optimize import linprog
 from adcs_common.exceptions import InvalidValueError, ShapeError
 from adcs_common.validation import as_finite_array
 
+from adcs_common.qp import QP
+
 from ..laws import THRUST_AXIS, TORQUE_AXES
 from ..unit import ThrusterSet
-from .backends import make_backend
+from .casadi_functions import infinite_bounds
 from .problem import N_THETA, build_qp
+from .solvers import make_backend
 
 #: Largest scaled constraint violation accepted from a backend.
 RESIDUAL_TOL = 1e-6
@@ -23,13 +27,14 @@ SLACK_TOL = 1e-7
 
 
 @dataclass(frozen=True, eq=False)
-class AllocationResult:
-    """One cycle of the duty-cycle QP.
+class DutyAllocation:
+    """One cycle of the duty-cycle QP (`DutyCycleAllocator.solve`).
 
     Attributes
     ----------
     duty : numpy.ndarray, shape (n,)
-        Duty fractions in [0, 1] (D1..Dn). Zeros when ``found`` is False.
+        Duty fractions in [0, 1] (D1..Dn). Zeros when ``success`` is
+        False.
     status : str
         ``"optimal"``: every constraint met; ``"bound_relaxed"``: no duty
         cycle keeps the momentum inside the bound, the returned cycle
@@ -38,8 +43,8 @@ class AllocationResult:
         thrusters can give (duty zeros, never NaN); ``"failed"``: the
         backend returned no point or one failing the residual check
         while the problem is feasible (duty zeros).
-    found : bool
-        True for ``"optimal"`` and ``"bound_relaxed"``.
+    success : bool
+        True for ``"optimal"`` and ``"bound_relaxed"`` (a checked point).
     demand : numpy.ndarray, shape (3,)
         ``(P_T [N], M_X [N·m], M_Z [N·m])``.
     achieved : numpy.ndarray, shape (3,)
@@ -59,11 +64,15 @@ class AllocationResult:
         Wall time of the backend call [s].
     solver : str
         Backend name.
+    iterations : int
+        Iterations the backend reports (-1 if it does not say).
+    extras : dict
+        The backend's own status text and anything else it reports.
     """
 
     duty: np.ndarray
     status: str
-    found: bool
+    success: bool
     demand: np.ndarray
     achieved: np.ndarray
     tracking_error: np.ndarray
@@ -73,6 +82,8 @@ class AllocationResult:
     propellant: float
     solve_time: float
     solver: str
+    iterations: int = -1
+    extras: dict[str, Any] = field(default_factory=dict)
 
 
 def _fill_theta(th: np.ndarray, P_T, M, H, tau_dist) -> bool:
@@ -154,7 +165,12 @@ class DutyCycleAllocator:
                            regularization=regularization,
                            slack_weight=slack_weight)
         self.solver = solver
-        self.backend = make_backend(solver, self.qp, solver_options or {})
+        self.backend = make_backend(solver, self.qp.nx, self.qp.A.shape[0],
+                                    self.qp.n_eq, solver_options)
+        # qpsolvers backends get no finite bound on the slack: ProxQP and
+        # Clarabel fail on this QP with one (measured), the others do not
+        # care
+        self._free_slack = self.backend.name.startswith("qpsolvers:")
         F = unit.force_matrix()
         Mt = unit.torque_matrix()
         self._track = np.vstack([F[THRUST_AXIS], Mt[TORQUE_AXES[0]],
@@ -240,7 +256,6 @@ class DutyCycleAllocator:
         self._set_r0()
         if self._fast:
             self._fast.kmax[:] = scale
-        self.backend.set_upper(self._ub)
 
     def _set_r0(self) -> None:
         qp = self.qp
@@ -252,7 +267,7 @@ class DutyCycleAllocator:
         return self._pressure
 
     def solve(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
-              tau_dist=(0.0, 0.0, 0.0)) -> AllocationResult:
+              tau_dist=(0.0, 0.0, 0.0)) -> DutyAllocation:
         """Allocate one cycle (at the pressure of `set_pressure`).
 
         Parameters
@@ -268,20 +283,28 @@ class DutyCycleAllocator:
 
         Returns
         -------
-        AllocationResult
+        DutyAllocation
         """
         th = self.theta(P_T, M, H, tau_dist)
         return self.solve_theta(th)
 
-    def solve_theta(self, th: np.ndarray) -> AllocationResult:
+    def solve_theta(self, th: np.ndarray) -> DutyAllocation:
         """`solve` with a ready parameter vector (9,) (no validation).
 
         ``th`` is not copied (the result's ``demand`` is a view of it):
         pass a fresh array, as `theta` returns.
         """
         t0 = time.perf_counter()
-        x, status, residual = self.backend.solve(th)
+        qp = self.qp
+        q, l, u = qp.vectors(th)
+        ub = self._ub
+        if self._free_slack:
+            ub = ub.copy()
+            ub[-1] = np.inf
+        sol = self.backend.solve(QP(qp.P, q, qp.A, infinite_bounds(l),
+                                    infinite_bounds(u), qp.lb, ub, qp.n_eq))
         solve_time = time.perf_counter() - t0
+        x, status, residual = sol.x, sol.status, None
         if x is None:
             residual = np.inf
         elif residual is None:
@@ -296,7 +319,8 @@ class DutyCycleAllocator:
             kt = x[:-1].clip(0.0, self._ub[:-1])     # impulse units
             slack = max(float(x[-1]), 0.0)
             status = "optimal" if slack <= SLACK_TOL else "bound_relaxed"
-        return self._result(kt, th, status, slack, residual, solve_time)
+        return self._result(kt, th, status, slack, residual, solve_time,
+                            sol)
 
     def casadi_function(self, plugin: str = "qrqp",
                         options: dict | None = None):
@@ -312,7 +336,7 @@ class DutyCycleAllocator:
             with ``plugin="qrqp"``. Check ``violation`` (qrqp can report
             success on a violated point).
         """
-        from .backends.casadi_conic_ import conic_function
+        from .casadi_functions import conic_function
 
         return conic_function(self.qp, plugin, options)
 
@@ -320,7 +344,7 @@ class DutyCycleAllocator:
              tau_dist=(0.0, 0.0, 0.0)) -> np.ndarray:
         """Duty fractions only (raises unless found; see `duty_fast`)."""
         res = self.solve(P_T, M, H, tau_dist)
-        if not res.found:
+        if not res.success:
             from adcs_common.exceptions import InfeasibleError
             raise InfeasibleError(
                 f"duty-cycle QP: status {res.status!r} for demand "
@@ -394,7 +418,7 @@ class DutyCycleAllocator:
         """Build the fast path's Function, or False without the plugin."""
         import casadi as ca
 
-        from .backends.casadi_conic_ import FAST_PLUGIN, FastDuty
+        from .casadi_functions import FAST_PLUGIN, FastDuty
 
         self._fast = (FastDuty(self.qp, self._ub[:-1],
                                viol_tol=RESIDUAL_TOL)
@@ -402,18 +426,21 @@ class DutyCycleAllocator:
         return self._fast
 
     # ------------------------------------------------------------------
-    def _result(self, kt, th, status, slack, residual, solve_time):
+    def _result(self, kt, th, status, slack, residual, solve_time,
+                sol=None):
         y = self._W @ np.concatenate((kt, th))
         # kt lies in [0, scale]: the duty kt / scale lies in [0, 1]
         duty = kt if self._pressure == self.unit.pressure else np.minimum(
             kt / self._scale, 1.0)
-        return AllocationResult(
+        return DutyAllocation(
             duty=duty, status=status,
-            found=status in ("optimal", "bound_relaxed"), demand=th[:3],
+            success=status in ("optimal", "bound_relaxed"), demand=th[:3],
             achieved=y[0:3], tracking_error=y[3:6], momentum_after=y[6:9],
             momentum_excess=slack * self.h_max, residual=residual,
             propellant=float(y[9]), solve_time=solve_time,
-            solver=self.solver)
+            solver=self.solver,
+            iterations=-1 if sol is None else sol.iterations,
+            extras={} if sol is None else dict(sol.extras))
 
     def _feasible(self, th: np.ndarray) -> bool:
         """Phase-1 LP (HiGHS via scipy): tell if the equalities are met."""

@@ -1,4 +1,4 @@
-"""CasADi ``conic`` backend, wrapped as one Function of the parameters."""
+"""The duty-cycle QP as CasADi Functions of the parameters (fast path, C)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,9 @@ import casadi as ca
 import numpy as np
 
 from adcs_common.buffers import BoundCall
+from adcs_common.codegen import CompilerNotFound, find_compiler
 
-from ..problem import INF, DutyCycleQP
+from .problem import INF, DutyCycleQP
 
 #: Options set per plugin (printing off, no exception on failure: the
 #: allocator checks residuals itself, since qrqp can report success on a
@@ -28,7 +29,16 @@ DEFAULTS = {
 FAST_PLUGIN = "daqp"
 
 
-def _inf(v: np.ndarray) -> np.ndarray:
+def _has_compiler() -> bool:
+    try:
+        find_compiler()
+    except CompilerNotFound:
+        return False
+    return True
+
+
+def infinite_bounds(v: np.ndarray) -> np.ndarray:
+    """Replace the finite stand-in ``±INF`` of absent bounds by ``±inf``."""
     out = v.astype(float).copy()
     out[out >= INF / 2] = np.inf
     out[out <= -INF / 2] = -np.inf
@@ -52,8 +62,8 @@ def conic_function(qp: DutyCycleQP, plugin: str,
                       {"h": H.sparsity(), "a": Asp.sparsity()}, opts)
     theta = ca.MX.sym("theta", qp.Lm.shape[1])
     q = ca.DM(qp.q0) + ca.DM(qp.Q) @ theta
-    l = ca.DM(_inf(qp.l0)) + ca.DM(qp.Lm) @ theta
-    u = ca.DM(_inf(qp.u0)) + ca.DM(qp.Um) @ theta
+    l = ca.DM(infinite_bounds(qp.l0)) + ca.DM(qp.Lm) @ theta
+    u = ca.DM(infinite_bounds(qp.u0)) + ca.DM(qp.Um) @ theta
     n = qp.nx - 1
     kmax = ca.MX.sym("kmax", n)
     lbx = ca.DM(qp.lb)
@@ -115,7 +125,7 @@ def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
     # there (CasADi's SX virtual machine costs ~3 µs more per call)
     jit = ({"jit": True, "compiler": "shell",
             "jit_options": {"flags": ["-O2"], "verbose": False}}
-           if jit and compiler() is not None else {})
+           if jit and _has_compiler() else {})
     n = qp.nx - 1
     ne = qp.n_eq
     nth = qp.Lm.shape[1]
@@ -143,8 +153,8 @@ def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
     ok_in = ca.fabs(ca.sum1(th)) < np.inf
     th0 = ca.if_else(ok_in, th, ca.DM.zeros(nth))
     q = ca.DM(qp.q0) + ca.DM(qp.Q) @ th0
-    l = ca.DM(_inf(qp.l0)) + ca.DM(qp.Lm) @ th0
-    u = ca.DM(_inf(qp.u0)) + ca.DM(qp.Um) @ th0
+    l = ca.DM(infinite_bounds(qp.l0)) + ca.DM(qp.Lm) @ th0
+    u = ca.DM(infinite_bounds(qp.u0)) + ca.DM(qp.Um) @ th0
     kp = ca.DM(Ep) @ l[:ne]
     xp = ca.vertcat(kp, 0)
     gr = ca.DM(Tm.T) @ (ca.DM(qp.P) @ xp + q)
@@ -230,86 +240,3 @@ class FastDuty:
         self._call = BoundCall(self.function, (self.theta, self.kmax),
                                (self.duty, self.slack, self.check))
         self.trigger = self._call.trigger
-
-
-class Backend:
-    """CasADi conic called through ``Function.buffer()`` (no conversion)."""
-
-    def __init__(self, qp: DutyCycleQP, plugin: str, options: dict) -> None:
-        self.qp = qp
-        self.function = conic_function(qp, plugin, options)
-        self._bind()
-
-    def _bind(self) -> None:
-        """Bind numpy work arrays to the Function's buffer."""
-        qp = self.qp
-        self._theta = np.zeros(qp.Lm.shape[1])
-        self._kmax = np.array(qp.ub[:-1], dtype=float)
-        self._x = np.zeros(qp.nx)
-        self._viol = np.zeros(1)
-        self._call = BoundCall(self.function, (self._theta, self._kmax),
-                               (self._x, self._viol))
-        self._trigger = self._call.trigger
-
-    def set_upper(self, ub: np.ndarray) -> None:
-        """Change the duties' upper bounds for the next solves."""
-        self._kmax[:] = ub[:-1]
-
-    def solve(self, theta: np.ndarray):
-        """Return ``(x, status, violation)``; residuals decide success."""
-        self._theta[:] = theta
-        # a failed evaluation (generated C returns an error code) leaves
-        # the outputs untouched: NaN marks it instead of a stale point
-        self._viol[0] = np.nan
-        self._trigger()
-        x = self._x.copy()
-        viol = float(self._viol[0])
-        if not np.isfinite(viol):
-            return None, "failed", None
-        return x, "solved", viol
-
-
-def compiler() -> str | None:
-    """Return a C compiler on PATH (``cc``, ``gcc`` or ``clang``), or None."""
-    import shutil
-
-    for name in ("cc", "gcc", "clang"):
-        path = shutil.which(name)
-        if path:
-            return path
-    return None
-
-
-class CodegenBackend(Backend):
-    """The conic Function exported to C, compiled, loaded as external.
-
-    ``casadi.Function.generate`` writes self-contained C for code-
-    generatable plugins (qrqp); it is compiled once with the system C
-    compiler (``-O2 -shared -fPIC``) in a temporary folder (removed once
-    the library is loaded) and called through ``Function.buffer()``.
-    """
-
-    def __init__(self, qp: DutyCycleQP, plugin: str, options: dict) -> None:
-        import os
-        import subprocess
-        import tempfile
-
-        self.qp = qp
-        fn = conic_function(qp, plugin, options)
-        folder = tempfile.mkdtemp(prefix="thrusters_qp_")
-        cwd = os.getcwd()
-        try:
-            os.chdir(folder)
-            fn.generate("duty_qp.c")
-        finally:
-            os.chdir(cwd)
-        src = os.path.join(folder, "duty_qp.c")
-        lib = os.path.join(folder, "duty_qp.so")
-        subprocess.run([compiler(), "-O2", "-shared", "-fPIC", src, "-o",
-                        lib, "-lm"], check=True, capture_output=True)
-        self.function = ca.external("duty_qp", lib)
-        self._bind()
-        # the library is loaded (dlopen): the temporary folder can go
-        import shutil
-
-        shutil.rmtree(folder, ignore_errors=True)

@@ -1,0 +1,144 @@
+"""QP backends, one module each, behind one table and one constructor.
+
+Names a user passes (``solver=``):
+
+* ``"osqp"``: OSQP kept across calls, warm-started (`osqp_`);
+* ``"daqp"``: DAQP called directly, exact (`daqp_`);
+* ``"qpsolvers:NAME"`` (or a bare ``"NAME"``): any installed `qpsolvers`
+  backend, set up again on every call (`qpsolvers_`);
+* ``"casadi:PLUGIN"``: a CasADi conic plugin (`casadi_conic_`);
+* ``"casadi-c:PLUGIN"``: that conic as generated C, compiled (needs a C
+  compiler; `casadi_codegen_`).
+
+A new backend is one module with a ``Backend`` class (``Backend(plugin,
+n, k, n_eq, options).solve(qp) -> QPSolution``) and one line in
+`FAMILIES`; every allocator then offers it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from typing import Any, Protocol
+
+import casadi as ca
+
+from ...exceptions import SolverNotFound
+from ..problem import QP
+from ..solution import QPSolution
+
+#: family -> module of this package
+FAMILIES = {
+    "osqp": "osqp_",
+    "daqp": "daqp_",
+    "qpsolvers": "qpsolvers_",
+    "casadi": "casadi_conic_",
+    "casadi-c": "casadi_codegen_",
+}
+#: CasADi conic plugins offered. Left out: hpipm (rejects this
+#: structure), proxqp (reports primal infeasibility when a failed wheel
+#: has lbx == ubx), qpoases (prints a licence banner on every build).
+CASADI_PLUGINS = ("daqp", "qrqp", "osqp")
+INSTALL_HINT = ('install the optional backends with '
+                'pip install "adcs-toolbox[solvers]"')
+
+
+class Backend(Protocol):
+    """A QP backend bound to one problem size."""
+
+    name: str
+
+    def solve(self, qp: QP) -> QPSolution:
+        """Solve ``qp``; a numerical failure is a status, never raised."""
+
+
+def resolve(name: str) -> tuple[str, str]:
+    """``(family, plugin)`` of a solver name (not checked installed)."""
+    if not isinstance(name, str) or not name:
+        raise SolverNotFound(repr(name), available_solvers(), INSTALL_HINT)
+    family, sep, plugin = name.partition(":")
+    if sep and family in FAMILIES:
+        return family, plugin
+    if name in ("osqp", "daqp"):
+        return name, name
+    return "qpsolvers", name
+
+
+def canonical_name(name, offered: tuple[str, ...]):
+    """``"qpsolvers:NAME"`` for a bare qpsolvers ``NAME`` it offers."""
+    if isinstance(name, str) and name not in offered \
+            and f"qpsolvers:{name}" in offered and ":" not in name:
+        return f"qpsolvers:{name}"
+    return name
+
+
+def _qpsolvers_names() -> tuple[str, ...]:
+    from .qpsolvers_ import installed
+
+    return installed()
+
+
+def available_solvers(qpsolvers_names: tuple[str, ...] | None = None,
+                      casadi_plugins: tuple[str, ...] = CASADI_PLUGINS,
+                      codegen_plugins: tuple[str, ...] = ("qrqp",),
+                      bare_names: bool = True) -> tuple[str, ...]:
+    """Every solver name that works on this installation.
+
+    Parameters
+    ----------
+    qpsolvers_names : tuple of str, optional
+        The qpsolvers backends to offer (default every installed one).
+    casadi_plugins, codegen_plugins : tuple of str
+        The CasADi conic plugins to offer, as called and as generated C.
+    bare_names : bool
+        Also offer each qpsolvers backend by its bare name (``"piqp"``
+        for ``"qpsolvers:piqp"``).
+    """
+    names = []
+    if importlib.util.find_spec("osqp") is not None:
+        names.append("osqp")
+    if importlib.util.find_spec("daqp") is not None:
+        names.append("daqp")
+    qps = [n for n in _qpsolvers_names()
+           if qpsolvers_names is None or n in qpsolvers_names]
+    if bare_names:
+        names += [n for n in qps if n not in ("osqp", "daqp")]
+    names += [f"qpsolvers:{n}" for n in qps]
+    names += [f"casadi:{p}" for p in casadi_plugins if ca.has_conic(p)]
+    from .casadi_codegen_ import PLUGINS, available
+
+    if available():
+        names += [f"casadi-c:{p}" for p in codegen_plugins if p in PLUGINS
+                  and ca.has_conic(p)]
+    return tuple(names)
+
+
+def make_backend(name: str, n: int, k: int, n_eq: int,
+                 options: dict[str, Any] | None = None,
+                 offered: tuple[str, ...] | None = None,
+                 hint: str = INSTALL_HINT) -> Backend:
+    """Build backend ``name`` for a QP of n variables and k rows.
+
+    Parameters
+    ----------
+    offered : tuple of str, optional
+        The names the caller offers (default `available_solvers`).
+
+    Raises
+    ------
+    SolverNotFound
+        ``name`` is not offered here; the message lists what is.
+    """
+    offered = available_solvers() if offered is None else offered
+    name = canonical_name(name, offered)
+    if not isinstance(name, str) or name not in offered:
+        raise SolverNotFound(repr(name) if not isinstance(name, str)
+                             else name, offered, hint)
+    if options is not None and not isinstance(options, dict):
+        from ...exceptions import InvalidValueError
+
+        raise InvalidValueError(
+            f"solver_options must be a dict, got {type(options).__name__}")
+    family, plugin = resolve(name)
+    module = importlib.import_module(f"{__name__}.{FAMILIES[family]}")
+    return module.Backend(plugin, n, k, n_eq, dict(options or {}))
