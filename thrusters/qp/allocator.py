@@ -171,6 +171,10 @@ class DutyCycleAllocator:
         # Clarabel fail on this QP with one (measured), the others do not
         # care
         self._free_slack = self.backend.name.startswith("qpsolvers:")
+        # rows without a lower / upper bound (their stand-in ±INF stays
+        # beyond INF/2 for any parameters), ±inf for the backends
+        self._l_absent = infinite_bounds(self.qp.l0) == -np.inf
+        self._u_absent = infinite_bounds(self.qp.u0) == np.inf
         F = unit.force_matrix()
         Mt = unit.torque_matrix()
         self._track = np.vstack([F[THRUST_AXIS], Mt[TORQUE_AXES[0]],
@@ -301,8 +305,10 @@ class DutyCycleAllocator:
         if self._free_slack:
             ub = ub.copy()
             ub[-1] = np.inf
-        sol = self.backend.solve(QP(qp.P, q, qp.A, infinite_bounds(l),
-                                    infinite_bounds(u), qp.lb, ub, qp.n_eq))
+        l[self._l_absent] = -np.inf
+        u[self._u_absent] = np.inf
+        sol = self.backend.solve(QP(qp.P, q, qp.A, l, u, qp.lb, ub,
+                                    qp.n_eq))
         solve_time = time.perf_counter() - t0
         x, status, residual = sol.x, sol.status, None
         if x is None:

@@ -13,6 +13,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from ...buffers import BoundCall
 from ..problem import QP
 from ..solution import QPSolution
 
@@ -45,24 +46,55 @@ def dense_conic(name: str, plugin: str, n: int, k: int,
                     plugin_options(plugin, options))
 
 
+def wrapped_conic(plugin: str, n: int, k: int,
+                  options: dict[str, Any]) -> ca.Function:
+    """``qp(h, g, a, lba, uba, lbx, ubx) -> x``: the conic as a Function."""
+    conic = dense_conic("qp_conic", plugin, n, k, options)
+    args = [ca.MX.sym(s, *shape) for s, shape in (
+        ("h", (n, n)), ("g", (n, 1)), ("a", (k, n)), ("lba", (k, 1)),
+        ("uba", (k, 1)), ("lbx", (n, 1)), ("ubx", (n, 1)))]
+    x = conic(h=args[0], g=args[1], a=args[2], lba=args[3], uba=args[4],
+              lbx=args[5], ubx=args[6])["x"]
+    return ca.Function("qp_c", args, [x])
+
+
 class Backend:
-    """A ``casadi.conic`` solver called with numpy data."""
+    """A ``casadi.conic`` bound to numpy buffers (no argument conversion).
+
+    The point's success is its being finite: the allocators check every
+    point's residual themselves (the conic's own flag is not reachable
+    through a buffer, and qrqp's can be wrong anyway).
+    """
 
     def __init__(self, plugin: str, n: int, k: int, n_eq: int,
                  options: dict[str, Any]) -> None:
         self.name = f"casadi:{plugin}"
-        self.solver = dense_conic("qp", plugin, n, k, options)
+        self._bind(wrapped_conic(plugin, n, k, options), n, k)
+
+    def _bind(self, function: ca.Function, n: int, k: int) -> None:
+        self.function = function
+        self._in = [np.zeros(n * n), np.zeros(n), np.zeros(k * n),
+                    np.zeros(k), np.zeros(k), np.zeros(n), np.zeros(n)]
+        self._x = np.zeros(n)
+        self._call = BoundCall(function, self._in, (self._x,))
+        self._P_obj = self._C_obj = None
 
     def solve(self, qp: QP) -> QPSolution:
         """Solve one QP."""
-        sol = self.solver(h=qp.P, g=qp.q, a=qp.C, lba=qp.l, uba=qp.u,
-                          lbx=qp.lb, ubx=qp.ub)
-        stats = self.solver.stats()
-        found = bool(stats.get("success", False))
-        x = np.array(sol["x"], dtype=float).ravel()
-        found = found and bool(np.all(np.isfinite(x)))
+        h, g, a, lba, uba, lbx, ubx = self._in
+        if qp.P is not self._P_obj:
+            h[:] = qp.P.ravel(order="F")
+            self._P_obj = qp.P
+        if qp.C is not self._C_obj:
+            a[:] = qp.C.ravel(order="F")
+            self._C_obj = qp.C
+        g[:], lba[:], uba[:], lbx[:], ubx[:] = qp.q, qp.l, qp.u, qp.lb, qp.ub
+        # a failed evaluation leaves the output untouched: NaN marks it
+        self._x[:] = np.nan
+        self._call.trigger()
+        x = self._x.copy()
+        found = bool(np.all(np.isfinite(x)))
         return QPSolution(x if found else None, found,
                           "solved" if found else "failed",
-                          int(stats.get("iter_count", -1) or -1),
-                          extras={"backend_status":
-                                  str(stats.get("return_status", ""))})
+                          extras={"backend_status": "finite point" if found
+                                  else "evaluation failed"})

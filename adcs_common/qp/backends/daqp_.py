@@ -36,15 +36,23 @@ class Backend:
         self.settings = {**DEFAULTS, **options}
         self._model = None
         self._H = self._C = None
+        self._P_obj = self._C_obj = None
         self._sense = np.zeros(n + k, dtype=np.int32)
         self._sense[n:n + n_eq] = 5          # equality rows (immutable)
+        self._bu = np.zeros(n + k)
+        self._bl = np.zeros(n + k)
 
     def solve(self, qp: QP) -> QPSolution:
         """Solve one QP (set up again only if H or C changed)."""
-        bu = np.clip(np.concatenate([qp.ub, qp.u]), -_INF, _INF)
-        bl = np.clip(np.concatenate([qp.lb, qp.l]), -_INF, _INF)
-        if (self._model is None or not np.array_equal(qp.P, self._H)
-                or not np.array_equal(qp.C, self._C)):
+        n, bu, bl = self.n, self._bu, self._bl
+        bu[:n], bu[n:], bl[:n], bl[n:] = qp.ub, qp.u, qp.lb, qp.l
+        np.clip(bu, -_INF, _INF, out=bu)
+        np.clip(bl, -_INF, _INF, out=bl)
+        same = (qp.P is self._P_obj and qp.C is self._C_obj) or (
+            self._model is not None and np.array_equal(qp.P, self._H)
+            and np.array_equal(qp.C, self._C))
+        self._P_obj, self._C_obj = qp.P, qp.C
+        if self._model is None or not same:
             self._H = np.ascontiguousarray(qp.P, dtype=float)
             self._C = np.ascontiguousarray(qp.C, dtype=float)
             self._model = self._daqp.Model()

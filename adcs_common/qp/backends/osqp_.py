@@ -52,6 +52,7 @@ class Backend:
         self._a_order = self._order(self._a_pattern)
         self._solver = None
         self._px = self._ax = None
+        self._P_obj = self._C_obj = None
         S = osqp.SolverStatus
         self._solved = {int(S.OSQP_SOLVED)}
         if self.accept_inaccurate:
@@ -75,9 +76,13 @@ class Backend:
 
     def solve(self, qp: QP) -> QPSolution:
         """Solve one QP, warm-started from the previous call."""
-        full = np.vstack([qp.C, np.eye(self.n)])
-        px = qp.P[self._p_order]
-        ax = full[self._a_order]
+        if qp.P is self._P_obj and qp.C is self._C_obj:
+            px, ax = self._px, self._ax      # the same matrices as before
+        else:
+            full = np.vstack([qp.C, np.eye(self.n)])
+            px = qp.P[self._p_order]
+            ax = full[self._a_order]
+            self._P_obj, self._C_obj = qp.P, qp.C
         l_all = np.clip(np.concatenate([qp.l, qp.lb]), -_INF, _INF)
         u_all = np.clip(np.concatenate([qp.u, qp.ub]), -_INF, _INF)
         fresh = self._solver is None
@@ -85,9 +90,9 @@ class Backend:
             self._setup(px, ax, qp.q, l_all, u_all)
         else:
             change = {}
-            if not np.array_equal(px, self._px):
+            if px is not self._px and not np.array_equal(px, self._px):
                 change["Px"] = px
-            if not np.array_equal(ax, self._ax):
+            if ax is not self._ax and not np.array_equal(ax, self._ax):
                 change["Ax"] = ax
             self._solver.update(q=qp.q, l=l_all, u=u_all, **change)
             self._px, self._ax = px, ax

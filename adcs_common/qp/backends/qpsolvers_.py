@@ -53,17 +53,29 @@ class Backend:
         self.settings = {**DEFAULTS.get(plugin, {}), **options}
         self.sparse = (plugin in qpsolvers.sparse_solvers
                        and plugin not in qpsolvers.dense_solvers)
+        self._key = None
+
+    def _matrices(self, qp: QP, up: np.ndarray, lo: np.ndarray):
+        """(P, A, G), rebuilt only when P, C or the one-sided rows change."""
+        key = (id(qp.P), id(qp.C), up.tobytes(), lo.tobytes())
+        if key != self._key:
+            e = qp.n_eq
+            C = qp.C[e:]
+            P, A, G = qp.P, qp.C[:e], np.vstack([C[up], -C[lo]])
+            if self.sparse:
+                P, A, G = (sp.csc_matrix(P), sp.csc_matrix(A),
+                           sp.csc_matrix(G))
+            self._key, self._mats = key, (P, A, G)
+            self._keep = (qp.P, qp.C)  # the ids stay theirs while kept
+        return self._mats
 
     def solve(self, qp: QP) -> QPSolution:
         """Solve one QP."""
         e = qp.n_eq
-        C, l, u = qp.C[e:], qp.l[e:], qp.u[e:]
+        l, u = qp.l[e:], qp.u[e:]
         up, lo = np.isfinite(u), np.isfinite(l)
-        G = np.vstack([C[up], -C[lo]])
         h = np.concatenate([u[up], -l[lo]])
-        P, A = qp.P, qp.C[:e]
-        if self.sparse:
-            P, A, G = sp.csc_matrix(P), sp.csc_matrix(A), sp.csc_matrix(G)
+        P, A, G = self._matrices(qp, up, lo)
         problem = self._qpsolvers.Problem(
             P, qp.q, G if h.size else None, h if h.size else None,
             A if e else None, qp.l[:e] if e else None, qp.lb, qp.ub)
