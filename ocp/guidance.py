@@ -19,7 +19,7 @@ from adcs_common.exceptions import InfeasibleError, InvalidValueError
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 from allocation import WheelArray, min_norm_gains
 
-from ocp.spacecraft.definition import Spacecraft, spacecraft_parts
+from ocp.spacecraft.definition import slew_parts, spacecraft_parts
 
 from adcs_common.quaternion import quat_conj, quat_mul, rotation_between
 from ocp.models.rigid import SpacecraftModel, check_inertia, rigid_spacecraft
@@ -250,9 +250,7 @@ def eigenaxis_slew(inertia, q0, qf, *, wheels: WheelArray | None = None,
     InfeasibleError
         The actuators cannot turn the body about the eigenaxis.
     """
-    if isinstance(inertia, Spacecraft) and rate_max is None:
-        rate_max = inertia.rate_max
-    inertia, wheels, _ = spacecraft_parts(inertia, wheels)
+    inertia, wheels, rate_max = slew_parts(inertia, wheels, rate_max)
     J = check_inertia(inertia)
     q0 = _unit_quat(q0, "q0")
     qf = _unit_quat(qf, "qf")

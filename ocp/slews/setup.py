@@ -9,7 +9,7 @@ from adcs_common.exceptions import (
 )
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 from allocation import min_norm_gains
-from ocp.spacecraft.definition import Spacecraft, spacecraft_parts
+from ocp.spacecraft.definition import slew_parts
 from adcs_common.quaternion import (
     quat_mul,
     quat_to_dcm,
@@ -118,9 +118,7 @@ class SlewSetup:
 def setup_slew(inertia, q0, qf, wheels, torque_max, h0, rate_max,
                keep_out=None) -> SlewSetup:
     """Check a slew's data and set it up (eigenaxis time and axis)."""
-    if isinstance(inertia, Spacecraft) and rate_max is None:
-        rate_max = inertia.rate_max
-    inertia, wheels, _ = spacecraft_parts(inertia, wheels)
+    inertia, wheels, rate_max = slew_parts(inertia, wheels, rate_max)
     J = check_inertia(inertia)
     q0 = _unit_quat(q0, "q0")
     qf = _unit_quat(qf, "qf")

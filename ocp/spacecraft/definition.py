@@ -15,7 +15,8 @@ from thrusters import ThrusterSet
 if TYPE_CHECKING:  # the model module imports this one
     from ocp.models.rigid import SpacecraftModel
 
-__all__ = ["Spacecraft", "SpacecraftFileError", "spacecraft_parts"]
+__all__ = ["Spacecraft", "SpacecraftFileError", "slew_parts",
+           "spacecraft_parts"]
 
 
 class SpacecraftFileError(AdcsError, ValueError):
@@ -163,3 +164,15 @@ def spacecraft_parts(inertia, wheels, thrusters=None, name: str = "inertia"):
                 "thrusters= as well (use spacecraft.with_wheels(...))")
         return inertia.inertia, inertia.wheels, inertia.thrusters
     return inertia, wheels, thrusters
+
+
+def slew_parts(inertia, wheels, rate_max):
+    """``(J, wheels, rate_max)`` of a slew given a `Spacecraft` or parts.
+
+    A `Spacecraft` brings its wheels and, unless ``rate_max`` is given,
+    its own rate limit.
+    """
+    if isinstance(inertia, Spacecraft) and rate_max is None:
+        rate_max = inertia.rate_max
+    inertia, wheels, _ = spacecraft_parts(inertia, wheels)
+    return inertia, wheels, rate_max

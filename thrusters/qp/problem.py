@@ -98,6 +98,28 @@ def facet_normals(n_facets: int) -> np.ndarray:
     return np.column_stack([np.cos(ang), np.sin(ang)])
 
 
+def _check_arguments(unit, cycle, h_max, tracking, bound, n_facets,
+                     *weights) -> tuple[float, float]:
+    """Check `build_qp`'s arguments; return the cycle and h_max [s, N·m·s]."""
+    if tracking not in ("hard", "weighted"):
+        raise InvalidValueError(
+            f"tracking must be 'hard' or 'weighted', got {tracking!r}")
+    if bound not in ("box", "norm"):
+        raise InvalidValueError(
+            f"bound must be 'box' or 'norm', got {bound!r}")
+    T = unit.check_cycle(cycle)
+    hm = as_finite_scalar(h_max, "h_max")
+    check_positive(hm, "h_max")
+    names = ("torque_weight", "propellant_weight", "regularization",
+             "slack_weight")
+    for name, val in zip(names, weights):
+        check_positive(as_finite_scalar(val, name), name)
+    if bound == "norm" and (int(n_facets) != n_facets or n_facets < 3):
+        raise InvalidValueError(
+            f"n_facets must be an integer >= 3, got {n_facets!r}")
+    return T, hm
+
+
 def build_qp(unit: ThrusterSet, cycle: float, h_max: float,
              tracking: str = "hard", bound: str = "box",
              n_facets: int = 16, torque_weight: float = 1e3,
@@ -128,23 +150,9 @@ def build_qp(unit: ThrusterSet, cycle: float, h_max: float,
     -------
     DutyCycleQP
     """
-    if tracking not in ("hard", "weighted"):
-        raise InvalidValueError(
-            f"tracking must be 'hard' or 'weighted', got {tracking!r}")
-    if bound not in ("box", "norm"):
-        raise InvalidValueError(
-            f"bound must be 'box' or 'norm', got {bound!r}")
-    T = unit.check_cycle(cycle)
-    hm = as_finite_scalar(h_max, "h_max")
-    check_positive(hm, "h_max")
-    for name, val in (("torque_weight", torque_weight),
-                      ("propellant_weight", propellant_weight),
-                      ("regularization", regularization),
-                      ("slack_weight", slack_weight)):
-        check_positive(as_finite_scalar(val, name), name)
-    if bound == "norm" and (int(n_facets) != n_facets or n_facets < 3):
-        raise InvalidValueError(
-            f"n_facets must be an integer >= 3, got {n_facets!r}")
+    T, hm = _check_arguments(unit, cycle, h_max, tracking, bound, n_facets,
+                             torque_weight, propellant_weight,
+                             regularization, slack_weight)
     n = unit.n
     nx = n + 1
     F = unit.force_matrix()[THRUST_AXIS]                # (n,) [N]
