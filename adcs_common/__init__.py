@@ -8,6 +8,7 @@ from .exceptions import (
     SolverError,
     SolverNotFound,
     InvalidValueError,
+    ThreadOwnershipError,
 )
 from .validation import (
     as_finite_array,
@@ -25,6 +26,7 @@ __all__ = [
     "ShapeError",
     "SolverError",
     "SolverNotFound",
+    "ThreadOwnershipError",
     "as_finite_array",
     "as_finite_scalar",
     "as_vector",

@@ -94,3 +94,11 @@ class SolverNotFound(AdcsError, ValueError):
         super().__init__(msg)
         self.name = name
         self.available = tuple(available)
+
+
+class ThreadOwnershipError(AdcsError, RuntimeError):
+    """An object that follows one thread's sequence was used by another.
+
+    Controllers carry state from one call to the next (an MPC's warm
+    start): they refuse a second thread instead of mixing two sequences.
+    """

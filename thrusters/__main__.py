@@ -22,7 +22,7 @@ def main(argv=None) -> None:
 
     ap = argparse.ArgumentParser(description=main.__doc__.splitlines()[0])
     ap.add_argument("--allocation", choices=("law", "qp"), default="law")
-    ap.add_argument("--solver", default="osqp")
+    ap.add_argument("--solver", default="daqp")
     ap.add_argument("--plots", default=None)
     args = ap.parse_args(argv)
     burn = burn_scenario(allocation=args.allocation, solver=args.solver)

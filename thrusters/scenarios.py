@@ -272,7 +272,7 @@ def _check_allocation(allocation):
             f"allocation must be 'law' or 'qp', got {allocation!r}")
 
 
-def burn_scenario(allocation: str = "law", solver: str = "osqp",
+def burn_scenario(allocation: str = "law", solver: str = "daqp",
                   K_unl: float = 1.0, unit: ThrusterSet | None = None,
                   disturbance=BURN_DISTURBANCE, dt: float = 0.1,
                   settle: float = 60.0, calibrate: bool = True,
@@ -381,7 +381,7 @@ def slew_profile(t: float, t0: float = 70.0, t1: float = 240.0,
     return th, rate, acc
 
 
-def reorientation_scenario(allocation: str = "law", solver: str = "osqp",
+def reorientation_scenario(allocation: str = "law", solver: str = "daqp",
                            unit: ThrusterSet | None = None,
                            dt: float = 0.1, t_end: float = 600.0,
                            omega_n: float = 0.15,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -10,6 +11,7 @@ import numpy as np
 
 from adcs_common.buffers import BoundCall
 from adcs_common.exceptions import InvalidValueError, SolverError
+from adcs_common.threads import new_lock, synchronized
 from adcs_common.qp import QP, Backend, QPSolution, make_backend
 from adcs_common.validation import (
     as_finite_array,
@@ -30,6 +32,9 @@ from .problem import (
 )
 
 SATURATION_MODES = ("scale", "least_squares")
+#: The exact backend: the default, and the one a failed iterative backend
+#: hands its problem to (the result's ``extras["fallback"]`` says so).
+EXACT_SOLVER = "daqp"
 _LS_REGULARISATION = 1e-9
 _EPIGRAPH_REGULARISATION = 1e-9
 #: How a saturated target on the boundary of the attainable set is solved,
@@ -119,6 +124,7 @@ class _FastWheelQP:
         self.M = np.zeros(3)
         self.h = np.zeros(n)
         self.m = np.zeros(n)
+        self._over = np.zeros(n)
         self.alpha = np.zeros(1)
         self.check = np.zeros(1)
         self._call = BoundCall(
@@ -126,9 +132,42 @@ class _FastWheelQP:
             (self.m, self.alpha, self.check))
         self.trigger = self._call.trigger
 
+    def load(self, torque, momentum, h_cap: np.ndarray) -> bool:
+        """Copy a demand in; False unless the Function answers as `allocate`.
+
+        (3,) finite torque and (N,) finite momentum (when ``dt`` is set):
+        no scalar is broadcast, no NaN gets through; and no working wheel
+        beyond its momentum bound ``h_cap`` (it must brake: the attainable
+        set then need not hold zero torque, which `allocate`'s geometry
+        handles and the Function's fixed facets do not).
+        """
+        try:
+            M = np.asarray(torque, dtype=float)
+            h = None if momentum is None else np.asarray(momentum,
+                                                         dtype=float)
+        except (TypeError, ValueError):
+            return False
+        if M.shape != (3,) or not math.isfinite(M @ M):
+            return False
+        if h is not None:
+            if h.shape != self.h.shape:
+                return False
+            over = np.abs(h, out=self._over)
+            over -= h_cap
+            if not over.max() <= 0.0:     # NaN, inf or past h_max
+                return False
+        self.M[:] = M
+        if h is not None:
+            self.h[:] = h
+        return True
+
 
 class QPAllocator:
     r"""Bounded, weighted wheel-torque allocation by quadratic programming.
+
+    Safe to share between threads: each call holds the allocator's lock
+    (its backend and fast-path buffers are per object), so a shared
+    allocator answers as from one thread; the lock costs under 0.1 µs.
 
     Each call solves
 
@@ -159,8 +198,11 @@ class QPAllocator:
     weights : array_like (N,), optional
         Positive weights V_i (default ones; none when ``motor`` is given).
     solver : str
-        QP backend, default ``"osqp"`` (persistent, eps 1e-9, polished);
-        see `available_solvers`.
+        QP backend, default ``"daqp"`` (DAQP called directly: an exact
+        active-set method, a dependency of the toolbox); see
+        `available_solvers`. When another backend fails on a demand, DAQP
+        answers it and the result's ``extras`` say so (``"fallback"``,
+        ``"failed_backend"``, ``"failure"``).
     saturation : {"scale", "least_squares"}
         Behaviour outside the attainable set.
     momentum_target : array_like (N,), optional
@@ -179,12 +221,14 @@ class QPAllocator:
         Relative tolerance of the checks applied to every solver answer.
     """
 
-    def __init__(self, array: WheelArray, weights=None, solver: str = "osqp",
+    def __init__(self, array: WheelArray, weights=None,
+                 solver: str = EXACT_SOLVER,
                  *, saturation: str = "scale", momentum_target=None,
                  momentum_gain: float = 0.1, momentum_weight: float = 1.0,
                  motor: WheelMotor | None = None, power_weight: float = 1.0,
                  solver_options: dict[str, Any] | None = None,
                  check_tol: float = 1e-6) -> None:
+        self._lock = new_lock()
         if not isinstance(array, WheelArray):
             raise InvalidValueError(
                 f"array must be a WheelArray, got {type(array).__name__}")
@@ -230,6 +274,9 @@ class QPAllocator:
         self._nrow = 3 + (2 * n if motor is not None else 0)
         self._backend = self._make_backend(self._nrow, 3)
         self._ls_backend: Backend | None = None
+        self._exact: Backend | None = None
+        #: momentum bound of each working wheel (inf: failed, free)
+        self._h_cap = np.where(array.active, array.h_max, np.inf)
         self._fast: dict[float | None, _FastWheelQP | None] = {}
         #: Calls `allocate_fast` handed to `allocate` (see there).
         self.fast_fallbacks = 0
@@ -294,6 +341,32 @@ class QPAllocator:
                 f"(status {res.status!r})", solver=backend.name, result=res)
         return res
 
+    def _solve_steps(self, backend: Backend, steps, anchor, boundary,
+                     normals, P, q, lo, hi, h):
+        """Solve the QP of each boundary step in turn until one checks."""
+        for step, margin in steps:
+            target = anchor + (boundary - anchor) * (1.0 - margin)
+            lo_s, hi_s = (lo, hi) if step == "margin" else pin_to_face(
+                normals, self._axes, lo, hi, target)
+            data = self._data(P, q, self._axes, target, lo_s, hi_s, h)
+            try:
+                res = self._solve(backend, data)
+                m = self._check(res.x, target, lo_s, hi_s, backend.name)
+                return res, m, target, lo_s, hi_s
+            except SolverError:
+                if (step, margin) == steps[-1]:
+                    raise
+        raise AssertionError("unreachable: steps is never empty")
+
+    def _exact_backend(self) -> Backend | None:
+        """DAQP for this QP (None when DAQP is the backend already)."""
+        if self._backend.name == EXACT_SOLVER:
+            return None
+        if self._exact is None:
+            self._exact = make_backend(EXACT_SOLVER, self._nvar, self._nrow,
+                                       3, {}, available_solvers())
+        return self._exact
+
     def _project(self, M, lo, hi, h) -> np.ndarray:
         """Attainable torque closest to M (least-squares fallback)."""
         n = self.array.n_wheels
@@ -325,6 +398,7 @@ class QPAllocator:
         return np.clip(m, lo, hi)
 
     # ---------------------------------------------------------------- API
+    @synchronized
     def allocate_fast(self, torque, wheel_momentum=None,
                       dt: float | None = None, *,
                       out: np.ndarray | None = None) -> np.ndarray:
@@ -341,10 +415,12 @@ class QPAllocator:
         through `allocate` (counted in ``fast_fallbacks``), as do
         allocators with a null-space momentum term, a power cost or
         ``saturation="least_squares"``, and bad input (`allocate` names
-        it). Where `allocate` takes its least-squares fallback (a wheel
-        beyond its momentum bound that no scale of M accommodates) the
-        Function's point breaks ``A m = α M`` and fails the check. So it
-        never returns a NaN or a bound-breaking torque.
+        it: a scalar or wrong-length demand, NaN or inf in the torque or
+        momentum). A working wheel beyond its momentum bound (it must
+        brake; where `allocate` may take its least-squares fallback) sends
+        the call through `allocate` too. So it accepts exactly what
+        `allocate` accepts, answers the same, and never returns a NaN or a
+        bound-breaking torque.
 
         Parameters
         ----------
@@ -362,25 +438,19 @@ class QPAllocator:
         fast = self._fast.get(dt, False)
         if fast is False:
             fast = self._make_fast(dt, wheel_momentum)
-        if fast is not None and (dt is None) == (wheel_momentum is None):
+        if fast is not None and (dt is None) == (wheel_momentum is None) \
+                and fast.load(torque, wheel_momentum, self._h_cap):
+            fast.check[0] = np.nan
             try:
-                fast.M[:] = torque
-                if dt is not None:
-                    fast.h[:] = wheel_momentum
-            except (TypeError, ValueError):
-                pass                          # allocate names it
-            else:
-                fast.check[0] = np.nan
-                try:
-                    fast.trigger()
-                except RuntimeError:          # the conic raised: NaN
-                    pass
-                if fast.check[0] <= fast.tol:     # False for NaN
-                    self.fast_alpha = float(fast.alpha[0])
-                    if out is None:
-                        return fast.m.copy()
-                    out[:] = fast.m
-                    return out
+                fast.trigger()
+            except RuntimeError:          # the conic raised: NaN
+                pass
+            if fast.check[0] <= fast.tol:     # False for NaN
+                self.fast_alpha = float(fast.alpha[0])
+                if out is None:
+                    return fast.m.copy()
+                out[:] = fast.m
+                return out
         self.fast_fallbacks += 1
         res = self.allocate(torque, wheel_momentum, dt)
         self.fast_alpha = res.alpha
@@ -409,6 +479,7 @@ class QPAllocator:
             self._fast[dt] = fast
         return fast
 
+    @synchronized
     def allocate(self, torque, wheel_momentum=None,
                  dt: float | None = None) -> WheelAllocation:
         """Allocate one demanded array torque.
@@ -467,19 +538,22 @@ class QPAllocator:
         steps = (("margin", 0.0),) if mode == "exact" else tuple(
             st for st in _BOUNDARY_STEPS
             if st[0] == "margin" or normals is not None)
-        for step, margin in steps:
-            target = anchor + (boundary - anchor) * (1.0 - margin)
-            lo_s, hi_s = (lo, hi) if step == "margin" else pin_to_face(
-                normals, self._axes, lo, hi, target)
-            data = self._data(P, q, self._axes, target, lo_s, hi_s, h)
-            try:
-                res = self._solve(self._backend, data)
-                m = self._check(res.x, target, lo_s, hi_s,
-                                self._backend.name)
-                break
-            except SolverError:
-                if (step, margin) == steps[-1]:
-                    raise
+        extras: dict[str, Any] = {}
+        try:
+            res, m, target, lo_s, hi_s = self._solve_steps(
+                self._backend, steps, anchor, boundary, normals, P, q, lo,
+                hi, h)
+        except SolverError as exc:
+            exact = self._exact_backend()
+            if exact is None:
+                raise
+            # an iterative backend failed where the exact one may not:
+            # answer, and say so
+            res, m, target, lo_s, hi_s = self._solve_steps(
+                exact, steps, anchor, boundary, normals, P, q, lo, hi, h)
+            extras = {"fallback": exact.name,
+                      "failed_backend": self._backend.name,
+                      "failure": str(exc)}
         if mode != "exact":
             nm = float(M @ M)
             alpha = max(float(target @ M) / nm, 0.0) if nm > 0 else 0.0
@@ -494,4 +568,4 @@ class QPAllocator:
             residual=float(max(np.max(np.maximum(lo_s - m, m - hi_s)),
                                np.max(np.abs(self._axes @ m - target)),
                                0.0)),
-            extras=dict(res.extras))
+            extras={**res.extras, **extras})

@@ -176,8 +176,11 @@ def conic_allocator_function(array: WheelArray, weights=None, *,
         if fast_path:
             inside = ca.mmax(ca.vertcat(lo - m0, m0 - hi)) <= 0.0
             m = ca.if_else(inside, m0, m, True)
-    violation = ca.mmax(ca.vertcat(ca.fabs(ca.DM(A) @ m - target),
-                                   lo - m, m - hi))
+    # NaN or inf anywhere in or out makes the violation NaN (a check
+    # `violation <= tol` then fails): mmax alone skips NaN (even to -inf)
+    finite = ca.mmin(ca.fabs(ca.vertcat(m, *inputs)) < np.inf)
+    violation = ca.if_else(finite, ca.mmax(ca.vertcat(
+        ca.fabs(ca.DM(A) @ m - target), lo - m, m - hi)), np.nan)
     return ca.Function(name, inputs, [m, alpha, violation], names,
                        ["m", "alpha", "violation"])
 

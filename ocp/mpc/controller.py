@@ -36,6 +36,7 @@ returns the first control; it exports to C with sqpmethod + qrqp.
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import Any
 
@@ -43,6 +44,7 @@ import casadi as ca
 import numpy as np
 
 from adcs_common.exceptions import (
+    ThreadOwnershipError,
     InfeasibleError,
     InvalidValueError,
     SolverError,
@@ -58,6 +60,7 @@ from adcs_common.quaternion import quat_conj, quat_mul
 from ocp.models.rigid import SpacecraftModel
 from ocp.spacecraft.definition import Spacecraft
 from adcs_common.options import merge_options
+from adcs_common.threads import new_lock, synchronized
 from .problem import (
     BOUND_TOL,
     DEFECT_TOL,
@@ -80,6 +83,11 @@ __all__ = [
 
 class AttitudeMPC:
     """Receding-horizon attitude controller of a wheeled spacecraft.
+
+    Threads: an MPC carries its plan (the warm start) from one step to the
+    next, so it follows one trajectory in one thread. `step` from a second
+    thread raises `ThreadOwnershipError` until that thread calls `reset`;
+    build one MPC per thread to run several at once.
 
     Parameters
     ----------
@@ -133,6 +141,8 @@ class AttitudeMPC:
                  rate_max: float | None = None, max_iter: int = 50,
                  expand: bool = True,
                  solver_options: dict | None = None) -> None:
+        self._lock = new_lock()
+        self._owner: int | None = None
         if isinstance(model, Spacecraft):
             if rate_max is None:
                 rate_max = model.rate_max
@@ -435,14 +445,25 @@ class AttitudeMPC:
             z[s] = x
         return z
 
+    @synchronized
     def reset(self) -> None:
-        """Forget the warm start (the next step starts cold)."""
+        """Forget the warm start; the calling thread may now step it.
+
+        An MPC carries its plan from one step to the next, so it follows
+        one trajectory in one thread: `step` from another thread raises
+        `ThreadOwnershipError` until that thread calls `reset`.
+        """
+        self._owner = threading.get_ident()
         self._plan = None
         self._lam_x = np.zeros(self.nz)
         self._lam_g = np.zeros(self.ng)
 
+    @synchronized
     def step(self, x, qf, tau=None, *, check: bool = True) -> MPCStep:
         """One MPC step from state ``x`` towards attitude ``qf``.
+
+        Raises `ThreadOwnershipError` when another thread stepped this
+        MPC since its last `reset` (see there).
 
         Parameters
         ----------
@@ -470,6 +491,14 @@ class AttitudeMPC:
         SolverError
             The solver returned a plan that breaks its constraints.
         """
+        me = threading.get_ident()
+        if self._owner is None:
+            self._owner = me
+        elif self._owner != me:
+            raise ThreadOwnershipError(
+                "this AttitudeMPC follows a trajectory of another thread "
+                "(its warm start): build one MPC per thread, or call "
+                "reset() from this thread to take it over")
         nx = self.model.nx
         x = as_vector(x, nx, "x")
         qf = as_vector(qf, 4, "qf")

@@ -13,6 +13,7 @@ from adcs_common.exceptions import InvalidValueError, ShapeError
 from adcs_common.validation import as_finite_array
 
 from adcs_common.qp import QP
+from adcs_common.threads import new_lock, synchronized
 
 from ..laws import THRUST_AXIS, TORQUE_AXES
 from ..unit import ThrusterSet
@@ -22,6 +23,9 @@ from .solvers import make_backend
 
 #: Largest scaled constraint violation accepted from a backend.
 RESIDUAL_TOL = 1e-6
+#: The exact backend: the default, and the one a failed iterative backend
+#: hands its cycle to (the result's ``extras["fallback"]`` says so).
+EXACT_SOLVER = "daqp"
 #: Slack (scaled by h_max) below which the momentum bound counts as met.
 SLACK_TOL = 1e-7
 
@@ -87,19 +91,28 @@ class DutyAllocation:
 
 
 def _fill_theta(th: np.ndarray, P_T, M, H, tau_dist) -> bool:
-    """Write (P_T, M, H, tau_dist) into ``th`` (9,); False if they misfit."""
+    """Write (P_T, M, H, tau_dist) into ``th`` (9,); False if they misfit.
+
+    Shapes must match exactly: a scalar is never broadcast to a vector.
+    """
     try:
-        th[0] = P_T
-        th[1:3] = M
-        th[3:6] = H
-        th[6:9] = tau_dist
+        parts = [np.asarray(v, dtype=float) for v in (P_T, M, H, tau_dist)]
     except (TypeError, ValueError):
         return False
+    if [p.shape for p in parts] != [(), (2,), (3,), (3,)]:
+        return False
+    th[0] = parts[0]
+    th[1:3] = parts[1]
+    th[3:6] = parts[2]
+    th[6:9] = parts[3]
     return True
 
 
 class DutyCycleAllocator:
     """Duty-cycle QP of a thruster set, built once and solved per cycle.
+
+    Safe to share between threads: each call holds the allocator's lock
+    (backend, fast-path buffers and warm start are per object).
 
     Per cycle, with demand :math:`(P_T, M_X, M_Z)`, wheel momentum H and
     disturbance torque estimate :math:`\\tau_{dist}`:
@@ -128,11 +141,14 @@ class DutyCycleAllocator:
     h_max : float
         Momentum bound [N·m·s] (0.012 in seed 004's Table 2).
     solver : str
-        Backend name (default ``"osqp"``, the persistent OSQP object);
-        see `available_solvers`. Tolerances set per backend are listed in
-        the backend modules (OSQP: eps_abs = eps_rel = 1e-6 with
-        polishing, exact to the reference; qrqp: defaults, residuals
-        checked; piqp 1e-12; clarabel 1e-12; daqp, quadprog: defaults).
+        Backend name (default ``"daqp"``: DAQP called directly, exact);
+        see `available_solvers`. When another backend fails on a feasible
+        cycle, DAQP answers it and the result's ``extras`` say so
+        (``"fallback"``, ``"failed_backend"``), never all-zero duties.
+        Tolerances per backend are in `thrusters.qp.solvers` (OSQP:
+        eps_abs = eps_rel = 1e-6 with polishing, exact to the reference;
+        qrqp: defaults, residuals checked; piqp 1e-12; clarabel 1e-12;
+        daqp: primal_tol 1e-10; quadprog: defaults).
     tracking : {"hard", "weighted"}
         ``"hard"``: thrust and both torques are equalities; ``"weighted"``:
         thrust hard, torques in the cost with ``torque_weight``.
@@ -148,11 +164,12 @@ class DutyCycleAllocator:
     """
 
     def __init__(self, unit: ThrusterSet, cycle: float, h_max: float, *,
-                 solver: str = "osqp", tracking: str = "hard",
+                 solver: str = EXACT_SOLVER, tracking: str = "hard",
                  bound: str = "box", n_facets: int = 16,
                  torque_weight: float = 1e3, propellant_weight: float = 1.0,
                  regularization: float = 1e-4, slack_weight: float = 1e4,
                  solver_options: dict | None = None) -> None:
+        self._lock = new_lock()
         t0 = time.perf_counter()
         self.unit = unit
         self.cycle = unit.check_cycle(cycle)
@@ -167,10 +184,7 @@ class DutyCycleAllocator:
         self.solver = solver
         self.backend = make_backend(solver, self.qp.nx, self.qp.A.shape[0],
                                     self.qp.n_eq, solver_options)
-        # qpsolvers backends get no finite bound on the slack: ProxQP and
-        # Clarabel fail on this QP with one (measured), the others do not
-        # care
-        self._free_slack = self.backend.name.startswith("qpsolvers:")
+        self._exact = None
         # rows without a lower / upper bound (their stand-in ±INF stays
         # beyond INF/2 for any parameters), ±inf for the backends
         self._l_absent = infinite_bounds(self.qp.l0) == -np.inf
@@ -212,6 +226,7 @@ class DutyCycleAllocator:
         self.build_time = time.perf_counter() - t0
 
     # ------------------------------------------------------------------
+    @synchronized
     def theta(self, P_T, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
               tau_dist=(0.0, 0.0, 0.0)) -> np.ndarray:
         """Parameter vector (P_T, M_X, M_Z, H, tau_dist), validated.
@@ -235,6 +250,7 @@ class DutyCycleAllocator:
                 as_finite_array(value, name)
         return th.copy()
 
+    @synchronized
     def set_pressure(self, pressure: float) -> None:
         """Use the inlet pressure p_in [Pa] for the next cycles (eq. 1).
 
@@ -270,6 +286,7 @@ class DutyCycleAllocator:
         """Inlet pressure the allocator currently uses [Pa]."""
         return self._pressure
 
+    @synchronized
     def solve(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
               tau_dist=(0.0, 0.0, 0.0)) -> DutyAllocation:
         """Allocate one cycle (at the pressure of `set_pressure`).
@@ -292,6 +309,7 @@ class DutyCycleAllocator:
         th = self.theta(P_T, M, H, tau_dist)
         return self.solve_theta(th)
 
+    @synchronized
     def solve_theta(self, th: np.ndarray) -> DutyAllocation:
         """`solve` with a ready parameter vector (9,) (no validation).
 
@@ -299,24 +317,21 @@ class DutyCycleAllocator:
         pass a fresh array, as `theta` returns.
         """
         t0 = time.perf_counter()
-        qp = self.qp
-        q, l, u = qp.vectors(th)
-        ub = self._ub
-        if self._free_slack:
-            ub = ub.copy()
-            ub[-1] = np.inf
-        l[self._l_absent] = -np.inf
-        u[self._u_absent] = np.inf
-        sol = self.backend.solve(QP(qp.P, q, qp.A, l, u, qp.lb, ub,
-                                    qp.n_eq))
+        x, sol, residual = self._backend_point(self.backend, th)
+        extras: dict[str, Any] = {}
+        if x is None and sol.status != "infeasible" and \
+                self.backend.name != EXACT_SOLVER:
+            # an iterative backend failed: the exact one answers, and the
+            # result says so (a feasible cycle never gets zero duties)
+            failed = sol
+            x, sol, residual = self._backend_point(self._exact_backend(), th)
+            extras = {"fallback": EXACT_SOLVER,
+                      "failed_backend": self.backend.name,
+                      "failure": failed.extras.get("backend_status",
+                                                   failed.status)}
         solve_time = time.perf_counter() - t0
-        x, status, residual = sol.x, sol.status, None
+        status = sol.status
         if x is None:
-            residual = np.inf
-        elif residual is None:
-            residual = float((self._R @ x + self._Rth @ th
-                              + self._r0).max())
-        if x is None or residual > RESIDUAL_TOL:
             status = ("infeasible" if status == "infeasible"
                       or not self._feasible(th) else "failed")
             kt = np.zeros(self.unit.n)
@@ -325,8 +340,39 @@ class DutyCycleAllocator:
             kt = x[:-1].clip(0.0, self._ub[:-1])     # impulse units
             slack = max(float(x[-1]), 0.0)
             status = "optimal" if slack <= SLACK_TOL else "bound_relaxed"
+        sol.extras.update(extras)
         return self._result(kt, th, status, slack, residual, solve_time,
                             sol)
+
+    def _backend_point(self, backend, th: np.ndarray):
+        """``(x or None, QPSolution, residual)`` of ``backend`` at ``th``.
+
+        ``x`` is None unless the point keeps every constraint to
+        `RESIDUAL_TOL` (scaled rows).
+        """
+        qp = self.qp
+        q, l, u = qp.vectors(th)
+        ub = self._ub
+        if backend.name.startswith("qpsolvers:"):
+            # no finite bound on the slack: ProxQP and Clarabel fail on
+            # this QP with one (measured), the others do not care
+            ub = ub.copy()
+            ub[-1] = np.inf
+        l[self._l_absent] = -np.inf
+        u[self._u_absent] = np.inf
+        sol = backend.solve(QP(qp.P, q, qp.A, l, u, qp.lb, ub, qp.n_eq))
+        if sol.x is None:
+            return None, sol, np.inf
+        residual = float((self._R @ sol.x + self._Rth @ th
+                          + self._r0).max())
+        return (sol.x if residual <= RESIDUAL_TOL else None), sol, residual
+
+    def _exact_backend(self):
+        if self._exact is None:
+            self._exact = make_backend(EXACT_SOLVER, self.qp.nx,
+                                       self.qp.A.shape[0], self.qp.n_eq,
+                                       None)
+        return self._exact
 
     def casadi_function(self, plugin: str = "qrqp",
                         options: dict | None = None):
@@ -346,6 +392,7 @@ class DutyCycleAllocator:
 
         return conic_function(self.qp, plugin, options)
 
+    @synchronized
     def duty(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
              tau_dist=(0.0, 0.0, 0.0)) -> np.ndarray:
         """Duty fractions only (raises unless found; see `duty_fast`)."""
@@ -357,6 +404,7 @@ class DutyCycleAllocator:
                 f"{res.demand}", problem=self.qp, result=res)
         return res.duty
 
+    @synchronized
     def duty_fast(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
                   tau_dist=(0.0, 0.0, 0.0), out: np.ndarray | None = None
                   ) -> np.ndarray:
