@@ -16,6 +16,7 @@ from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_finite_array
 
 __all__ = [
+    "as_unit_quaternion",
     "quat_conj",
     "quat_error_angle",
     "quat_from_axis_angle",
@@ -134,3 +135,22 @@ def quat_error_angle(q, qf) -> np.ndarray:
     dot = np.abs(q @ np.asarray(qf, dtype=float))
     dot = dot / (np.linalg.norm(q, axis=-1) * np.linalg.norm(qf))
     return 2.0 * np.arccos(np.clip(dot, 0.0, 1.0))
+
+
+def as_unit_quaternion(q, name: str = "q") -> np.ndarray:
+    """Return ``q`` (4,) normalised; refuse what is not a quaternion.
+
+    Any finite non-zero 4-vector is normalised (scaled by its largest
+    entry first, so 1e200 or 1e-200 entries neither overflow nor vanish);
+    a scalar, a wrong length, NaN, inf or the zero vector raises.
+
+    Raises
+    ------
+    ShapeError, InvalidValueError
+    """
+    q = as_finite_array(q, name, (4,))
+    big = float(np.abs(q).max())
+    if big == 0.0:
+        raise InvalidValueError(f"{name} must be a non-zero quaternion")
+    q = q / big
+    return q / np.linalg.norm(q)

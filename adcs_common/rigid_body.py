@@ -17,7 +17,10 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-__all__ = ["body_rates", "quat_rate_np", "rk4_step"]
+from .exceptions import InvalidValueError, ShapeError
+from .validation import as_finite_array
+
+__all__ = ["body_rates", "check_inertia", "quat_rate_np", "rk4_step"]
 
 
 def quat_rate_np(q: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -59,3 +62,34 @@ def rk4_step(f: Callable[..., Sequence[np.ndarray]],
     k4 = f(*shifted(k3, 1.0))
     return [y + dt / 6 * (a + 2 * b + 2 * c + d)
             for y, a, b, c, d in zip(state, k1, k2, k3, k4)]
+
+
+def check_inertia(inertia, name: str = "inertia") -> np.ndarray:
+    """Return ``inertia`` as a symmetric positive-definite (3, 3) array.
+
+    A length-3 vector is read as the principal moments [kg·m²]. Every
+    principal moment must lie in [1e-9, 1e12] kg·m² (a bolt to a space
+    station); outside, the dynamics divide by nothing or overflow.
+
+    Raises
+    ------
+    ShapeError, InvalidValueError
+        Wrong shape, asymmetric, not positive definite or degenerate.
+    """
+    J = as_finite_array(inertia, name)
+    if J.shape == (3,):
+        J = np.diag(J)
+    if J.shape != (3, 3):
+        raise ShapeError(f"{name} must have shape (3, 3) or (3,), got "
+                         f"{J.shape}")
+    if not np.allclose(J, J.T, rtol=0.0, atol=1e-12 * np.abs(J).max()):
+        raise InvalidValueError(f"{name} must be symmetric, got {J}")
+    eig = np.linalg.eigvalsh(J)
+    if eig.min() <= 0.0:
+        raise InvalidValueError(
+            f"{name} must be positive definite, eigenvalues {eig}")
+    if eig.min() < 1e-9 or eig.max() > 1e12:
+        raise InvalidValueError(
+            f"{name}: principal moments {eig} kg·m² lie outside "
+            "[1e-9, 1e12] (degenerate physics)")
+    return J

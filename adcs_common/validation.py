@@ -30,9 +30,12 @@ def as_finite_array(value, name: str,
     InvalidValueError
         The array holds NaN or inf, or cannot be read as numbers.
     """
+    if isinstance(value, (bool, np.bool_)) or (
+            isinstance(value, np.ndarray) and value.dtype.kind == "b"):
+        raise InvalidValueError(f"{name} must be a number, got {value!r}")
     try:
         arr = np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InvalidValueError(
             f"{name} must be numeric, got {value!r}") from exc
     if shape is not None:
@@ -54,10 +57,9 @@ def as_vector(value, n: int | None, name: str) -> np.ndarray:
 
     A scalar is broadcast to length ``n`` when ``n`` is given.
     """
-    arr = np.array(value, dtype=float) if np.ndim(value) == 0 else value
-    if np.ndim(arr) == 0 and n is not None:
-        arr = np.full(n, float(arr))
-    return as_finite_array(arr, name, (n,))
+    if np.ndim(value) == 0 and n is not None:
+        return np.full(n, as_finite_scalar(value, name))
+    return as_finite_array(value, name, (n,))
 
 
 def as_finite_scalar(value, name: str) -> float:
@@ -77,3 +79,47 @@ def check_nonnegative(arr, name: str) -> None:
     if np.any(np.asarray(arr) < 0):
         raise InvalidValueError(
             f"{name} must be non-negative, got {arr!r}")
+
+
+def as_index(value, n: int, name: str) -> int:
+    """Return ``value`` as an integer index in ``0..n-1``.
+
+    Only integers are indices: a bool, a float (even ``1.0``), None or a
+    string raises, so ``1.5`` never silently becomes ``1``.
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+            value, (int, np.integer)):
+        raise InvalidValueError(
+            f"{name} must be an integer index, got {value!r}")
+    if not 0 <= int(value) < n:
+        raise InvalidValueError(
+            f"{name} {int(value)} is out of range 0..{n - 1} (indices are "
+            "0-based)")
+    return int(value)
+
+
+def as_count(value, name: str, minimum: int = 1) -> int:
+    """Return ``value`` as an integer >= ``minimum`` (no bool, no float)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+            value, (int, np.integer)) or value < minimum:
+        raise InvalidValueError(
+            f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def as_options(value, name: str = "solver_options") -> dict:
+    """Return a copy of an options dict (None: empty); else raise."""
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise InvalidValueError(
+            f"{name} must be a dict of solver options, got "
+            f"{type(value).__name__}")
+    return dict(value)
+
+
+def check_instance(value, cls: type, name: str) -> None:
+    """Raise `InvalidValueError` unless ``value`` is a ``cls``."""
+    if not isinstance(value, cls):
+        raise InvalidValueError(
+            f"{name} must be a {cls.__name__}, got {type(value).__name__}")

@@ -9,6 +9,8 @@ import numpy as np
 
 from adcs_common.exceptions import InvalidValueError, RankError, ShapeError
 from adcs_common.validation import (
+    as_finite_scalar,
+    as_index,
     as_finite_array,
     as_vector,
     check_positive,
@@ -115,7 +117,8 @@ class WheelArray:
         scale = np.ones(n) if self.scale is None else as_vector(
             self.scale, n, "scale")
         check_positive(scale, "scale")
-        failed = tuple(sorted({int(i) for i in self.failed}))
+        failed = tuple(sorted({as_index(i, n, 'failed wheel')
+                               for i in self.failed}))
         for i in failed:
             if not 0 <= i < n:
                 raise InvalidValueError(
@@ -194,7 +197,8 @@ class WheelArray:
         """Return a copy with the wheels ``indices`` (0-based) failed too."""
         flat: list[int] = []
         for i in indices:
-            flat.extend(i if isinstance(i, Iterable) else [i])
+            flat.extend(i if isinstance(i, Iterable)
+                        and not isinstance(i, str) else [i])
         return replace(self, failed=tuple(self.failed) + tuple(flat))
 
     def with_scale_errors(self, errors) -> "WheelArray":
@@ -247,6 +251,10 @@ class WheelArray:
         """
         axes = as_finite_array(axes, "axes", (3, None))
         if normalize:
+            # scale first: a 1e200 axis must not overflow to inf (or look
+            # zero-length after dividing by it)
+            big = np.abs(axes).max(axis=0)
+            axes = axes / np.where(big > 0, big, 1.0)
             norms = np.linalg.norm(axes, axis=0)
             if np.any(norms < 1e-12):
                 bad = [int(i) + 1 for i in np.flatnonzero(norms < 1e-12)]
@@ -273,6 +281,8 @@ class WheelArray:
             Per-wheel mounting errors [rad]: ``δ_i = δ + Δδ_i``,
             ``γ_i = γ + Δγ_i``.
         """
+        delta = as_finite_scalar(delta, "delta")
+        gamma = as_finite_scalar(gamma, "gamma")
         dd = np.zeros(4) if d_delta is None else as_vector(
             d_delta, 4, "d_delta")
         dg = np.zeros(4) if d_gamma is None else as_vector(

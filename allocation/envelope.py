@@ -9,7 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from adcs_common.exceptions import InvalidValueError, RankError, ShapeError
-from adcs_common.validation import as_finite_array
+from adcs_common.validation import as_finite_array, check_instance
 
 from .arrays import WheelArray
 from .zonotope import radial_extent, zonotope_facets
@@ -283,6 +283,10 @@ def envelope(array: WheelArray, kind: str = "momentum") -> Envelope:
         The working wheels span fewer than three dimensions (the set is
         flat; e.g. two wheels left of the pyramid).
     """
+    check_instance(array, WheelArray, "array")
+    if not isinstance(kind, str) or kind not in ("momentum", "torque"):
+        raise InvalidValueError(
+            f"kind must be 'momentum' or 'torque', got {kind!r}")
     if not isinstance(array, WheelArray):
         raise InvalidValueError(
             f"array must be a WheelArray, got {type(array).__name__}")

@@ -7,7 +7,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from adcs_common.exceptions import InvalidValueError, ShapeError
-from adcs_common.validation import as_vector, check_positive
+from adcs_common.validation import (
+    as_vector,
+    check_instance,
+    check_positive,
+)
 
 from .arrays import WheelArray
 
@@ -112,11 +116,13 @@ def min_norm_gains(array: WheelArray) -> np.ndarray:
     RankError
         The working wheels do not span 3-D space.
     """
+    check_instance(array, WheelArray, "array")
     return _pinv_with_failures(array)
 
 
 def min_norm_law(array: WheelArray) -> LinearLaw:
     """Return the minimum-norm law (eq. 5) of ``array`` as a `LinearLaw`."""
+    check_instance(array, WheelArray, "array")
     return LinearLaw(min_norm_gains(array), "minimum-norm (eq. 5)")
 
 
@@ -191,6 +197,7 @@ def weighted_gains(array: WheelArray, weights) -> np.ndarray:
     -------
     numpy.ndarray, shape (N, 3)
     """
+    check_instance(array, WheelArray, "array")
     w = as_vector(weights, array.n_wheels, "weights")
     check_positive(w, "weights")
     return _pinv_with_failures(array, w)
@@ -198,6 +205,7 @@ def weighted_gains(array: WheelArray, weights) -> np.ndarray:
 
 def weighted_law(array: WheelArray, weights) -> LinearLaw:
     """Return the weighted law of ``array`` as a `LinearLaw`."""
+    check_instance(array, WheelArray, "array")
     return LinearLaw(weighted_gains(array, weights), "weighted")
 
 
@@ -206,4 +214,5 @@ def allocate_min_norm(array: WheelArray, torque) -> np.ndarray:
 
     Convenience for ``min_norm_law(array).allocate(torque)``.
     """
+    check_instance(array, WheelArray, "array")
     return min_norm_law(array).allocate(torque)

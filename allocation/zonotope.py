@@ -39,7 +39,9 @@ def zonotope_facets(generators: np.ndarray, center=None
     """
     G = np.asarray(generators, dtype=float)
     G = G[:, np.linalg.norm(G, axis=0) > 0.0]
-    rank = int(np.linalg.matrix_rank(G, tol=1e-9)) if G.size else 0
+    scale = float(np.abs(G).max()) if G.size else 0.0
+    rank = (int(np.linalg.matrix_rank(G, tol=1e-9 * scale)) if scale > 0
+            else 0)
     if rank < 3:
         raise RankError(f"generators span rank {rank} < 3: the set is flat",
                         rank=rank, required=3)

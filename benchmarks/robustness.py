@@ -42,7 +42,7 @@ def wheel_arrays() -> dict[str, tuple[WheelArray, np.ndarray]]:
                                normalize=True).with_failed(2)
     return {"pyramid": (WheelArray.pyramid(h_max=4.0, m_max=0.2),
                         np.ones(4)),
-            "6 wheels, 3 failed, weights": (
+            "6 wheels, wheel 3 failed, unequal weights": (
                 six, np.array([1.0, 2.0, 1.0, 0.5, 3.0, 1.5]))}
 
 

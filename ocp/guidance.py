@@ -21,6 +21,7 @@ from allocation import WheelArray, min_norm_gains
 
 from ocp.spacecraft.definition import slew_parts, spacecraft_parts
 
+from adcs_common.quaternion import as_unit_quaternion
 from adcs_common.quaternion import quat_conj, quat_mul, rotation_between
 from ocp.models.rigid import SpacecraftModel, check_inertia, rigid_spacecraft
 from ocp.models.trajectory import SlewTrajectory
@@ -33,11 +34,7 @@ __all__ = [
 
 
 def _unit_quat(q, name: str) -> np.ndarray:
-    q = as_vector(q, 4, name)
-    n = np.linalg.norm(q)
-    if n < 1e-12:
-        raise InvalidValueError(f"{name} must be a non-zero quaternion")
-    return q / n
+    return as_unit_quaternion(q, name)
 
 
 def _wheel_pattern(wheels: WheelArray, demand: np.ndarray

@@ -14,6 +14,7 @@ from adcs_common.exceptions import InvalidValueError, SolverError
 from adcs_common.threads import new_lock, synchronized
 from adcs_common.qp import QP, Backend, QPSolution, make_backend
 from adcs_common.validation import (
+    as_options,
     as_finite_array,
     as_finite_scalar,
     as_vector,
@@ -262,8 +263,11 @@ class QPAllocator:
         if self.power_weight < 0:
             raise InvalidValueError("power_weight must be non-negative")
         self.check_tol = as_finite_scalar(check_tol, "check_tol")
+        if not 0.0 < self.check_tol < 1.0:
+            raise InvalidValueError(
+                f"check_tol must lie in (0, 1) (relative), got {check_tol!r}")
         self.solver = solver
-        self.solver_options = dict(solver_options or {})
+        self.solver_options = as_options(solver_options)
         self._axes = array.working_axes
         self._active = array.active
         self._normals = facet_normals(self._axes[:, array.active])

@@ -228,6 +228,24 @@ def default_functions(*, wheels: WheelArray, inertia=None,
     return fns, samples, model
 
 
+#: MPC steps `export_c` can write.
+MPC_VARIANTS = ("mpc_step", "mpc_rti_step")
+
+
+def _check_variants(variants) -> tuple[str, ...]:
+    """Check the MPC variants asked for: known names only (no typo)."""
+    if variants is None or isinstance(variants, str) or not all(
+            isinstance(v, str) for v in variants):
+        raise InvalidValueError(
+            f"mpc_variants must be a sequence of names from {MPC_VARIANTS}"
+            f", got {variants!r}")
+    unknown = [v for v in variants if v not in MPC_VARIANTS]
+    if unknown:
+        raise InvalidValueError(
+            f"unknown MPC variant(s) {unknown}; choose from {MPC_VARIANTS}")
+    return tuple(variants)
+
+
 def _renamed(f: ca.Function, name: str) -> ca.Function:
     """``f`` wrapped under a new name (C symbol)."""
     args = f.mx_in()
@@ -316,6 +334,7 @@ def export_c(out_dir, spacecraft=None, *,
     out = output_folder(out_dir, "out_dir")
     if int(repeats) < 1:
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
+    mpc_variants = _check_variants(mpc_variants)
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
     method = wheel_qp_method(wheels, wheel_qp_fast_path)
     # a closed-form wheel_qp holds no conic: no solver library to link

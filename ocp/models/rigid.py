@@ -30,14 +30,14 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from adcs_common.exceptions import InvalidValueError, ShapeError
+from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_finite_array, as_vector, check_positive
 from allocation import WheelArray
 from thrusters import ThrusterSet
 
 from ocp.spacecraft.definition import spacecraft_parts
 
-from adcs_common.rigid_body import body_rates
+from adcs_common.rigid_body import body_rates, check_inertia
 from adcs_common.quaternion import quat_rate, quat_to_dcm
 from ocp.models.angles import ek_angle_rates
 
@@ -48,31 +48,6 @@ __all__ = [
     "euler_krylov_model",
     "rigid_spacecraft",
 ]
-
-
-def check_inertia(inertia, name: str = "inertia") -> np.ndarray:
-    """Return ``inertia`` as a symmetric positive-definite (3, 3) array.
-
-    A length-3 vector is read as the principal moments.
-
-    Raises
-    ------
-    ShapeError, InvalidValueError
-        Wrong shape, asymmetric or not positive definite.
-    """
-    J = as_finite_array(inertia, name)
-    if J.shape == (3,):
-        J = np.diag(J)
-    if J.shape != (3, 3):
-        raise ShapeError(f"{name} must have shape (3, 3) or (3,), got "
-                         f"{J.shape}")
-    if not np.allclose(J, J.T, rtol=0.0, atol=1e-12 * np.abs(J).max()):
-        raise InvalidValueError(f"{name} must be symmetric, got {J}")
-    if np.linalg.eigvalsh(J).min() <= 0.0:
-        raise InvalidValueError(
-            f"{name} must be positive definite, eigenvalues "
-            f"{np.linalg.eigvalsh(J)}")
-    return J
 
 
 def effective_torque_matrix(wheels: WheelArray) -> tuple[np.ndarray,

@@ -50,7 +50,10 @@ from adcs_common.exceptions import (
     SolverError,
     SolverNotFound,
 )
+from adcs_common.quaternion import as_unit_quaternion
 from adcs_common.validation import (
+    as_count,
+    as_finite_array,
     as_finite_scalar,
     as_vector,
     check_positive,
@@ -174,9 +177,7 @@ class AttitudeMPC:
         if rti and solver != "sqpmethod":
             raise InvalidValueError(
                 f"rti=True needs solver='sqpmethod', got {solver!r}")
-        if int(max_iter) < 1:
-            raise InvalidValueError(f"max_iter must be >= 1, got "
-                                    f"{max_iter!r}")
+        max_iter = as_count(max_iter, "max_iter")
         self.model = model
         self.wheels = model.wheels
         self.horizon = int(horizon)
@@ -500,12 +501,13 @@ class AttitudeMPC:
                 "(its warm start): build one MPC per thread, or call "
                 "reset() from this thread to take it over")
         nx = self.model.nx
-        x = as_vector(x, nx, "x")
-        qf = as_vector(qf, 4, "qf")
-        nq = np.linalg.norm(qf)
-        if nq < 1e-12:
-            raise InvalidValueError("qf must be a non-zero quaternion")
-        qf = qf / nq
+        x = as_finite_array(x, "x", (nx,))
+        nq = float(np.linalg.norm(x[:4]))
+        if abs(nq - 1.0) > 1e-3:
+            raise InvalidValueError(
+                f"x[:4] must be a unit quaternion (the attitude), its norm "
+                f"is {nq:.6g}")
+        qf = as_unit_quaternion(qf, "qf")
         tau = np.zeros(3) if tau is None else as_vector(tau, 3, "tau")
         self._check_reachable(x)
         z_prev = self._plan if self._plan is not None else \

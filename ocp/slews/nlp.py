@@ -25,9 +25,10 @@ from __future__ import annotations
 
 
 from adcs_common.exceptions import (
+    SolverError,
     InvalidValueError,
 )
-from adcs_common.validation import as_finite_scalar, check_positive
+from adcs_common.validation import as_finite_scalar
 from allocation import WheelArray
 
 
@@ -48,6 +49,21 @@ __all__ = [
     "min_energy_slew",
     "time_optimal_slew",
 ]
+
+
+#: Longest slew a minimum-energy problem may ask for [s] (a year).
+MAX_DURATION = 3.2e7
+
+
+def _guarded(s, **kwargs) -> SlewTrajectory:
+    """`solve_slew`, its numerical breakdowns as the toolbox's error."""
+    try:
+        return solve_slew(s, **kwargs)
+    except (RuntimeError, OverflowError, ZeroDivisionError) as exc:
+        raise SolverError(
+            f"the slew NLP broke down numerically ({type(exc).__name__}: "
+            f"{str(exc).splitlines()[0][:200]}); check the limits and "
+            "the time scale", solver=kwargs.get("solver")) from None
 
 
 def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
@@ -126,7 +142,10 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
         forwarded untouched.
     verify : bool
         Simulate the optimal controls with CVODES and store the final
-        attitude error and rate in ``extras`` (outside ``solve_time``).
+        attitude error and rate in ``extras`` (outside ``solve_time``);
+        ``success`` then also needs that simulated final error within
+        1e-3 rad (``ocp.slews.solve.VERIFY_TOL``), else ``status`` says
+        by how much the plant missed.
     jit : bool or dict
         Opt-in: compile the NLP's functions to C (MX graph of mapped
         interval Functions, ``expand`` ignored) with all problem data as
@@ -173,13 +192,13 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
     perturbation = as_finite_scalar(perturbation, "perturbation")
     s = setup_slew(inertia, q0, qf, wheels, torque_max, h0, rate_max, keep_out)
     pert = 0.0 if initial_guess == "eigenaxis" else perturbation
-    return solve_slew(s, objective="time", T_fixed=None, N=int(N),
-                  transcription=transcription, solver=solver,
-                  expand=expand, substeps=int(substeps),
-                  initial_guess=("coarse" if initial_guess == "coarse"
-                                 else "eigenaxis"),
-                  perturbation=pert, seed=seed,
-                  solver_options=solver_options, verify=verify, jit=jit)
+    return _guarded(s, objective="time", T_fixed=None, N=int(N),
+                    transcription=transcription, solver=solver,
+                    expand=expand, substeps=int(substeps),
+                    initial_guess=("coarse" if initial_guess == "coarse"
+                                   else "eigenaxis"),
+                    perturbation=pert, seed=seed,
+                    solver_options=solver_options, verify=verify, jit=jit)
 
 
 def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
@@ -220,13 +239,15 @@ def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
     solver_entry(solver)
     check_common(N, transcription, substeps)
     T = as_finite_scalar(T, "T")
-    check_positive(T, "T")
+    if not 0.0 < T <= MAX_DURATION:
+        raise InvalidValueError(
+            f"T must lie in (0, {MAX_DURATION:g}] s, got {T!r}")
     s = setup_slew(inertia, q0, qf, wheels, torque_max, h0, rate_max, keep_out)
     # a cone on the eigenaxis path makes the planar guess a stationary
     # point (escaping to either side is symmetric): perturb it off-plane
-    return solve_slew(s, objective="energy", T_fixed=T, N=int(N),
-                  transcription=transcription, solver=solver,
-                  expand=expand, substeps=int(substeps),
-                  initial_guess="cubic",
-                  perturbation=0.3 if s.keep_out else 0.0, seed=0,
-                  solver_options=solver_options, verify=verify, jit=jit)
+    return _guarded(s, objective="energy", T_fixed=T, N=int(N),
+                    transcription=transcription, solver=solver,
+                    expand=expand, substeps=int(substeps),
+                    initial_guess="cubic",
+                    perturbation=0.3 if s.keep_out else 0.0, seed=0,
+                    solver_options=solver_options, verify=verify, jit=jit)

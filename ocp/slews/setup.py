@@ -7,7 +7,7 @@ import numpy as np
 from adcs_common.exceptions import (
     InvalidValueError,
 )
-from adcs_common.validation import as_finite_scalar, as_vector, check_positive
+from adcs_common.validation import as_finite_scalar, as_vector
 from allocation import min_norm_gains
 from ocp.spacecraft.definition import slew_parts
 from adcs_common.quaternion import (
@@ -127,7 +127,9 @@ def setup_slew(inertia, q0, qf, wheels, torque_max, h0, rate_max,
     model = rigid_spacecraft(J, wheels, torque_max=torque_max)
     if rate_max is not None:
         rate_max = as_finite_scalar(rate_max, "rate_max")
-        check_positive(rate_max, "rate_max")
+        if not 1e-9 <= rate_max <= 1e3:
+            raise InvalidValueError(
+                f"rate_max must lie in [1e-9, 1e3] rad/s, got {rate_max!r}")
     eig = eigenaxis_slew(J, q0, qf, wheels=wheels, torque_max=torque_max,
                          rate_max=rate_max)
     if wheels is not None:

@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from adcs_common.exceptions import AdcsError, InvalidValueError
-from adcs_common.validation import as_finite_array, as_finite_scalar
+from adcs_common.rigid_body import check_inertia
+from adcs_common.validation import as_finite_scalar
 from allocation import WheelArray
 from thrusters import ThrusterSet
 
@@ -38,20 +39,7 @@ class SpacecraftFileError(AdcsError, ValueError):
 
 
 def _inertia(value) -> np.ndarray:
-    J = as_finite_array(value, "inertia")
-    if J.shape == (3,):
-        J = np.diag(J)
-    if J.shape != (3, 3):
-        raise InvalidValueError(
-            f"inertia must be (3, 3) or a (3,) diagonal [kg·m²], got shape "
-            f"{J.shape}")
-    if not np.allclose(J, J.T, rtol=1e-12, atol=1e-12 * np.abs(J).max()):
-        raise InvalidValueError(f"inertia must be symmetric, got {J.tolist()}")
-    eig = np.linalg.eigvalsh(J)
-    if eig.min() <= 1e-12 * max(eig.max(), 0.0) or eig.max() <= 0:
-        raise InvalidValueError(
-            "inertia must be positive definite, its eigenvalues are "
-            f"{eig.tolist()} kg·m²")
+    J = check_inertia(value)
     J.setflags(write=False)
     return J
 

@@ -414,3 +414,17 @@ def test_failed_coarse_solve_falls_back_to_the_perturbed_guess(monkeypatch):
     assert r.extras["coarse_status"] == "Maximum_Iterations_Exceeded"
     assert r.extras["initial_guess"] == "perturbed_eigenaxis"
     assert r.success and r.solve_time > r.extras["coarse_solve_time"]
+
+
+def test_success_means_the_simulated_plant_reaches_the_target(monkeypatch):
+    from ocp.slews import solve
+
+    ok = min_energy_slew(np.eye(3), Q0, Q_180X, T=10.0, torque_max=1.0,
+                         N=20)
+    assert ok.success
+    assert ok.extras["simulated_final_error"] <= solve.VERIFY_TOL
+    monkeypatch.setattr(solve, "VERIFY_TOL", 1e-12)
+    missed = min_energy_slew(np.eye(3), Q0, Q_180X, T=10.0,
+                             torque_max=1.0, N=20)
+    assert not missed.success
+    assert "simulated final error" in missed.status

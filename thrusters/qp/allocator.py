@@ -10,7 +10,12 @@ import numpy as np
 from scipy.optimize import linprog
 
 from adcs_common.exceptions import InvalidValueError, ShapeError
-from adcs_common.validation import as_finite_array
+from adcs_common.validation import (
+    as_finite_array,
+    as_finite_scalar,
+    as_options,
+    check_positive,
+)
 
 from adcs_common.qp import QP
 from adcs_common.threads import new_lock, synchronized
@@ -173,7 +178,9 @@ class DutyCycleAllocator:
         t0 = time.perf_counter()
         self.unit = unit
         self.cycle = unit.check_cycle(cycle)
-        self.h_max = float(h_max)
+        self.h_max = as_finite_scalar(h_max, "h_max")
+        check_positive(self.h_max, "h_max")
+        solver_options = as_options(solver_options)
         self.tracking = tracking
         self.qp = build_qp(unit, cycle, h_max, tracking=tracking,
                            bound=bound, n_facets=n_facets,
