@@ -284,20 +284,16 @@ def envelope(array: WheelArray, kind: str = "momentum") -> Envelope:
         flat; e.g. two wheels left of the pyramid).
     """
     check_instance(array, WheelArray, "array")
-    if not isinstance(kind, str) or kind not in ("momentum", "torque"):
-        raise InvalidValueError(
-            f"kind must be 'momentum' or 'torque', got {kind!r}")
-    if not isinstance(array, WheelArray):
-        raise InvalidValueError(
-            f"array must be a WheelArray, got {type(array).__name__}")
-    if kind not in _CAPACITY:
+    if not isinstance(kind, str) or kind not in _CAPACITY:
         raise InvalidValueError(
             f"kind must be 'momentum' or 'torque', got {kind!r}")
     capacity = np.asarray(getattr(array, _CAPACITY[kind]))
     active = array.active
     G = array.axes[:, active] * capacity[active]           # (3, N_w)
-    if int(np.linalg.matrix_rank(G, tol=1e-9)) < 3:
-        r = int(np.linalg.matrix_rank(G, tol=1e-9))
+    # relative tolerance: capacities of 1e-10 are as valid as of 1e3
+    rank_tol = 1e-9 * float(np.abs(G).max(initial=0.0))
+    r = int(np.linalg.matrix_rank(G, tol=rank_tol)) if rank_tol > 0 else 0
+    if r < 3:
         raise RankError(
             f"array: the working wheels span rank {r} < 3 (failed wheels "
             f"{[i + 1 for i in array.failed]}); the {kind} envelope is "

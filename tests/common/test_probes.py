@@ -132,3 +132,12 @@ def test_random_bad_limits_never_escape_untyped(value):
             build(value)
         except AdcsError:
             pass
+
+
+def test_tiny_capacities_and_huge_axes_are_valid_arrays():
+    tiny = al.WheelArray.pyramid(h_max=1e-10, m_max=1e-10)
+    env = al.envelope(tiny, "torque")          # not "rank 0, flat"
+    assert env.inscribed_radius == pytest.approx(
+        al.envelope(ARR, "torque").inscribed_radius * 1e-9, rel=1e-9)
+    big = al.WheelArray.from_axes(np.eye(3) * 1e200, normalize=True)
+    np.testing.assert_array_equal(big.axes, np.eye(3))
