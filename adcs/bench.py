@@ -254,28 +254,43 @@ def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
         except (AdcsError, TypeError, ValueError) as exc:
             show(f"[wheels] {name}: not available ({exc})")
             continue
-        times, err, kkt, fails, wrong = [], 0.0, 0.0, 0, 0
-        for k, (M, ref) in enumerate(zip(demands, refs)):
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    t0 = time.perf_counter()
-                    r = alloc.allocate(M)
-                    dt = time.perf_counter() - t0
-            except AdcsError:
-                fails += 1
-                continue
-            e = float(np.max(np.abs(r.torques - ref)))
-            c = cert(M, r.torques)
-            err, kkt = max(err, e), max(kkt, c)
-            wrong += int((e > TOL) or (c > TOL))
-            times.append(dt)
-            if progress and (k + 1) % max(reps // 4, 1) == 0:
-                show(f"[wheels] {name} {k + 1}/{reps}")
-        med, p99 = _stats(times)
-        rows.append(BenchRow("wheels", name, reps, med, p99, err, kkt,
-                             fails, wrong))
+        rows.append(_timed_row(
+            "wheels", name, demands, refs,
+            lambda M: alloc.allocate(M).torques, cert, show, progress))
     return rows
+
+
+def _timed_row(problem: str, name: str, cases: list, refs: list,
+               solve: Callable, certify: Callable, show: Callable,
+               progress: bool) -> BenchRow:
+    """Time ``solve`` on every case; compare with ``refs``, certify.
+
+    ``solve(case)`` returns the point (None or a toolbox error: a
+    failure); ``certify(case, point)`` its KKT residual.
+    """
+    reps = len(cases)
+    times, err, kkt, fails, wrong = [], 0.0, 0.0, 0, 0
+    for k, (case, ref) in enumerate(zip(cases, refs)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            t0 = time.perf_counter()
+            try:
+                x = solve(case)
+            except AdcsError:
+                x = None
+            dt = time.perf_counter() - t0
+        if x is None:
+            fails += 1
+            continue
+        e = float(np.max(np.abs(x - ref)))
+        c = certify(case, x)
+        err, kkt = max(err, e), max(kkt, c)
+        wrong += int((e > TOL) or (c > TOL))
+        times.append(dt)
+        if progress and (k + 1) % max(reps // 4, 1) == 0:
+            show(f"[{problem}] {name} {k + 1}/{reps}")
+    med, p99 = _stats(times)
+    return BenchRow(problem, name, reps, med, p99, err, kkt, fails, wrong)
 
 
 # ----------------------------------------------------------------- thrusters
@@ -329,6 +344,9 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
     def point(r):
         return np.r_[r.duty, r.momentum_excess / h_max]
 
+    def duty_point(r):
+        return point(r) if r.success else None
+
     thetas, refs = [], []
     for P_T, M, H, tau in cases:
         th = ref_alloc.theta(P_T, M, H, tau)
@@ -349,28 +367,11 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
         except (AdcsError, TypeError, ValueError) as exc:
             show(f"[thrusters] {name}: not available ({exc})")
             continue
-        times, err, kkt, fails, wrong = [], 0.0, 0.0, 0, 0
-        for k, (th, ref) in enumerate(zip(thetas, refs)):
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                t0 = time.perf_counter()
-                r = alloc.solve_theta(th)
-                dt = time.perf_counter() - t0
-            if not r.success:
-                fails += 1
-                continue
-            x = point(r)
-            q, cl, cu = data(th)
-            e = float(np.max(np.abs(x - ref)))
-            c = kkt_residual(qp.P, q, C, cl, cu, x)
-            err, kkt = max(err, e), max(kkt, c)
-            wrong += int((e > TOL) or (c > TOL))
-            times.append(dt)
-            if progress and (k + 1) % max(reps // 4, 1) == 0:
-                show(f"[thrusters] {name} {k + 1}/{reps}")
-        med, p99 = _stats(times)
-        rows.append(BenchRow("thrusters", name, reps, med, p99, err, kkt,
-                             fails, wrong))
+        rows.append(_timed_row(
+            "thrusters", name, thetas, refs,
+            lambda th: duty_point(alloc.solve_theta(th)),
+            lambda th, x: kkt_residual(qp.P, data(th)[0], C, data(th)[1],
+                                       data(th)[2], x), show, progress))
     return rows
 
 

@@ -520,12 +520,7 @@ class AttitudeMPC:
                           ubg=0, lam_x0=lx0, lam_g0=lg0)
         solve_time = time.perf_counter() - t0
         stats = self.nlpsol.stats()
-        z = np.asarray(sol["x"]).ravel()
-        lam_x = np.asarray(sol["lam_x"]).ravel()
-        lam_g = np.asarray(sol["lam_g"]).ravel()
-        u = z[self._us[0]].copy()
-        cost, viol, viol1, defect = (float(o) for o in
-                                     self.check_function(z, p))
+        z, lam_x, lam_g, u, cost, viol, viol1, defect = self._unpack(sol, p)
         status = str(stats.get("return_status", "unknown"))
         iters = int(stats.get("iter_count", -1))
         if self.fallback is not None and viol1 > BOUND_TOL:
@@ -533,12 +528,8 @@ class AttitudeMPC:
                                 lbg=0, ubg=0, lam_x0=lx0, lam_g0=lg0)
             solve_time = time.perf_counter() - t0
             stats = self.fallback.stats()
-            z = np.asarray(sol["x"]).ravel()
-            lam_x = np.asarray(sol["lam_x"]).ravel()
-            lam_g = np.asarray(sol["lam_g"]).ravel()
-            u = z[self._us[0]].copy()
-            cost, viol, viol1, defect = (float(o) for o in
-                                         self.check_function(z, p))
+            z, lam_x, lam_g, u, cost, viol, viol1, defect = self._unpack(
+                sol, p)
             status = ("rti_fallback:"
                       + str(stats.get("return_status", "unknown")))
             iters = 1 + int(stats.get("iter_count", -1))
@@ -562,6 +553,14 @@ class AttitudeMPC:
                     solver=self.name, result=result)
         self._plan, self._lam_x, self._lam_g = z, lam_x, lam_g
         return result
+
+    def _unpack(self, sol: dict, p: np.ndarray) -> tuple:
+        """Plan, multipliers, command and the checks of one NLP solution."""
+        z = np.asarray(sol["x"]).ravel()
+        lam_x = np.asarray(sol["lam_x"]).ravel()
+        lam_g = np.asarray(sol["lam_g"]).ravel()
+        checks = (float(o) for o in self.check_function(z, p))
+        return (z, lam_x, lam_g, z[self._us[0]].copy(), *checks)
 
     def _check_reachable(self, x: np.ndarray) -> None:
         """Raise `InfeasibleError` when x_1 cannot meet the state bounds."""
