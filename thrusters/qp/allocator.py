@@ -95,21 +95,25 @@ class DutyAllocation:
     extras: dict[str, Any] = field(default_factory=dict)
 
 
+_NUMBERS = (int, float, np.integer, np.floating)
+
+
 def _fill_theta(th: np.ndarray, P_T, M, H, tau_dist) -> bool:
     """Write (P_T, M, H, tau_dist) into ``th`` (9,); False if they misfit.
 
     Shapes must match exactly: a scalar is never broadcast to a vector.
     """
+    if isinstance(P_T, bool) or not isinstance(P_T, _NUMBERS):
+        return False        # (a 0-d array goes the slow way)
     try:
-        parts = [np.asarray(v, dtype=float) for v in (P_T, M, H, tau_dist)]
+        if len(M) != 2 or len(H) != 3 or len(tau_dist) != 3:
+            return False
+        th[0] = P_T
+        th[1:3] = M
+        th[3:6] = H
+        th[6:9] = tau_dist
     except (TypeError, ValueError):
         return False
-    if [p.shape for p in parts] != [(), (2,), (3,), (3,)]:
-        return False
-    th[0] = parts[0]
-    th[1:3] = parts[1]
-    th[3:6] = parts[2]
-    th[6:9] = parts[3]
     return True
 
 
