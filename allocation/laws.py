@@ -8,6 +8,8 @@ import numpy as np
 
 from adcs_common.exceptions import InvalidValueError, ShapeError
 from adcs_common.validation import (
+    as_finite_array,
+    as_finite_scalar,
     as_vector,
     check_instance,
     check_positive,
@@ -77,7 +79,7 @@ class LinearLaw:
         numpy.ndarray, shape (N,) or (N, K)
             Motor torques m [N·m].
         """
-        M = np.asarray(torque, dtype=float)
+        M = as_finite_array(torque, "torque")
         if M.shape[:1] != (3,) or M.ndim > 2:
             raise ShapeError(
                 f"torque must have shape (3,) or (3, K), got {M.shape}")
@@ -149,6 +151,8 @@ def sign_matrix_gains(delta: float, gamma: float) -> np.ndarray:
 
 def pyramid_scale(delta: float, gamma: float) -> np.ndarray:
     """Row scales ``(sδcγ, sδsγ, cδ)`` with ``A = diag(scale) B``."""
+    delta = as_finite_scalar(delta, "delta")
+    gamma = as_finite_scalar(gamma, "gamma")
     return np.array([np.sin(delta) * np.cos(gamma),
                      np.sin(delta) * np.sin(gamma), np.cos(delta)])
 
@@ -174,7 +178,8 @@ def pyramid_failure_gains(failed: int, delta: float,
     -------
     numpy.ndarray, shape (4, 3)
     """
-    if failed not in PAPER_FAILURE_LAWS:
+    if isinstance(failed, bool) or not isinstance(failed, (int, np.integer)) \
+            or failed not in PAPER_FAILURE_LAWS:
         raise InvalidValueError(
             f"failed must be a wheel index 0..3, got {failed!r}")
     return PAPER_FAILURE_LAWS[failed] / pyramid_scale(delta, gamma)

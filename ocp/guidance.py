@@ -385,7 +385,9 @@ def quaternion_feedback_slew(inertia, q0, qf, *,
     q0 = _unit_quat(q0, "q0")
     qf = _unit_quat(qf, "qf")
     wn = as_finite_scalar(natural_frequency, "natural_frequency")
-    check_positive(wn, "natural_frequency")
+    if not 0.0 < wn <= 1e3:
+        raise InvalidValueError(
+            f"natural_frequency must lie in (0, 1e3] rad/s, got {wn!r}")
     zeta = as_finite_scalar(damping, "damping")
     check_positive(zeta, "damping")
     t_final = as_finite_scalar(t_final, "t_final")

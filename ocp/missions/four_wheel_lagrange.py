@@ -318,6 +318,9 @@ def four_wheel_run(spacecraft: FourWheelCraft | None = None, *,
     check_positive(t_final, "t_final")
     dt = as_finite_scalar(dt, "dt")
     check_positive(dt, "dt")
+    if t_final / dt > 1e7:
+        raise InvalidValueError(
+            f"t_final / dt = {t_final / dt:.3g} samples: at most 1e7")
     if controller not in ("none", "pd"):
         raise InvalidValueError(
             f"controller must be 'none' or 'pd', got {controller!r}")

@@ -24,6 +24,7 @@ from adcs_common.validation import (
     as_finite_array,
     as_finite_scalar,
     as_vector,
+    check_positive,
 )
 
 from adcs_common.quaternion import (
@@ -127,6 +128,9 @@ def deployed_inertia(orbit: CircularOrbit | None = None, *,
         Principal inertia [kg·m²].
     """
     orbit = orbit or CircularOrbit()
+    for value, name in ((epsilon, "epsilon"), (offset_deg, "offset_deg"),
+                        (dipole, "dipole")):
+        check_positive(as_finite_scalar(value, name), name)
     w0, b0, i = orbit.rate, orbit.field_strength, orbit.inclination
     B = dipole * b0 / (epsilon * w0**2)
     a_minus_c = 2 * b0 * dipole * np.sin(i)**2 / (

@@ -26,7 +26,12 @@ import casadi as ca
 import numpy as np
 
 from adcs_common.exceptions import InvalidValueError
-from adcs_common.validation import as_finite_scalar, as_vector, check_positive
+from adcs_common.validation import (
+    as_finite_array,
+    as_finite_scalar,
+    as_vector,
+    check_positive,
+)
 
 from adcs_common.quaternion import quat_rate, quat_to_dcm
 from ocp.models.rigid import check_inertia
@@ -54,7 +59,9 @@ EARTH_DIPOLE = 7.94e15
 def orbit_rate(radius: float, mu: float = EARTH_MU) -> float:
     """Circular orbit rate :math:`ω_0 = \\sqrt{μ/r^3}` [rad/s]."""
     r = as_finite_scalar(radius, "radius")
-    check_positive(r, "radius")
+    if not 1e3 <= r <= 1e12:
+        raise InvalidValueError(
+            f"radius must lie in [1e3, 1e12] m, got {radius!r}")
     return float(np.sqrt(mu / r ** 3))
 
 
@@ -74,8 +81,12 @@ def gravity_gradient_torque(inertia, e3_body, w0: float):
     """
     if isinstance(e3_body, (ca.SX, ca.MX)):
         return 3 * w0 ** 2 * ca.cross(e3_body, ca.DM(inertia) @ e3_body)
-    e3 = np.asarray(e3_body, dtype=float)
-    return 3 * w0 ** 2 * np.cross(e3, np.asarray(inertia) @ e3)
+    e3 = as_finite_array(e3_body, "e3_body", (3,))
+    w0 = as_finite_scalar(w0, "w0")
+    if not 0.0 <= w0 <= 1.0:
+        raise InvalidValueError(f"w0 must lie in [0, 1] rad/s, got {w0!r}")
+    return 3 * w0 ** 2 * np.cross(e3, as_finite_array(inertia, "inertia",
+                                                       (3, 3)) @ e3)
 
 
 def dipole_field_orbit(u, inclination: float, radius: float,

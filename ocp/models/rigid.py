@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from adcs_common.exceptions import InvalidValueError
+from adcs_common.exceptions import InvalidValueError, SolverError
 from adcs_common.validation import as_finite_array, as_vector, check_positive
 from allocation import WheelArray
 from thrusters import ThrusterSet
@@ -293,7 +293,7 @@ class SpacecraftModel:
         k = len(t) - 1
         if k < 1 or np.any(np.diff(t) <= 0):
             raise InvalidValueError("t must be increasing with >= 2 points")
-        x0 = as_vector(x0, self.nx, "x0")
+        x0 = as_finite_array(x0, "x0", (self.nx,))
         u = as_finite_array(u, "u", (k, self.nu))
         tau = (np.zeros((k, 3)) if tau is None
                else as_finite_array(tau, "tau", (k, 3)))
@@ -304,8 +304,18 @@ class SpacecraftModel:
         F = self.integrator(dts[0], method, options) if uniform else None
         for i in range(k):
             Fi = F if uniform else self.integrator(dts[i], method, options)
-            xf = Fi(x0=X[i], p=np.concatenate([u[i], tau[i]]))["xf"]
+            try:
+                xf = Fi(x0=X[i], p=np.concatenate([u[i], tau[i]]))["xf"]
+            except RuntimeError as exc:     # the integrator broke down
+                raise SolverError(
+                    f"simulation failed on interval {i} (t = {t[i]:.6g} "
+                    f"s): {str(exc).splitlines()[0][:200]}",
+                    solver=method) from None
             X[i + 1] = np.asarray(xf).ravel()
+            if not np.all(np.isfinite(X[i + 1])):
+                raise SolverError(
+                    f"simulation diverged on interval {i} (t = {t[i]:.6g} "
+                    "s): the state is no longer finite", solver=method)
         return X
 
 

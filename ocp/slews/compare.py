@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from adcs_common.exceptions import InvalidValueError
+from adcs_common.validation import as_finite_array
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 from allocation import WheelArray
 
@@ -147,7 +148,7 @@ def compare_slews(inertia, wheels: WheelArray, axis, angles_deg, *,
     axis = as_vector(axis, 3, "axis")
     q0 = (np.array([1.0, 0.0, 0.0, 0.0]) if q0 is None
           else as_vector(q0, 4, "q0"))
-    angles = np.atleast_1d(np.asarray(angles_deg, dtype=float))
+    angles = np.atleast_1d(as_finite_array(angles_deg, "angles_deg"))
     if angles.ndim != 1 or len(angles) == 0:
         raise InvalidValueError("angles_deg must be a non-empty sequence")
     check_positive(angles, "angles_deg")

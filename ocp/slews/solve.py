@@ -256,16 +256,8 @@ def solve_slew(s: SlewSetup, *, objective: str, T_fixed: float | None, N: int,
                                             perturbation),
               "perturbation": perturbation,
               "nlp_objective": float(sol["f"][0]), **coarse_info}
-    success = bool(stats.get("success", False))
-    status = _status(stats)
-    if verify and np.isfinite(Tv) and Tv > 0:
-        verify_trajectory(model, x0, t, Uv, s.qf, extras, s.keep_out)
-        err = extras["simulated_final_error"]
-        if success and not err <= VERIFY_TOL:
-            # the NLP's own model reached the target, the plant did not
-            success = False
-            status = (f"{status}; simulated final error {err:.3g} rad > "
-                      f"{VERIFY_TOL:g}")
+    success, status = _verified(stats, verify and np.isfinite(Tv)
+                                and Tv > 0, model, x0, t, Uv, s, extras)
     traj = SlewTrajectory(
         method="time_optimal" if free_T else "min_energy",
         T=Tv, t=t, q=Xv[:4].T, w=Xv[4:7].T,
@@ -279,6 +271,27 @@ def solve_slew(s: SlewSetup, *, objective: str, T_fixed: float | None, N: int,
         extras["keep_out_node_margin"] = float(min(
             np.min(k.margin(traj.q)) for k in s.keep_out))
     return traj
+
+
+def _verified(stats: dict, verify: bool, model, x0, t, Uv, s: SlewSetup,
+              extras: dict) -> tuple[bool, str]:
+    """``(success, status)``: the solver's, and the simulated plant's.
+
+    With ``verify`` the controls run on the plant (CVODES); a final
+    attitude error beyond `VERIFY_TOL` makes the slew a failure whose
+    status says by how much it missed.
+    """
+    success = bool(stats.get("success", False))
+    status = _status(stats)
+    if verify:
+        verify_trajectory(model, x0, t, Uv, s.qf, extras, s.keep_out)
+        err = extras["simulated_final_error"]
+        if success and not err <= VERIFY_TOL:
+            # the NLP's own model reached the target, the plant did not
+            success = False
+            status = (f"{status}; simulated final error {err:.3g} rad > "
+                      f"{VERIFY_TOL:g}")
+    return success, status
 
 
 def _status(stats: dict) -> str:

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 import allocation as al
 import ocp
 import thrusters as th
-from adcs_common.exceptions import AdcsError
+from adcs_common.exceptions import AdcsError, SolverError
 from ocp.codegen import export_c
 from ocp.mpc import AttitudeMPC
 
@@ -105,6 +105,28 @@ PROBES = {
         [None, "mpc_step", ("mpc_stpe",), (1.0,)]),
     "quat_from_axis_angle": (lambda v: ocp.quat_from_axis_angle(v, 1.0),
                              [None, "abc", [0, 0, 0], [np.nan, 0, 0], 1.0]),
+    "sign_matrix_gains": (lambda v: al.sign_matrix_gains(v, 0.7),
+                          [None, "abc", [1.0], np.nan]),
+    "pyramid_failure_gains": (
+        lambda v: al.pyramid_failure_gains(v, 0.9, 0.7),
+        [None, [1.0], 1.0, True, 4]),
+    "LinearLaw.allocate": (lambda v: al.min_norm_law(ARR).allocate(v),
+                           ["abc", None, [np.nan, 0, 0], [0.1]]),
+    "orbit_rate": (ocp.orbit_rate, [None, "abc", -1.0, 0.0, 1e200]),
+    "gravity_gradient_torque(w0)": (
+        lambda v: ocp.gravity_gradient_torque(np.eye(3), [0, 0, 1], v),
+        [None, "abc", [1.0], np.nan, -1.0, 1e200]),
+    "SpacecraftModel.simulate(x0)": (
+        lambda v: MODEL.simulate(v, [0.0, 1.0], np.zeros((1, 4))),
+        [None, "abc", np.full(11, np.nan), np.full(11, 1e200)]),
+    "quaternion_feedback_slew(natural_frequency)": (
+        lambda v: ocp.quaternion_feedback_slew(
+            np.eye(3), Q0, Q1, wheels=ARR, natural_frequency=v,
+            t_final=5.0),
+        [None, "abc", -1.0, 0.0, 1e200]),
+    "compare_slews(angles_deg)": (
+        lambda v: ocp.compare_slews(np.eye(3), ARR, [1, 0, 0], v),
+        [None, "abc", [np.nan], -1.0]),
 }
 CASES = [(name, i) for name, (_, bad) in PROBES.items()
          for i in range(len(bad))]
@@ -116,7 +138,8 @@ def test_bad_input_gets_the_toolboxs_own_error(name, i):
     call, bad = PROBES[name]
     with pytest.raises(AdcsError) as info:
         call(bad[i])
-    assert isinstance(info.value, (ValueError, TypeError, RuntimeError))
+    assert isinstance(info.value, (ValueError, TypeError, RuntimeError,
+                                   SolverError))
 
 
 @settings(max_examples=60, deadline=None)
