@@ -49,8 +49,9 @@ def torque_bounds(array: WheelArray, wheel_momentum=None, dt=None,
     if dt is None:
         return -m_max, m_max.copy(), None
     h = wheel_momentum
-    lo = np.maximum(-m_max, (-array.h_max - h) / dt)
-    hi = np.minimum(m_max, (array.h_max - h) / dt)
+    with np.errstate(over="ignore"):     # a tiny dt: the torque bound rules
+        lo = np.maximum(-m_max, (-array.h_max - h) / dt)
+        hi = np.minimum(m_max, (array.h_max - h) / dt)
     overrun = lo > hi
     if overrun.any():
         back = -np.sign(h) * m_max

@@ -109,7 +109,9 @@ def _check_arguments(unit, cycle, h_max, tracking, bound, n_facets,
             f"bound must be 'box' or 'norm', got {bound!r}")
     T = unit.check_cycle(cycle)
     hm = as_finite_scalar(h_max, "h_max")
-    check_positive(hm, "h_max")
+    if not 1e-12 <= hm <= 1e6:
+        raise InvalidValueError(
+            f"h_max must lie in [1e-12, 1e6] N·m·s, got {h_max!r}")
     names = ("torque_weight", "propellant_weight", "regularization",
              "slack_weight")
     for name, val in zip(names, weights):
