@@ -272,9 +272,14 @@ def _vec(v) -> str:
     return "[" + ", ".join(_vec(x) for x in v) + "]"
 
 
+def _string(text: str) -> str:
+    """Quote ``text`` as a TOML basic string (\\, " and newlines escaped)."""
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace(
+        "\n", "\\n") + '"'
+
+
 def _strings(names) -> str:
-    return "[" + ", ".join('"' + n.replace('"', '\\"') + '"'
-                           for n in names) + "]"
+    return "[" + ", ".join(_string(n) for n in names) + "]"
 
 
 def _same(v) -> str:
@@ -289,10 +294,9 @@ def spacecraft_to_toml(sc: Spacecraft) -> str:
     same craft (thrust levels to the last bit of ``thrust / pressure``).
     """
     w = sc.wheels
-    q = '"'
-    lines = [f"name = {q}{sc.name}{q}"]
+    lines = [f"name = {_string(sc.name)}"]
     if sc.description:
-        lines.append(f"description = {q}{sc.description}{q}")
+        lines.append(f"description = {_string(sc.description)}")
     lines.append(f"inertia = {_vec(sc.inertia)}   # kg·m²")
     if sc.rate_max is not None:
         lines.append(f"rate_max_deg = {_num(np.rad2deg(sc.rate_max))}")

@@ -206,3 +206,12 @@ def test_spacecraft_checks_its_fields(field, value, match):
     kw[field] = value
     with pytest.raises(ValueError, match=match):
         Spacecraft(**kw)
+
+
+def test_names_and_descriptions_with_quotes_survive_the_file(tmp_path):
+    base = load_spacecraft("demo")
+    odd = Spacecraft('sat "A"\\1', base.inertia, base.wheels,
+                     description='two\nlines, "quoted"')
+    odd.save(tmp_path / "odd.toml")
+    back = load_spacecraft(tmp_path / "odd.toml")
+    assert (back.name, back.description) == (odd.name, odd.description)
