@@ -287,6 +287,11 @@ class QPAllocator:
         #: Scale α reached by the last `allocate_fast` call.
         self.fast_alpha = float("nan")
 
+    @property
+    def fast_step_lengths(self) -> tuple:
+        """Step lengths dt [s] whose `allocate_fast` Function is kept."""
+        return tuple(self._fast)
+
     # ------------------------------------------------------------- helpers
     def _make_backend(self, k: int, n_eq: int) -> Backend:
         return make_backend(self.solver, self._nvar, k, n_eq,

@@ -368,5 +368,5 @@ def test_allocate_fast_keeps_a_bounded_number_of_step_lengths():
         np.testing.assert_allclose(alloc.allocate_fast(M, h, dt),
                                    alloc.allocate(M, h, dt).torques,
                                    atol=1e-12)
-    assert len(alloc._fast) <= 4
+    assert len(alloc.fast_step_lengths) <= 4
     assert alloc.fast_fallbacks == 0
