@@ -6,6 +6,7 @@ import argparse
 import sys
 from typing import Sequence
 
+from adcs.provenance import version
 from adcs_common.exceptions import AdcsError
 
 
@@ -87,6 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="adcs", description="ADCS optimal-control and allocation "
         "toolbox: design studies, benchmarks, code export.")
+    parser.add_argument("--version", action="version",
+                        version=f"adcs-toolbox {version()}")
     sub = parser.add_subparsers(dest="command", required=True)
     rep = sub.add_parser("report", help="run the design studies and write "
                          "an HTML + Markdown report")

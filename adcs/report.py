@@ -14,6 +14,7 @@ from typing import Any, Callable, Sequence, TextIO
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.paths import output_folder
+from adcs.provenance import provenance
 from ocp.spacecraft import load_spacecraft
 
 #: study key -> (module in adcs.studies, title); the order of the report.
@@ -124,8 +125,11 @@ def _md_cell(text: str) -> str:
     return text.replace("|", "\\|")
 
 
-def _markdown(sections: Sequence[Section], title: str) -> str:
-    out = [f"# {title}", ""]
+def _markdown(sections: Sequence[Section], title: str,
+              made: list[tuple[str, str]]) -> str:
+    out = [f"# {title}", "", "| how it was made | |", "|---|---|"]
+    out += [f"| {_md_cell(k)} | {_md_cell(v)} |" for k, v in made]
+    out.append("")
     for s in sections:
         out += [f"## {s.title}", "", s.intro, ""]
         for t in s.tables:
@@ -151,11 +155,15 @@ tr.erratum{background:#fff2cc}figure{display:inline-block;margin:.5em}
 img{max-width:520px}.note{color:#444;font-size:90%}"""
 
 
-def _html(sections: Sequence[Section], title: str, out: Path) -> str:
+def _html(sections: Sequence[Section], title: str, out: Path,
+          made: list[tuple[str, str]]) -> str:
     esc = html.escape
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'>"
              f"<title>{esc(title)}</title><style>{_CSS}</style></head><body>",
-             f"<h1>{esc(title)}</h1><ul>"]
+             f"<h1>{esc(title)}</h1><table>"]
+    parts += [f"<tr><td>{esc(k)}</td><td>{esc(v)}</td></tr>"
+              for k, v in made]
+    parts.append("</table><ul>")
     parts += [f"<li><a href='#{s.key}'>{esc(s.title)}</a></li>"
               for s in sections]
     parts.append("</ul>")
@@ -245,8 +253,9 @@ def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
             say(f"      {line}")
         say(f"      done in {section.seconds:.1f} s")
     title = "ADCS toolbox report" + (" (quick)" if quick else "")
-    (out / "report.md").write_text(_markdown(sections, title))
-    (out / "report.html").write_text(_html(sections, title, out))
+    made = provenance(time.perf_counter() - t_all)
+    (out / "report.md").write_text(_markdown(sections, title, made))
+    (out / "report.html").write_text(_html(sections, title, out, made))
     say(f"wrote {out / 'report.html'} and {out / 'report.md'} "
         f"in {time.perf_counter() - t_all:.1f} s")
     return sections

@@ -75,3 +75,28 @@ def test_markdown_tables_keep_their_columns(quick_report):
         if header is None:
             header = n
         assert n == header, line
+
+
+def test_report_records_how_it_was_made(tmp_path):
+    from adcs import __version__
+
+    assert main(["report", "--quick", "--studies", "spacecraft", "--out",
+                 str(tmp_path)]) == 0
+    md = (tmp_path / "report.md").read_text()
+    for item in ("date (UTC)", "adcs-toolbox", "casadi", "git commit",
+                 "machine", "run time"):
+        assert f"| {item} |" in md
+    assert f"| adcs-toolbox | {__version__} |" in md
+    assert "how it was made" in (tmp_path / "report.html").read_text() \
+        or "run time" in (tmp_path / "report.html").read_text()
+
+
+def test_version_flag(capsys):
+    import pytest
+
+    from adcs import __version__
+
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"adcs-toolbox {__version__}"
