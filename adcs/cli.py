@@ -68,6 +68,38 @@ def _bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _sweep(args: argparse.Namespace) -> int:
+    from adcs_common.paths import output_folder
+
+    from .sweep import SWEEPS, connect, run_sweep
+    from .sweep.plots import plot_sweep
+
+    study, make_params, _ = SWEEPS[args.name]
+    out = output_folder(args.out, "out")
+    params = make_params(args.quick, samples=args.samples,
+                         spacecraft=args.spacecraft)
+    client = cluster = None
+    if not args.sync:
+        client, cluster = connect(args.scheduler, workers=args.workers,
+                                  tls_ca=args.tls_ca, tls_cert=args.tls_cert,
+                                  tls_key=args.tls_key)
+    try:
+        ds = run_sweep(study, params, client=client, out=out,
+                       progress=not args.no_progress)
+    finally:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+    ds.to_netcdf(out / f"{args.name}.nc", engine="scipy")
+    plot_sweep(args.name, ds, out / f"{args.name}.png")
+    failed = int((ds["error"] != "").sum())
+    print(f"adcs sweep {args.name}: {ds.sizes['case']} cases, {failed} "
+          f"failed; wrote {out / (args.name + '.nc')} and "
+          f"{out / (args.name + '.png')}")
+    return 0
+
+
 def _spacecraft(args: argparse.Namespace) -> int:
     from ocp.spacecraft import list_spacecraft, spacecraft_toml
 
@@ -81,6 +113,35 @@ def _spacecraft(args: argparse.Namespace) -> int:
 
 SPACECRAFT_HELP = ("the spacecraft: a built-in name (adcs spacecraft "
                    "--list) or a TOML file")
+
+
+def _add_sweep(sub) -> None:
+    """Add the ``adcs sweep`` subcommand."""
+    swp = sub.add_parser("sweep", help="run a design-space sweep or Monte "
+                         "Carlo campaign on Dask")
+    swp.add_argument("name", choices=("geometry", "accuracy", "agility",
+                                      "failures"))
+    swp.add_argument("--out", default="adcs-sweep",
+                     help="output folder (dataset, plot, finished chunks: "
+                     "a rerun resumes)")
+    swp.add_argument("--quick", action="store_true",
+                     help="small settings")
+    swp.add_argument("--samples", type=int, default=None,
+                     help="Monte Carlo samples (accuracy; default 1e6)")
+    swp.add_argument("--spacecraft", default="demo", help=SPACECRAFT_HELP)
+    swp.add_argument("--workers", type=int, default=None,
+                     help="local worker processes (default: one per core)")
+    swp.add_argument("--scheduler", default=None,
+                     help="address of a running Dask scheduler instead of "
+                     "a local cluster (use tls:// and --tls-* off this "
+                     "machine)")
+    swp.add_argument("--tls-ca", default=None)
+    swp.add_argument("--tls-cert", default=None)
+    swp.add_argument("--tls-key", default=None)
+    swp.add_argument("--sync", action="store_true",
+                     help="run in this process, in order (debugging)")
+    swp.add_argument("--no-progress", action="store_true")
+    swp.set_defaults(func=_sweep)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -151,6 +212,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help=SPACECRAFT_HELP + " (default: the pyramid, the "
                      "six-thruster unit and the demo craft)")
     ben.set_defaults(func=_bench)
+
+    _add_sweep(sub)
 
     scp = sub.add_parser("spacecraft", help="list the built-in spacecraft "
                          "or print one's TOML")

@@ -1,0 +1,152 @@
+"""The built-in sweeps of ``adcs sweep``: studies and their parameter sets.
+
+Each study is a module-level function (picklable: it runs on Dask
+workers) of one case's parameters returning a dict of numbers; solvers it
+builds are cached per worker process (the slews' solver cache, the
+functions' own caches), not rebuilt per case.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from allocation import WheelArray, envelope, torque_reach
+from allocation import min_norm_law
+
+__all__ = ["SWEEPS", "accuracy_case", "agility_case", "failure_case",
+           "geometry_case"]
+
+
+def geometry_case(delta_deg: float, gamma_deg: float,
+                  failed: int) -> dict:
+    """Pyramid (δ, γ) with one wheel failed (0: none): envelopes, reach."""
+    arr = WheelArray.pyramid(np.deg2rad(delta_deg), np.deg2rad(gamma_deg),
+                             h_max=1.0, m_max=1.0)
+    if failed:
+        arr = arr.with_failed(failed - 1)
+    env = envelope(arr, "torque")
+    reach = torque_reach(arr, min_norm_law(arr), n_directions=200)
+    return {"inscribed_radius": env.inscribed_radius,
+            "utilisation": env.utilisation,
+            "min_norm_mean_reach": reach.mean_direction_fraction,
+            "min_norm_worst_reach": reach.min_direction_fraction}
+
+
+def accuracy_case(seed: int, n_samples: int, mount_tol_deg: float,
+                  scale_tol: float) -> dict:
+    """One Monte Carlo block of mounting and scale-factor errors."""
+    from allocation import monte_carlo_accuracy
+
+    tol = np.deg2rad(mount_tol_deg)
+    r = monte_carlo_accuracy(d_delta_tol=tol, d_gamma_tol=tol,
+                             scale_tol=scale_tol, n_samples=n_samples,
+                             seed=seed)
+    angle = np.rad2deg(r.angle)
+    return {"samples": n_samples, "angle_mean_deg": float(angle.mean()),
+            "angle_p95_deg": float(np.percentile(angle, 95)),
+            "angle_max_deg": float(angle.max()),
+            "magnitude_p95": float(np.percentile(
+                np.abs(r.magnitude_error), 95))}
+
+
+@functools.lru_cache(maxsize=8)
+def _craft(spacecraft: str):
+    from ocp.spacecraft import load_spacecraft
+
+    return load_spacecraft(spacecraft)
+
+
+def agility_case(spacecraft: str, axis: int, angle_deg: float,
+                 N: int) -> dict:
+    """Eigenaxis and time-optimal slew times about a body axis."""
+    from ocp import eigenaxis_slew, quat_from_axis_angle, time_optimal_slew
+
+    sc = _craft(spacecraft)
+    directions = fibonacci_axes()
+    q0 = np.array([1.0, 0.0, 0.0, 0.0])
+    qf = quat_from_axis_angle(directions[axis], np.deg2rad(angle_deg))
+    eig = eigenaxis_slew(sc, q0, qf)
+    opt = time_optimal_slew(sc, q0, qf, N=N)
+    return {"eigenaxis_T": eig.T, "time_optimal_T": opt.T,
+            "saving": 1.0 - opt.T / eig.T, "success": float(opt.success)}
+
+
+def fibonacci_axes(n: int = 12) -> np.ndarray:
+    """``n`` unit axes spread over the sphere, (n, 3)."""
+    from allocation import fibonacci_directions
+
+    return fibonacci_directions(n).T
+
+
+def failure_case(spacecraft: str, wheel: int, t_fail: float,
+                 angle_deg: float) -> dict:
+    """MPC slew about (1, 1, 1) with wheel ``wheel`` (1..N) failing."""
+    from ocp import quat_from_axis_angle, rigid_spacecraft
+    from ocp.mpc import AttitudeMPC, simulate_mpc
+
+    sc = _craft(spacecraft)
+    qf = quat_from_axis_angle([1.0, 1.0, 1.0], np.deg2rad(angle_deg))
+    q0 = np.array([1.0, 0.0, 0.0, 0.0])
+    from ocp import eigenaxis_slew
+
+    T = eigenaxis_slew(sc, q0, qf).T
+    dt = float(np.clip(T / 30.0, 0.1, 10.0))
+    before = simulate_mpc(AttitudeMPC(rigid_spacecraft(sc.inertia,
+                                                       sc.wheels), dt=dt,
+                                      rti=True), q0, qf, t_final=t_fail)
+    tr = before.trajectory
+    failed = sc.wheels.with_failed(wheel - 1)
+    after = simulate_mpc(
+        AttitudeMPC(rigid_spacecraft(sc.inertia, failed), dt=dt, rti=True),
+        tr.q[-1], qf, t_final=2.0 * T, w0=tr.w[-1],
+        h0=tr.wheel_momentum[-1], hold=0.3 * T)
+    return {"settle_time": t_fail + after.settle_time,
+            "final_error_deg": float(np.rad2deg(after.final_error)),
+            "peak_torque": max(before.peak_torque, after.peak_torque),
+            "momentum_violation": max(before.momentum_violation,
+                                      after.momentum_violation)}
+
+
+def _geometry(quick: bool, **_) -> list[dict]:
+    deltas = np.arange(40.0, 71.0, 10.0 if quick else 2.5)
+    gammas = np.arange(30.0, 61.0, 15.0 if quick else 5.0)
+    return [{"delta_deg": float(d), "gamma_deg": float(g), "failed": f}
+            for d in deltas for g in gammas for f in range(5)]
+
+
+def _accuracy(quick: bool, samples: int | None = None, **_) -> list[dict]:
+    total = samples or (20_000 if quick else 1_000_000)
+    block = min(total, 100_000)
+    return [{"seed": k, "n_samples": block, "mount_tol_deg": 0.5,
+             "scale_tol": 0.02} for k in range(max(total // block, 1))]
+
+
+def _agility(quick: bool, spacecraft: str = "demo", **_) -> list[dict]:
+    axes = range(2 if quick else 12)
+    angles = (30.0, 90.0) if quick else (10.0, 30.0, 60.0, 90.0, 135.0,
+                                         180.0)
+    return [{"spacecraft": spacecraft, "axis": a, "angle_deg": ang,
+             "N": 20 if quick else 60} for a in axes for ang in angles]
+
+
+def _failures(quick: bool, spacecraft: str = "demo", **_) -> list[dict]:
+    n = _craft(spacecraft).wheels.n_wheels
+    return [{"spacecraft": spacecraft, "wheel": w,
+             "t_fail": 5.0 if quick else 10.0,
+             "angle_deg": 30.0 if quick else 90.0}
+            for w in range(1, n + 1)]
+
+
+#: name -> (study, parameter generator, what it shows)
+SWEEPS = {
+    "geometry": (geometry_case, _geometry,
+                 "pyramid δ × γ × single failure: envelope and reach"),
+    "accuracy": (accuracy_case, _accuracy,
+                 "Monte Carlo of mounting and scale errors (1e6 samples)"),
+    "agility": (agility_case, _agility,
+                "eigenaxis and time-optimal slew times: axes × angles"),
+    "failures": (failure_case, _failures,
+                 "closed-loop MPC slews with each wheel failing"),
+}

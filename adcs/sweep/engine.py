@@ -1,0 +1,220 @@
+"""Sweeps on Dask: split a parameter table into tasks, run, gather, resume.
+
+A *study* is any picklable function ``study(**params) -> dict`` of
+numbers (a toolbox function or the user's own). `run_sweep` cuts the
+parameter table (one row per case) into chunks, runs each chunk as one
+Dask task (`distributed`, processes: CasADi holds the GIL), and gathers
+one `xarray.Dataset` along the dimension ``case``: the parameters as
+coordinates, the study's outputs as variables, and ``error`` (empty, or
+the exception a case raised: the sweep goes on). With ``out`` each
+finished chunk is saved at once and a rerun skips it (resume).
+
+Where it runs: `local_cluster` starts workers on this machine, listening
+on the loopback address only (a Dask scheduler runs whatever a client
+sends it); `connect` reaches an existing scheduler, with TLS when given
+certificates. A scheduler without TLS must never be reachable from an
+untrusted network.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from adcs_common.exceptions import AdcsError, InvalidValueError
+from adcs_common.paths import output_folder
+
+__all__ = ["SweepError", "connect", "local_cluster", "run_chunk",
+           "run_sweep"]
+
+#: Where a local cluster and its dashboard listen unless told otherwise.
+LOOPBACK = "127.0.0.1"
+
+
+class SweepError(AdcsError, RuntimeError):
+    """A sweep could not run (no Dask, a bad scheduler address, ...)."""
+
+
+def _distributed():
+    try:
+        import distributed
+    except ImportError as exc:
+        raise SweepError(
+            "sweeps need Dask: pip install \"adcs-toolbox[sweep]\"") from exc
+    return distributed
+
+
+def local_cluster(workers: int | None = None, host: str = LOOPBACK):
+    """Start a `distributed.LocalCluster` of worker processes here.
+
+    One thread per worker process; scheduler and dashboard listen on
+    ``host`` (the loopback address by default: nothing outside this
+    machine can reach them).
+    """
+    distributed = _distributed()
+    if workers is not None and (isinstance(workers, bool) or not isinstance(
+            workers, int) or workers < 1):
+        raise InvalidValueError(
+            f"workers must be a positive integer, got {workers!r}")
+    return distributed.LocalCluster(
+        n_workers=workers, threads_per_worker=1, processes=True, host=host,
+        dashboard_address=f"{host}:0", silence_logs=50)
+
+
+def connect(scheduler: str | None = None, *, workers: int | None = None,
+            tls_ca: str | None = None, tls_cert: str | None = None,
+            tls_key: str | None = None):
+    """``(client, cluster)``: a new local cluster, or an existing scheduler.
+
+    Parameters
+    ----------
+    scheduler : str, optional
+        Address of a running scheduler (``tls://host:port`` with TLS);
+        None starts `local_cluster` (``cluster`` is then returned so the
+        caller can close it).
+    tls_ca, tls_cert, tls_key : str, optional
+        Certificate files of a TLS connection (all three).
+    """
+    distributed = _distributed()
+    security = None
+    if any((tls_ca, tls_cert, tls_key)):
+        if not all((tls_ca, tls_cert, tls_key)):
+            raise InvalidValueError(
+                "TLS needs tls_ca, tls_cert and tls_key together")
+        security = distributed.security.Security(
+            tls_ca_file=tls_ca, tls_client_cert=tls_cert,
+            tls_client_key=tls_key, require_encryption=True)
+    if scheduler is None:
+        cluster = local_cluster(workers)
+        return distributed.Client(cluster), cluster
+    try:
+        client = distributed.Client(scheduler, security=security,
+                                    timeout="10s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SweepError(f"cannot reach the scheduler {scheduler!r}: "
+                         f"{exc}") from None
+    return client, None
+
+
+def run_chunk(study: Callable[..., dict], rows: list[dict]) -> list[dict]:
+    """Run ``study`` on each parameter row; an exception is recorded."""
+    out = []
+    for row in rows:
+        try:
+            result = dict(study(**row))
+            error = ""
+        except Exception as exc:  # noqa: BLE001 (recorded, sweep goes on)
+            result, error = {}, f"{type(exc).__name__}: {exc}"
+        out.append({**row, **result, "error": error})
+    return out
+
+
+def _chunks(rows: list[dict], size: int) -> list[list[dict]]:
+    return [rows[i:i + size] for i in range(0, len(rows), size)]
+
+
+def _key(study: Callable, chunk: list[dict]) -> str:
+    name = f"{getattr(study, '__module__', '')}.{study.__qualname__}"
+    text = json.dumps([name, chunk], sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def run_sweep(study: Callable[..., dict], params: list[dict], *,
+              client: Any = None, chunk_size: int | None = None,
+              out: str | Path | None = None, retries: int = 2,
+              progress: bool = True):
+    """Run ``study`` on every parameter row; return an `xarray.Dataset`.
+
+    Parameters
+    ----------
+    study : callable
+        ``study(**row) -> dict`` of numbers; picklable (a module-level
+        function) to run on workers.
+    params : list of dict
+        One dict of parameters per case.
+    client : distributed.Client, optional
+        Where the tasks run; None runs them in this process, in order
+        (for debugging).
+    chunk_size : int, optional
+        Cases per task (default: about 4 tasks per worker).
+    out : path, optional
+        Folder for the finished chunks (``chunks/``); a rerun with the
+        same study and parameters loads them instead of recomputing.
+    retries : int
+        Times Dask retries a task whose worker died.
+    progress : bool
+        A progress bar with ETA (tqdm) on stderr.
+
+    Returns
+    -------
+    xarray.Dataset
+        Dimension ``case``; parameters and outputs as variables,
+        ``error`` the exception text of a failed case ("" otherwise).
+    """
+    import pandas as pd
+    import xarray as xr
+    from tqdm.auto import tqdm
+
+    if not callable(study):
+        raise InvalidValueError("study must be a callable")
+    if not isinstance(params, list) or not params or not all(
+            isinstance(r, dict) for r in params):
+        raise InvalidValueError(
+            "params must be a non-empty list of dicts (one case each)")
+    n_workers = 1 if client is None else max(
+        len(client.scheduler_info().get("workers", {})), 1)
+    size = chunk_size or max(1, -(-len(params) // (4 * n_workers)))
+    chunks = _chunks(params, int(size))
+    folder = None if out is None else output_folder(
+        Path(out) / "chunks", "out")
+    done: dict[int, list[dict]] = {}
+    todo = []
+    for i, chunk in enumerate(chunks):
+        path = (None if folder is None
+                else folder / f"{_key(study, chunk)}.json")
+        if path is not None and path.exists():
+            done[i] = json.loads(path.read_text())
+        else:
+            todo.append((i, chunk, path))
+    bar = tqdm(total=len(chunks), initial=len(done), disable=not progress,
+               desc=getattr(study, "__name__", "sweep"), unit="task")
+    if client is None:
+        for i, chunk, path in todo:
+            done[i] = _keep(run_chunk(study, chunk), path)
+            bar.update()
+    else:
+        distributed = _distributed()
+        futures = {client.submit(run_chunk, study, chunk, retries=retries,
+                                 pure=False): (i, path)
+                   for i, chunk, path in todo}
+        for fut in distributed.as_completed(futures):
+            i, path = futures[fut]
+            done[i] = _keep(fut.result(), path)
+            bar.update()
+    bar.close()
+    table = pd.DataFrame([r for i in sorted(done) for r in done[i]])
+    table.index.name = "case"
+    return xr.Dataset.from_dataframe(table)
+
+
+def _plain(value):
+    """Return a JSON-able copy of a value (numpy numbers and arrays)."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value
+
+
+def _keep(rows: list[dict], path: Path | None) -> list[dict]:
+    """Save a finished chunk (JSON: data, never code) and return it."""
+    rows = [{k: _plain(v) for k, v in r.items()} for r in rows]
+    if path is not None:
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(rows))
+        tmp.replace(path)
+    return rows

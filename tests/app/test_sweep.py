@@ -1,0 +1,92 @@
+"""Sweeps on Dask: loopback-only cluster, same answers, faults, resume."""
+
+import numpy as np
+import pytest
+
+distributed = pytest.importorskip(
+    "distributed", reason="sweeps need the [sweep] extra (Dask)")
+xr = pytest.importorskip("xarray")
+
+from adcs.cli import main  # noqa: E402
+from adcs.sweep import SWEEPS, connect, local_cluster, run_sweep  # noqa: E402
+from adcs.sweep.builtin import geometry_case  # noqa: E402
+
+CALLS = []
+
+
+def flaky(x: float) -> dict:
+    """Fail on one case; count the calls."""
+    CALLS.append(x)
+    if x == 2.0:
+        raise ValueError("no good")
+    return {"square": x * x}
+
+
+@pytest.fixture(scope="module")
+def client():
+    client, cluster = connect(workers=2)
+    yield client
+    client.close()
+    cluster.close()
+
+
+def test_the_default_cluster_listens_on_loopback_only():
+    cluster = local_cluster(1)
+    try:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        assert "127.0.0.1" in cluster.dashboard_link
+        for w in cluster.workers.values():
+            assert "127.0.0.1" in w.address
+    finally:
+        cluster.close()
+
+
+def test_workers_equal_the_in_process_run(client):
+    params = SWEEPS["geometry"][1](True)[:12]
+    here = run_sweep(geometry_case, params, progress=False)
+    there = run_sweep(geometry_case, params, client=client, chunk_size=3,
+                      progress=False)
+    for name in ("inscribed_radius", "utilisation", "min_norm_mean_reach"):
+        np.testing.assert_array_equal(there[name].values, here[name].values)
+    assert here.sizes["case"] == 12
+
+
+def test_a_failing_case_is_recorded_and_the_sweep_goes_on(tmp_path):
+    CALLS.clear()
+    params = [{"x": float(x)} for x in range(5)]
+    ds = run_sweep(flaky, params, chunk_size=2, out=tmp_path,
+                   progress=False)
+    errors = ds["error"].values
+    assert errors[2] == "ValueError: no good"
+    assert list(errors[[0, 1, 3, 4]]) == [""] * 4
+    np.testing.assert_array_equal(ds["square"].values[[0, 1, 3, 4]],
+                                  [0.0, 1.0, 9.0, 16.0])
+    assert np.isnan(ds["square"].values[2])
+    # a rerun loads the finished chunks instead of recomputing them
+    CALLS.clear()
+    again = run_sweep(flaky, params, chunk_size=2, out=tmp_path,
+                      progress=False)
+    assert CALLS == []
+    np.testing.assert_array_equal(again["error"].values, errors)
+    # a sweep with one more case computes only the new chunk
+    run_sweep(flaky, params + [{"x": 5.0}], chunk_size=2, out=tmp_path,
+              progress=False)
+    assert CALLS == [4.0, 5.0]
+
+
+def test_cli_sweep_writes_dataset_and_plot(tmp_path, capsys):
+    assert main(["sweep", "accuracy", "--quick", "--sync", "--samples",
+                 "20000", "--out", str(tmp_path), "--no-progress"]) == 0
+    ds = xr.load_dataset(tmp_path / "accuracy.nc")
+    assert ds.sizes["case"] == 1 and ds["samples"].values[0] == 20000
+    assert 0.0 < ds["angle_p95_deg"].values[0] < 2.0
+    assert (tmp_path / "accuracy.png").stat().st_size > 5000
+    assert "1 cases, 0 failed" in capsys.readouterr().out
+
+
+def test_cli_sweep_mistakes_are_one_line(capsys, tmp_path):
+    assert main(["sweep", "accuracy", "--tls-ca", "ca.pem",
+                 "--scheduler", "tls://127.0.0.1:1", "--out",
+                 str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "TLS needs" in err and err.count("\n") == 1
