@@ -83,8 +83,8 @@ def fibonacci_axes(n: int = 12) -> np.ndarray:
 def failure_case(spacecraft: str, wheel: int, t_fail: float,
                  angle_deg: float) -> dict:
     """MPC slew about (1, 1, 1) with wheel ``wheel`` (1..N) failing."""
-    from ocp import quat_from_axis_angle, rigid_spacecraft
-    from ocp.mpc import AttitudeMPC, simulate_mpc
+    from ocp import quat_from_axis_angle
+    from ocp.mpc import simulate_mpc
 
     sc = _craft(spacecraft)
     qf = quat_from_axis_angle([1.0, 1.0, 1.0], np.deg2rad(angle_deg))
@@ -93,20 +93,32 @@ def failure_case(spacecraft: str, wheel: int, t_fail: float,
 
     T = eigenaxis_slew(sc, q0, qf).T
     dt = float(np.clip(T / 30.0, 0.1, 10.0))
-    before = simulate_mpc(AttitudeMPC(rigid_spacecraft(sc.inertia,
-                                                       sc.wheels), dt=dt,
-                                      rti=True), q0, qf, t_final=t_fail)
+    before = simulate_mpc(_mpc(spacecraft, -1, dt), q0, qf, t_final=t_fail)
     tr = before.trajectory
-    failed = sc.wheels.with_failed(wheel - 1)
-    after = simulate_mpc(
-        AttitudeMPC(rigid_spacecraft(sc.inertia, failed), dt=dt, rti=True),
-        tr.q[-1], qf, t_final=2.0 * T, w0=tr.w[-1],
-        h0=tr.wheel_momentum[-1], hold=0.3 * T)
+    after = simulate_mpc(_mpc(spacecraft, wheel - 1, dt), tr.q[-1], qf,
+                         t_final=2.0 * T, w0=tr.w[-1],
+                         h0=tr.wheel_momentum[-1], hold=0.3 * T)
     return {"settle_time": t_fail + after.settle_time,
             "final_error_deg": float(np.rad2deg(after.final_error)),
             "peak_torque": max(before.peak_torque, after.peak_torque),
             "momentum_violation": max(before.momentum_violation,
                                       after.momentum_violation)}
+
+
+@functools.lru_cache(maxsize=16)
+def _mpc(spacecraft: str, failed: int, dt: float):
+    """Build (once per worker) an RTI MPC, wheel ``failed`` out (-1: none).
+
+    Built once per worker process and reused: `simulate_mpc` resets it
+    (and so takes it over in the calling thread) before every run.
+    """
+    from ocp import rigid_spacecraft
+    from ocp.mpc import AttitudeMPC
+
+    sc = _craft(spacecraft)
+    wheels = sc.wheels if failed < 0 else sc.wheels.with_failed(failed)
+    return AttitudeMPC(rigid_spacecraft(sc.inertia, wheels), dt=dt,
+                       rti=True)
 
 
 def _geometry(quick: bool, **_) -> list[dict]:

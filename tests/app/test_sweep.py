@@ -90,3 +90,25 @@ def test_cli_sweep_mistakes_are_one_line(capsys, tmp_path):
                  str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "TLS needs" in err and err.count("\n") == 1
+
+
+def test_a_running_scheduler_is_reached_by_its_address(tmp_path, capsys):
+    # the multi-node path: a cluster started apart, addressed by its
+    # scheduler address, as a remote one would be
+    cluster = local_cluster(2)
+    try:
+        assert main(["sweep", "geometry", "--quick", "--scheduler",
+                     cluster.scheduler_address, "--out", str(tmp_path),
+                     "--no-progress"]) == 0
+    finally:
+        cluster.close()
+    ds = xr.load_dataset(tmp_path / "geometry.nc")
+    assert ds.sizes["case"] == len(SWEEPS["geometry"][1](True))
+    assert (ds["error"].values == "").all()
+    ref = geometry_case(55.0, 45.0, 0)
+    sel = ((ds["delta_deg"] == 50.0) & (ds["gamma_deg"] == 45.0)
+           & (ds["failed"] == 0)).values
+    assert sel.sum() == 1
+    r = geometry_case(50.0, 45.0, 0)
+    assert ds["utilisation"].values[sel][0] == r["utilisation"]
+    assert 0.0 < ref["utilisation"] < 1.0
