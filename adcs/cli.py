@@ -7,7 +7,7 @@ import sys
 from typing import Sequence
 
 from adcs.provenance import version
-from adcs_common.exceptions import AdcsError
+from adcs_common.exceptions import AdcsError, InvalidValueError
 
 
 def _report(args: argparse.Namespace) -> int:
@@ -76,8 +76,12 @@ def _sweep(args: argparse.Namespace) -> int:
 
     study, make_params, _ = SWEEPS[args.name]
     out = output_folder(args.out, "out")
+    if args.samples is not None and args.samples < 1:
+        raise InvalidValueError(f"--samples must be >= 1, got {args.samples}")
+    if args.t_fail is not None and not args.t_fail > 0:
+        raise InvalidValueError(f"--t-fail must be > 0 s, got {args.t_fail}")
     params = make_params(args.quick, samples=args.samples,
-                         spacecraft=args.spacecraft)
+                         spacecraft=args.spacecraft, t_fail=args.t_fail)
     client = cluster = None
     if not args.sync:
         client, cluster = connect(args.scheduler, workers=args.workers,
@@ -129,6 +133,9 @@ def _add_sweep(sub) -> None:
     swp.add_argument("--samples", type=int, default=None,
                      help="Monte Carlo samples (accuracy; default 1e6)")
     swp.add_argument("--spacecraft", default="demo", help=SPACECRAFT_HELP)
+    swp.add_argument("--t-fail", type=float, default=None,
+                     help="failures: when the wheel fails [s] (default 10, "
+                     "5 quick)")
     swp.add_argument("--workers", type=int, default=None,
                      help="local worker processes (default: one per core)")
     swp.add_argument("--scheduler", default=None,

@@ -42,16 +42,23 @@ def timed(fn) -> float:
     return time.perf_counter() - t0
 
 
-def on_cluster(workers: int, study, params) -> float:
-    """Wall time of `run_sweep` on a fresh local cluster (start included)."""
+def on_cluster(workers: int, study, params) -> tuple[float, float]:
+    """Wall times of `run_sweep` on a fresh local cluster [s].
+
+    ``(cold, warm)``: cold includes starting the workers and their first
+    solver builds; warm is the same sweep again on the warmed workers.
+    """
     t0 = time.perf_counter()
     client, cluster = connect(workers=workers)
     try:
         run_sweep(study, params, client=client, progress=False)
+        cold = time.perf_counter() - t0
+        warm = timed(lambda: run_sweep(study, params, client=client,
+                                       progress=False))
     finally:
         client.close()
         cluster.close()
-    return time.perf_counter() - t0
+    return cold, warm
 
 
 def main(argv=None) -> list[tuple[str, float, str]]:
@@ -65,22 +72,27 @@ def main(argv=None) -> list[tuple[str, float, str]]:
     # warm this process's solver cache like a worker's first case does
     agility_case(**small[0])
     loop = timed(lambda: [agility_case(**p) for p in small])
-    one = on_cluster(1, agility_case, small)
-    two = on_cluster(2, agility_case, small)
-    mc1 = on_cluster(1, accuracy_case, mc)
-    mc2 = on_cluster(2, accuracy_case, mc)
-    big = on_cluster(2, agility_case,
-                     agility_params(100 if args.quick else args.slews))
+    mc_loop = timed(lambda: [accuracy_case(**p) for p in mc])
+    one, one_w = on_cluster(1, agility_case, small)
+    two, two_w = on_cluster(2, agility_case, small)
+    mc1, mc1_w = on_cluster(1, accuracy_case, mc)
+    mc2, mc2_w = on_cluster(2, accuracy_case, mc)
+    n_big = 100 if args.quick else args.slews
+    big, big_w = on_cluster(2, agility_case, agility_params(n_big))
     rows = [
         (f"agility, {len(small)} slews: plain loop", loop, "1.00"),
-        ("  run_sweep, 1 worker (start-up included)", one,
-         f"overhead {one / loop - 1:+.1%}"),
-        ("  run_sweep, 2 workers", two, f"speed-up {loop / two:.2f}x"),
+        ("  run_sweep, 1 worker: warm / cold (start-up)",
+         one_w, f"overhead {one_w / loop - 1:+.1%} / {one / loop - 1:+.1%}"),
+        ("  run_sweep, 2 workers: warm / cold", two_w,
+         f"speed-up {loop / two_w:.2f}x / {loop / two:.2f}x"),
         (f"accuracy Monte Carlo {sum(p['n_samples'] for p in mc):,}: "
-         "1 worker", mc1, "1.00"),
-        ("  2 workers", mc2, f"speed-up {mc1 / mc2:.2f}x"),
-        (f"agility map, {100 if args.quick else args.slews} slews N=50, "
-         "2 workers", big, ""),
+         "plain loop", mc_loop, "1.00"),
+        ("  1 worker: warm / cold", mc1_w,
+         f"overhead {mc1_w / mc_loop - 1:+.1%} / {mc1 / mc_loop - 1:+.1%}"),
+        ("  2 workers: warm / cold", mc2_w,
+         f"speed-up {mc_loop / mc2_w:.2f}x / {mc_loop / mc2:.2f}x"),
+        (f"agility map, {n_big} slews N=50, 2 workers: warm", big_w,
+         f"cold {big:.1f} s"),
     ]
     print("| run | wall time [s] | ratio |\n|---|---:|---|")
     for name, sec, ratio in rows:

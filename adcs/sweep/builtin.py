@@ -143,10 +143,11 @@ def _agility(quick: bool, spacecraft: str = "demo", **_) -> list[dict]:
              "N": 20 if quick else 60} for a in axes for ang in angles]
 
 
-def _failures(quick: bool, spacecraft: str = "demo", **_) -> list[dict]:
+def _failures(quick: bool, spacecraft: str = "demo",
+              t_fail: float | None = None, **_) -> list[dict]:
     n = _craft(spacecraft).wheels.n_wheels
-    return [{"spacecraft": spacecraft, "wheel": w,
-             "t_fail": 5.0 if quick else 10.0,
+    t_fail = (5.0 if quick else 10.0) if t_fail is None else float(t_fail)
+    return [{"spacecraft": spacecraft, "wheel": w, "t_fail": t_fail,
              "angle_deg": 30.0 if quick else 90.0}
             for w in range(1, n + 1)]
 

@@ -112,3 +112,15 @@ def test_a_running_scheduler_is_reached_by_its_address(tmp_path, capsys):
     r = geometry_case(50.0, 45.0, 0)
     assert ds["utilisation"].values[sel][0] == r["utilisation"]
     assert 0.0 < ref["utilisation"] < 1.0
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["sweep", "accuracy", "--sync", "--samples", "0"], "--samples"),
+    (["sweep", "failures", "--sync", "--t-fail", "-1"], "--t-fail"),
+    (["sweep", "agility", "--sync", "--spacecraft", "nope"],
+     "no built-in spacecraft"),
+])
+def test_sweep_argument_mistakes(argv, message, capsys, tmp_path):
+    assert main(argv + ["--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
