@@ -74,7 +74,10 @@ def _sweep(args: argparse.Namespace) -> int:
     from .sweep import SWEEPS, connect, run_sweep
     from .sweep.plots import plot_sweep
 
+    from ocp.spacecraft import load_spacecraft
+
     study, make_params, _ = SWEEPS[args.name]
+    load_spacecraft(args.spacecraft)          # a bad name fails here
     out = output_folder(args.out, "out")
     if args.samples is not None and args.samples < 1:
         raise InvalidValueError(f"--samples must be >= 1, got {args.samples}")

@@ -14,8 +14,14 @@ def plot_sweep(name: str, ds, path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4.5))
     ok = np.asarray(ds["error"]) == ""
+    if not ok.any():
+        from .engine import SweepError
+
+        raise SweepError(
+            f"every case of the {name} sweep failed (the dataset's 'error' "
+            f"says why, e.g. {str(np.asarray(ds['error'])[0])!r})")
+    fig, ax = plt.subplots(figsize=(7, 4.5))
     if name == "geometry":
         for f in sorted(set(np.asarray(ds["failed"]).tolist())):
             sel = ok & (np.asarray(ds["failed"]) == f)
