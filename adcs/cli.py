@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from typing import Sequence
 
@@ -20,9 +21,51 @@ def _report(args: argparse.Namespace) -> int:
     studies = None
     if args.studies:
         studies = [s.strip() for s in args.studies.split(",") if s.strip()]
-    run_report(args.out, quick=args.quick, studies=studies,
-               spacecraft=args.spacecraft)
+    with _dask_client(args, local=args.workers is not None) as client:
+        run_report(args.out, quick=args.quick, studies=studies,
+                   spacecraft=args.spacecraft, client=client)
     return 0
+
+
+@contextlib.contextmanager
+def _dask_client(args: argparse.Namespace, local: bool):
+    """Yield the Dask client of the options, closed afterwards.
+
+    That of ``--scheduler``, or of a local cluster of ``--workers`` when
+    ``local``; else None (run in this process).
+    """
+    if args.scheduler is None and not local:
+        yield None
+        return
+    from .sweep import connect
+
+    if args.workers is not None and args.workers < 1:
+        raise InvalidValueError(f"--workers must be >= 1, got {args.workers}")
+    client, cluster = connect(args.scheduler, workers=args.workers,
+                              tls_ca=args.tls_ca, tls_cert=args.tls_cert,
+                              tls_key=args.tls_key)
+    try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _add_cluster_options(parser: argparse.ArgumentParser,
+                         workers_help: str) -> None:
+    parser.add_argument("--workers", type=int, default=None,
+                        help=workers_help)
+    parser.add_argument("--scheduler", default=None,
+                        help="address of a running Dask scheduler instead "
+                        "of a local cluster (use tls:// and --tls-* off "
+                        "this machine)")
+    parser.add_argument("--tls-ca", default=None,
+                        help="CA certificate file of a TLS scheduler")
+    parser.add_argument("--tls-cert", default=None,
+                        help="client certificate file (TLS)")
+    parser.add_argument("--tls-key", default=None,
+                        help="client private key file (TLS)")
 
 
 def _export(args: argparse.Namespace) -> int:
@@ -71,7 +114,7 @@ def _bench(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     from adcs_common.paths import output_folder
 
-    from .sweep import SWEEPS, connect, run_sweep
+    from .sweep import SWEEPS, run_sweep
     from .sweep.plots import plot_sweep
 
     from ocp.spacecraft import load_spacecraft
@@ -85,19 +128,9 @@ def _sweep(args: argparse.Namespace) -> int:
         raise InvalidValueError(f"--t-fail must be > 0 s, got {args.t_fail}")
     params = make_params(args.quick, samples=args.samples,
                          spacecraft=args.spacecraft, t_fail=args.t_fail)
-    client = cluster = None
-    if not args.sync:
-        client, cluster = connect(args.scheduler, workers=args.workers,
-                                  tls_ca=args.tls_ca, tls_cert=args.tls_cert,
-                                  tls_key=args.tls_key)
-    try:
+    with _dask_client(args, local=not args.sync) as client:
         ds = run_sweep(study, params, client=client, out=out,
                        progress=not args.no_progress)
-    finally:
-        if client is not None:
-            client.close()
-        if cluster is not None:
-            cluster.close()
     ds.to_netcdf(out / f"{args.name}.nc", engine="scipy")
     plot_sweep(args.name, ds, out / f"{args.name}.png")
     failed = int((ds["error"] != "").sum())
@@ -139,15 +172,8 @@ def _add_sweep(sub) -> None:
     swp.add_argument("--t-fail", type=float, default=None,
                      help="failures: when the wheel fails [s] (default 10, "
                      "5 quick)")
-    swp.add_argument("--workers", type=int, default=None,
-                     help="local worker processes (default: one per core)")
-    swp.add_argument("--scheduler", default=None,
-                     help="address of a running Dask scheduler instead of "
-                     "a local cluster (use tls:// and --tls-* off this "
-                     "machine)")
-    swp.add_argument("--tls-ca", default=None)
-    swp.add_argument("--tls-cert", default=None)
-    swp.add_argument("--tls-key", default=None)
+    _add_cluster_options(swp, "local worker processes (default: one per "
+                         "core)")
     swp.add_argument("--sync", action="store_true",
                      help="run in this process, in order (debugging)")
     swp.add_argument("--no-progress", action="store_true")
@@ -176,6 +202,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--spacecraft", default=None,
                      help=SPACECRAFT_HELP + " (default demo), for the "
                      "studies that apply to any craft")
+    _add_cluster_options(rep, "run the heavy studies' cases (Monte Carlo "
+                         "blocks, slews against angle) on this many local "
+                         "Dask worker processes (default: in this process)")
     rep.set_defaults(func=_report)
 
     exp = sub.add_parser("export", help="generate C code (allocation "

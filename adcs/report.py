@@ -104,12 +104,29 @@ class StudyContext:
 
     ``spacecraft`` (a `Spacecraft`, catalogue name, TOML path or None) is
     used by the studies that apply to any craft; the paper studies stay
-    on their papers' craft.
+    on their papers' craft. ``client`` (a `distributed.Client` or None)
+    is where the heavy studies' cases run, through `sweep`.
     """
 
     out: Path
     quick: bool
     spacecraft: Any = None
+    client: Any = None
+
+    def sweep(self, study: Callable[..., dict], params: list[dict]):
+        """Run a study's cases with `adcs.sweep.run_sweep`; a Dataset.
+
+        On ``client``, or in this process when it is None. A case that
+        raises is an error of the report, not a row to skip.
+        """
+        from adcs.sweep import SweepError, run_sweep
+
+        ds = run_sweep(study, params, client=self.client, progress=False)
+        failed = [str(e) for e in ds["error"].values if e]
+        if failed:
+            raise SweepError(f"{len(failed)} of {len(params)} cases of "
+                             f"{study.__name__} failed: {failed[0]}")
+        return ds
 
     def savefig(self, fig: Any, name: str) -> str:
         """Save a matplotlib figure as ``name`` in the output folder."""
@@ -198,7 +215,8 @@ def _html(sections: Sequence[Section], title: str, out: Path,
 def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
                studies: Sequence[str] | None = None,
                stream: TextIO | None = sys.stdout,
-               spacecraft: Any = None) -> list[Section]:
+               spacecraft: Any = None, client: Any = None
+               ) -> list[Section]:
     """Run the studies and write ``report.html`` and ``report.md``.
 
     Parameters
@@ -214,6 +232,9 @@ def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
     spacecraft : ocp.spacecraft.Spacecraft, str or pathlib.Path, optional
         The craft of the studies that apply to any craft (a catalogue
         name or a TOML file; default the built-in ``demo``).
+    client : distributed.Client, optional
+        Where the heavy studies' cases (accuracy Monte Carlo blocks, slews
+        against angle) run, as a sweep; None runs them in this process.
 
     Returns
     -------
@@ -235,7 +256,7 @@ def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
     if spacecraft is not None:
         spacecraft = load_spacecraft(spacecraft)
     out = output_folder(out, "out")
-    ctx = StudyContext(out, quick, spacecraft)
+    ctx = StudyContext(out, quick, spacecraft, client)
     say: Callable[[str], None] = (lambda msg: print(msg, file=stream,
                                                     flush=True)) \
         if stream is not None else (lambda msg: None)

@@ -38,7 +38,11 @@ from .laws import (
     weighted_gains,
     weighted_law,
 )
-from .plots import plot_accuracy_histogram, plot_envelope
+from .plots import (
+    plot_accuracy_histogram,
+    plot_envelope,
+    plot_error_histogram,
+)
 from .qp import (
     WheelAllocation,
     QPAllocator,
@@ -101,6 +105,7 @@ __all__ = [
     "paper_actual_axes_as_printed",
     "plot_accuracy_histogram",
     "plot_envelope",
+    "plot_error_histogram",
     "pyramid_axes",
     "pyramid_axes_function",
     "pyramid_failure_gains",

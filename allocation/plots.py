@@ -7,13 +7,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from adcs_common.exceptions import InvalidValueError
+from adcs_common.validation import as_finite_array
 
 from .envelope import Envelope
 
 if TYPE_CHECKING:  # pragma: no cover
     from .accuracy import AccuracyResult
 
-__all__ = ["facet_polygons", "plot_accuracy_histogram", "plot_envelope"]
+__all__ = ["facet_polygons", "plot_accuracy_histogram",
+           "plot_error_histogram", "plot_envelope"]
 
 _ON_FACET_TOL = 1e-9
 
@@ -136,23 +138,57 @@ def plot_accuracy_histogram(result: "AccuracyResult", ax: Any = None, *,
     matplotlib.axes.Axes
         The axes, with p95 and max marked by vertical lines.
     """
+    values = {"relative_error": getattr(result, "relative_error", None),
+              "angle": getattr(result, "angle", None)}.get(quantity)
+    return plot_error_histogram(
+        values, ax, quantity=quantity, bins=bins,
+        label=label or f"law with {result.law_axes} axes",
+        title=f"{result.n_samples:,} samples ({result.distribution})")
+
+
+def plot_error_histogram(values: np.ndarray, ax: Any = None, *,
+                         quantity: str = "relative_error", bins: int = 60,
+                         label: str | None = None, title: str | None = None
+                         ) -> Any:
+    """Histogram of Monte Carlo torque errors, p95 (dashed) and max (dotted).
+
+    Parameters
+    ----------
+    values : array_like, shape (S,)
+        ``|ΔM|/|M|`` [1] for ``quantity="relative_error"`` (plotted in
+        percent), or Δα [rad] for ``"angle"`` (plotted in degrees).
+    ax : matplotlib.axes.Axes, optional
+        2-D axes; a new pyplot-free figure is made when omitted.
+    quantity : {"relative_error", "angle"}
+    bins : int
+        Number of bins.
+    label, title : str, optional
+        Legend label and axes title.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
     if quantity == "relative_error":
-        data, xlabel = 100.0 * result.relative_error, "|ΔM| / |M| [%]"
+        scale, xlabel = 100.0, "|ΔM| / |M| [%]"
     elif quantity == "angle":
-        data, xlabel = np.rad2deg(result.angle), "Δα [deg]"
+        scale, xlabel = float(np.rad2deg(1.0)), "Δα [deg]"
     else:
         raise InvalidValueError(
             "quantity must be 'relative_error' or 'angle', got "
             f"{quantity!r}")
+    data = scale * as_finite_array(values, "values").ravel()
+    if data.size == 0:
+        raise InvalidValueError("values must not be empty")
     if ax is None:
         ax = _new_axes()
-    label = label or f"law with {result.law_axes} axes"
     ax.hist(data, bins=bins, density=True, alpha=0.6, label=label)
     for q, style in ((np.percentile(data, 95), "--"), (data.max(), ":")):
         ax.axvline(q, color="k", linestyle=style, linewidth=0.8)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("probability density")
-    ax.set_title(f"{result.n_samples} samples ({result.distribution}); "
-                 "dashed p95, dotted max")
-    ax.legend()
+    if title:
+        ax.set_title(title, fontsize="medium")
+    if label:
+        ax.legend()
     return ax

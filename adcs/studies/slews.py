@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ocp.slews.compare import (
@@ -89,6 +91,57 @@ def keep_out_table(ctx: StudyContext) -> Table:
         "them.", [not r[6] == "yes" for r in rows], digits=4)
 
 
+#: The slew-against-angle cases: label -> (inertia, wheels, body axis).
+CASES = {"Meteor-M pyramid": (*meteor_m_spacecraft(), (1.0, 1.0, 1.0)),
+         "seed 003": (*four_wheel_slew_spacecraft(), (1.0, -0.5, 0.3))}
+METHODS = ("eigenaxis", "time_optimal", "min_energy", "quaternion_feedback")
+FIELDS = ("T", "energy", "peak_wheel_torque", "peak_wheel_momentum",
+          "success", "solve_time")
+
+
+def slew_case(case: str, angle_deg: float, N: int) -> dict:
+    """Run one angle of `compare_slews` on a `CASES` craft (a sweep case).
+
+    Returns ``{method}_{field}`` for every method and field of its rows.
+    """
+    inertia, wheels, axis = CASES[case]
+    rows, _ = compare_slews(inertia, wheels, axis, [angle_deg], case=case,
+                            N=N)
+    return {f"{r.method}_{f}": float(getattr(r, f))
+            for r in rows for f in FIELDS}
+
+
+def slew_rows(ctx: StudyContext, angles, N: int) -> dict[str, list]:
+    """Sweep `slew_case` over ``angles`` on ``ctx.client``.
+
+    Returns, per case, its rows (angle, method, fields...).
+    """
+    ds = ctx.sweep(slew_case, [{"case": c, "angle_deg": a, "N": N}
+                               for c in CASES for a in angles])
+    results: dict[str, list] = {c: [] for c in CASES}
+    for i in range(ds.sizes["case"]):
+        case = str(ds["case"].values[i])
+        for m in METHODS:
+            if f"{m}_T" in ds:
+                results[case].append(SlewRow(
+                    float(ds["angle_deg"].values[i]), m,
+                    *(float(ds[f"{m}_{f}"].values[i]) for f in FIELDS)))
+    return results
+
+
+class SlewRow(NamedTuple):
+    """One method at one angle (the fields of `SlewComparisonRow`)."""
+
+    angle_deg: float
+    method: str
+    T: float
+    energy: float
+    peak_wheel_torque: float
+    peak_wheel_momentum: float
+    success: float
+    solve_time: float
+
+
 def run(ctx: StudyContext) -> Section:
     """Compute the study."""
     import matplotlib.pyplot as plt
@@ -96,13 +149,10 @@ def run(ctx: StudyContext) -> Section:
     angles = (30.0, 90.0) if ctx.quick else (30.0, 60.0, 90.0, 120.0,
                                               150.0, 180.0)
     N = 30 if ctx.quick else 60
-    cases = [("Meteor-M pyramid", *meteor_m_spacecraft(), [1.0, 1.0, 1.0]),
-             ("seed 003", *four_wheel_slew_spacecraft(), [1.0, -0.5, 0.3])]
-    tables, results = [], {}
-    for label, inertia, wheels, axis in cases:
-        rows, _ = compare_slews(inertia, wheels, axis, angles, case=label,
-                                N=N)
-        results[label] = rows
+    results = slew_rows(ctx, angles, N)
+    tables = []
+    for label, rows in results.items():
+        axis = CASES[label][2]
         tables.append(Table(
             f"{label}: slew about {tuple(axis)} (N = {N})",
             ["angle [deg]", "method", "T [s]", "Σ∫m² [N²·m²·s]",
@@ -113,7 +163,9 @@ def run(ctx: StudyContext) -> Section:
               r.solve_time] for r in rows],
             "Wheel limits through the array (|m_i| ≤ m_max, |H_i| ≤ "
             "h_max). The minimum-energy NLP runs at the eigenaxis time; the "
-            "quaternion PD's time is its settling time to 0.1°.",
+            "quaternion PD's time is its settling time to 0.1°. Each angle "
+            "is one case of a sweep (in this process, or on the Dask "
+            "workers of `adcs report --workers`).",
             [not r.success for r in rows], digits=4))
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
     for ax, (label, rows) in zip(axes, results.items()):

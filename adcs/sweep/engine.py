@@ -153,7 +153,10 @@ def run_sweep(study: Callable[..., dict], params: list[dict], *,
     -------
     xarray.Dataset
         Dimension ``case``; parameters and outputs as variables,
-        ``error`` the exception text of a failed case ("" otherwise).
+        ``error`` the exception text of a failed case ("" otherwise). An
+        output that is a 1-D array (the same length in every case, e.g.
+        the samples of a Monte Carlo block) becomes a variable of
+        dimensions ``(case, <name>_index)``.
     """
     import pandas as pd
     import xarray as xr
@@ -196,9 +199,33 @@ def run_sweep(study: Callable[..., dict], params: list[dict], *,
             done[i] = _keep(fut.result(), path)
             bar.update()
     bar.close()
-    table = pd.DataFrame([r for i in sorted(done) for r in done[i]])
+    return _dataset([r for i in sorted(done) for r in done[i]], pd, xr)
+
+
+def _dataset(rows: list[dict], pd, xr):
+    """Gather rows into a Dataset.
+
+    Numbers go along ``case``; a 1-D array output ``key`` (same length in
+    every case) along ``(case, key_index)``, NaN-filled where a case
+    failed.
+    """
+    arrays = sorted({k for r in rows for k, v in r.items()
+                     if isinstance(v, (list, tuple))})
+    table = pd.DataFrame([{k: v for k, v in r.items() if k not in arrays}
+                          for r in rows])
     table.index.name = "case"
-    return xr.Dataset.from_dataframe(table)
+    ds = xr.Dataset.from_dataframe(table)
+    for key in arrays:
+        values = [r.get(key) for r in rows]
+        lengths = {len(v) for v in values if isinstance(v, (list, tuple))}
+        if len(lengths) != 1:
+            raise SweepError(f"output {key!r} has different lengths across "
+                             f"cases: {sorted(lengths)}")
+        n = lengths.pop()
+        data = np.array([v if isinstance(v, (list, tuple)) else [np.nan] * n
+                         for v in values], dtype=float)
+        ds[key] = (("case", f"{key}_index"), data)
+    return ds
 
 
 def _plain(value):

@@ -48,6 +48,13 @@ def test_unknown_study_is_a_clear_error(tmp_path, capsys):
     assert "unknown study ['nosuch']" in capsys.readouterr().err
 
 
+def test_report_workers_must_be_positive(tmp_path, capsys):
+    assert main(["report", "--workers", "0", "--studies", "wheels",
+                 "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "--workers must be >= 1" in err and len(err.splitlines()) == 1
+
+
 def test_list_studies(capsys):
     assert main(["report", "--list"]) == 0
     out = capsys.readouterr().out

@@ -51,6 +51,63 @@ def test_workers_equal_the_in_process_run(client):
     assert here.sizes["case"] == 12
 
 
+def samples(n: int) -> dict:
+    """Return an array (like a Monte Carlo block's samples) and a number."""
+    if n == 0:
+        raise ValueError("empty block")
+    return {"draws": np.arange(3.0) * n, "total": 3.0 * n}
+
+
+def test_array_outputs_gain_their_own_dimension(tmp_path):
+    ds = run_sweep(samples, [{"n": 1}, {"n": 0}, {"n": 2}], chunk_size=1,
+                   out=tmp_path, progress=False)
+    assert ds["draws"].dims == ("case", "draws_index")
+    np.testing.assert_array_equal(ds["draws"].values[[0, 2]],
+                                  [[0.0, 1.0, 2.0], [0.0, 2.0, 4.0]])
+    assert np.isnan(ds["draws"].values[1]).all()
+    assert ds["error"].values[1] == "ValueError: empty block"
+    # resumed from the saved chunks: the same arrays back
+    again = run_sweep(samples, [{"n": 1}, {"n": 0}, {"n": 2}], chunk_size=1,
+                      out=tmp_path, progress=False)
+    np.testing.assert_array_equal(again["draws"].values[[0, 2]],
+                                  ds["draws"].values[[0, 2]])
+
+
+def ragged(n: int) -> dict:
+    return {"draws": list(range(n))}
+
+
+def test_array_outputs_of_different_lengths_are_refused():
+    from adcs.sweep import SweepError
+
+    with pytest.raises(SweepError, match="different lengths"):
+        run_sweep(ragged, [{"n": 1}, {"n": 2}], progress=False)
+
+
+def test_report_heavy_studies_on_workers_equal_the_in_process_run(
+        client, tmp_path):
+    from adcs.report import StudyContext
+    from adcs.studies.accuracy import monte_carlo_samples
+    from adcs.studies.slews import slew_rows
+
+    here = StudyContext(tmp_path, True)
+    there = StudyContext(tmp_path, True, client=client)
+    a, b = (slew_rows(ctx, (45.0,), 20) for ctx in (here, there))
+    for case in a:
+        assert [r.method for r in a[case]] == [r.method for r in b[case]]
+        for r, s in zip(a[case], b[case]):
+            assert r.success and s.success
+            np.testing.assert_allclose(
+                [r.T, r.energy, r.peak_wheel_momentum],
+                [s.T, s.energy, s.peak_wheel_momentum], rtol=1e-9)
+    mc_here = monte_carlo_samples(here, 2_000, 2)
+    mc_there = monte_carlo_samples(there, 2_000, 2)
+    for scale, pooled in mc_here.items():
+        assert pooled["nominal_angle"].shape == (2_000,)
+        for key, values in pooled.items():
+            np.testing.assert_array_equal(mc_there[scale][key], values)
+
+
 def test_a_failing_case_is_recorded_and_the_sweep_goes_on(tmp_path):
     CALLS.clear()
     params = [{"x": float(x)} for x in range(5)]
