@@ -44,6 +44,7 @@ from .plots import (
     plot_error_histogram,
 )
 from .qp import (
+    BatchAllocation,
     WheelAllocation,
     QPAllocator,
     available_solvers,
@@ -68,6 +69,7 @@ from .symbolic import (
 __all__ = [
     "AccuracyResult",
     "AdcsError",
+    "BatchAllocation",
     "EQ9_GAINS",
     "Envelope",
     "ErrorSummary",

@@ -109,6 +109,11 @@ def _generic_extent(array: WheelArray, law: Any, u: np.ndarray,
         return bool(exact and np.all(np.abs(m[act]) <= m_max[act]
                                      * (1.0 + tol)))
 
+    if hasattr(law, "allocate_batch"):
+        try:
+            return _batch_extent(array, law, u, r_set, tol, rtol)
+        except AdcsError:       # a row failed: bisect one demand at a time
+            pass
     out = np.empty(u.shape[1])
     for k in range(u.shape[1]):
         hi = float(r_set[k])
@@ -124,6 +129,42 @@ def _generic_extent(array: WheelArray, law: Any, u: np.ndarray,
                 hi = mid
         out[k] = lo
     return out
+
+
+def _batch_extent(array: WheelArray, law: Any, u: np.ndarray,
+                  r_set: np.ndarray, tol: float, rtol: float) -> np.ndarray:
+    """Bisect like `_generic_extent`, every direction in one batch call.
+
+    For a law with ``allocate_batch``: the same test and the same steps,
+    one ``allocate_batch`` call per bisection step for all directions.
+    """
+    A = array.working_axes
+    act = array.active
+    lim = array.m_max[act] * (1.0 + tol)
+    scale = float(np.max(array.m_max))
+
+    def ok(t: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        M = (t * u[:, cols]).T
+        m = np.asarray(law.allocate_batch(M).torques, dtype=float)
+        miss = np.linalg.norm(m @ A.T - M, axis=1)
+        bound = np.maximum(np.linalg.norm(M, axis=1), scale)
+        return (miss <= tol * bound) & np.all(np.abs(m[:, act]) <= lim,
+                                              axis=1)
+
+    every = np.arange(u.shape[1])
+    hi = np.asarray(r_set, dtype=float).copy()
+    lo = np.zeros_like(hi)
+    done = ok(hi * (1.0 - tol), every)
+    lo[done] = hi[done]
+    open_ = ~done & (hi - lo > rtol * r_set)
+    while open_.any():
+        cols = np.flatnonzero(open_)
+        mid = 0.5 * (lo[cols] + hi[cols])
+        good = ok(mid, cols)
+        lo[cols[good]] = mid[good]
+        hi[cols[~good]] = mid[~good]
+        open_ = ~done & (hi - lo > rtol * r_set)
+    return lo
 
 
 def law_extent(array: WheelArray, law: Any, direction, *,
@@ -148,7 +189,9 @@ def law_extent(array: WheelArray, law: Any, direction, *,
         ``allocate``/the call takes a demand (3,) [N·m] and returns the
         wheel torques (N,) [N·m] or an object with a ``torques`` attribute
         (its ``status`` is not trusted: the torque test decides). A raised
-        toolbox error (`AdcsError`) counts as "not reached".
+        toolbox error (`AdcsError`) counts as "not reached". A law with
+        ``allocate_batch(M)`` (M of shape (K, 3), e.g. `QPAllocator`) is
+        bisected for all directions at once, one batch call per step.
     direction : array_like, shape (3,) or (3, K)
         Body-frame direction(s), normalised here.
     tol : float

@@ -54,6 +54,19 @@ def demands(array: WheelArray, k: int, rng) -> np.ndarray:
     return np.array(out).T
 
 
+def demands_batch(array: WheelArray, k: int, rng) -> np.ndarray:
+    """Return (K, 3) demands with a bound active on every row.
+
+    Up to 1.6 times the minimum-norm reach: beyond the set's extent
+    along some directions, so a share is saturated.
+    """
+    u = rng.normal(size=(k, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    G = min_norm_gains(array)
+    reach_mn = 1.0 / np.max(np.abs(u @ G.T) / array.m_max, axis=1)
+    return u * (reach_mn * rng.uniform(1.05, 1.6, size=k))[:, None]
+
+
 def run(quick: bool = False) -> list[tuple[str, float]]:
     """Measure every method; returns (label, µs per demand) rows."""
     rng = np.random.default_rng(0)
@@ -88,7 +101,8 @@ def run(quick: bool = False) -> list[tuple[str, float]]:
             qa = QPAllocator(arr, solver=name)
             label = {"osqp": "QP osqp (persistent, warm-started)",
                      "qpsolvers:osqp": "QP osqp via qpsolvers (set up per "
-                     "call)"}.get(name, f"QP {name}")
+                     "call)", "daqp": "QPAllocator.allocate, default "
+                     "(exact closed form, checked)"}.get(name, f"QP {name}")
             rows.append((label, per_call(
                 lambda: qa.allocate(Ms[:, next(cycle)]),
                 max(n_calls // 10, 5), repeats)))
@@ -97,6 +111,16 @@ def run(quick: bool = False) -> list[tuple[str, float]]:
     rows.append(("QPAllocator.allocate_fast (checked, closed-form QP)",
                  per_call(lambda: fa.allocate_fast(Ms[:, next(cycle)]),
                           n_calls, repeats)))
+
+    for size in (1_000, 100_000):
+        batch = demands_batch(arr, size, rng)
+        rows.append((f"QPAllocator.allocate_batch, batch of {size:,}",
+                     per_call(lambda: fa.allocate_batch(batch), 1,
+                              repeats) / size))
+    loop = batch[:200]
+    rows.append(("QPAllocator.allocate, the batch's demands one by one",
+                 per_call(lambda: [fa.allocate(M) for M in loop], 1,
+                          repeats) / len(loop)))
 
     def buffered(f):
         """Return a call of ``f`` through its buffer on the next demand."""
@@ -159,9 +183,13 @@ def main() -> None:
     print(f"{'method':58s} {'µs/demand':>10s} {'ratio':>9s}")
     for label, us in rows:
         print(f"{label:58s} {us:10.3f} {us / base:9.1f}")
-    batch = next(us for label, us in rows if "batch" in label)
+    batch = next(us for label, us in rows if "numpy batch" in label)
     print(f"\nclosed-form batch throughput: {1e6 / batch / 1e6:.1f} million "
           "demands/s on one core")
+    qp = next(us for label, us in rows if "batch of 100,000" in label)
+    one = next(us for label, us in rows if "one by one" in label)
+    print(f"bounded-QP batch throughput: {1e6 / qp / 1e6:.2f} million "
+          f"allocations/s on one core ({one / qp:.0f}x allocate)")
 
 
 if __name__ == "__main__":
