@@ -17,6 +17,8 @@ from .codegen import (
     default_functions,
     duty_qp_function,
     export_c,
+    patch_daqp_failure,
+    patch_minmax,
     patch_qrqp,
     run_driver,
 )
@@ -139,6 +141,8 @@ __all__ = [
     "orbit_model",
     "orbit_rate",
     "orbit_wheel_law",
+    "patch_daqp_failure",
+    "patch_minmax",
     "patch_qrqp",
     "quat_conj",
     "quat_error_angle",

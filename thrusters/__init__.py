@@ -17,12 +17,14 @@ from .laws import (
     unloading_law,
 )
 from .qp import (
+    DUTY_STATUS,
     DutyAllocation,
     DutyCycleAllocator,
     DutyCycleQP,
     MinOnTimeCarry,
     available_solvers,
     build_qp,
+    certified_duty_function,
 )
 from .scenarios import (
     ScenarioResult,
@@ -46,6 +48,7 @@ from .unit import (
 
 __all__ = [
     "AdcsError",
+    "DUTY_STATUS",
     "DutyAllocation",
     "DutyCycleAllocator",
     "DutyCycleQP",
@@ -67,6 +70,7 @@ __all__ = [
     "build_qp",
     "burn_scenario",
     "burn_table",
+    "certified_duty_function",
     "force_torque_function",
     "format_table",
     "pair_forces",

@@ -8,6 +8,8 @@ from .export import (
     default_functions,
     duty_qp_function,
     export_c,
+    patch_daqp_failure,
+    patch_minmax,
     patch_qrqp,
     run_driver,
 )
@@ -20,6 +22,8 @@ __all__ = [
     "default_functions",
     "duty_qp_function",
     "export_c",
+    "patch_daqp_failure",
+    "patch_minmax",
     "patch_qrqp",
     "run_driver",
 ]

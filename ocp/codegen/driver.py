@@ -76,7 +76,7 @@ _MAKEFILE = _template("Makefile.in")
 def _readme(fns: dict[str, ca.Function],
             samples: dict[str, list[np.ndarray]], plugin: str = "qrqp",
             cflags=(), ldflags=("-lm",), method: str = "conic",
-            patched: bool = False) -> str:
+            patched: bool = False, duty_plugin: str | None = None) -> str:
     rows = []
     for name, f in fns.items():
         ins = ", ".join(f"{f.name_in(i)}[{f.nnz_in(i)}]"
@@ -103,6 +103,16 @@ def _readme(fns: dict[str, ca.Function],
     else:
         solver_text = ("The QPs are solved by CasADi's qrqp, generated "
                        "inline, so only `-lm` is needed.")
+    if duty_plugin is not None and "duty_qp" in fns:
+        solver_text += (
+            " `duty_qp` solves the duty QP reduced to its free directions "
+            f"with {duty_plugin} (" + ("DAQP: the source includes "
+            "`daqp/api.h` and links `libdaqpstat.a`" if duty_plugin ==
+            "daqp" else "generated inline") + ") after testing the demand "
+            "against the set the thrusters can produce, and certifies the "
+            "point by its KKT conditions; its `status` output is 0 "
+            "optimal, 1 momentum bound relaxed, 2 infeasible, 3 invalid "
+            "input, 4 solver failed (duties 0 unless 0 or 1).")
     if patched:
         solver_text += (" qrqp is edited to reuse its KKT factorization "
                         "while the active set does not change within a "

@@ -14,7 +14,11 @@ than qrqp; the build then adds ``-I<casadi>/include
 ``wheel_qp_plugin="qrqp"`` the C is self-contained and ``gcc`` and
 ``libm`` are all the build needs. Builds use ``-O3``. The generated
 qrqp is edited to reuse its KKT factorization while the active set does
-not change (`patch_qrqp`, bit-identical results).
+not change (`patch_qrqp`, bit-identical results); a generated DAQP conic
+returns its point on a failed solve instead of aborting the call
+(`patch_daqp_failure`: the Functions check their points themselves);
+``casadi_fmax``/``casadi_fmin`` are written so that the compiler inlines
+them (`patch_minmax`, the same NaN rules).
 
 Exported functions (names are the C symbols):
 
@@ -22,9 +26,11 @@ Exported functions (names are the C symbols):
 * ``wheel_qp(M[3], h[N]) -> (m[N], alpha, violation)``: the bounded wheel
   QP (`allocation.conic_allocator_function`, torque and momentum bounds;
   closed form, or daqp / qrqp, ``wheel_qp_plugin``);
-* ``duty_qp(theta[9], kmax[6]) -> (x[7], violation)``: the thruster
-  duty-cycle QP
-  (`thrusters.build_qp` data; ``theta = (P_T, M_X, M_Z, H[3], τ[3])``);
+* ``duty_qp(theta[9], kmax[6]) -> (duty[6], slack, violation, status)``:
+  the thruster duty-cycle QP (`thrusters.build_qp` data; ``theta = (P_T,
+  M_X, M_Z, H[3], τ[3])``; `duty_qp_function`: an attainability test,
+  DAQP on the reduced QP, a KKT certificate; ``status`` 0 optimal, 1
+  bound relaxed, 2 infeasible, 3 invalid input, 4 solver failed);
 * ``dynamics(x, u, tau) -> xdot`` and ``rk4(x, u, tau, dt) -> xf``: the
   spacecraft model (`ocp.rigid_spacecraft`);
 * ``mpc_step(x, qf, tau, z_prev, lam_x_prev, lam_g_prev) -> (u, z, lam_x,
@@ -51,6 +57,7 @@ from ocp.models.rigid import SpacecraftModel, rigid_spacecraft
 from ocp.spacecraft import load_spacecraft
 from .build import build_exported, run_driver
 from .driver import _MAKEFILE, _driver_source, _readme
+from .patches import patch_daqp_failure, patch_minmax
 from .qrqp_patch import patch_qrqp
 from .result import ExportResult, OPT_FLAGS, SOURCE
 
@@ -64,6 +71,8 @@ __all__ = [
     "default_functions",
     "duty_qp_function",
     "export_c",
+    "patch_daqp_failure",
+    "patch_minmax",
     "patch_qrqp",
     "run_driver",
 ]
@@ -88,16 +97,17 @@ def daqp_available() -> bool:
             and (root / "libdaqpstat.a").is_file())
 
 
-def _resolve_wheel_qp_plugin(plugin: str | None) -> str:
+def _resolve_wheel_qp_plugin(plugin: str | None,
+                             name: str = "wheel_qp_plugin") -> str:
     if plugin is None:
         return "daqp" if daqp_available() else "qrqp"
     if plugin not in WHEEL_QP_PLUGINS:
         raise InvalidValueError(
-            f"wheel_qp_plugin must be one of {WHEEL_QP_PLUGINS} or None, "
+            f"{name} must be one of {WHEEL_QP_PLUGINS} or None, "
             f"got {plugin!r}")
     if plugin == "daqp" and not daqp_available():
         raise InvalidValueError(
-            "wheel_qp_plugin='daqp' needs the casadi daqp plugin, "
+            f"{name}='daqp' needs the casadi daqp plugin, "
             "include/daqp/api.h and libdaqpstat.a in the casadi package; "
             "use 'qrqp' (self-contained C)")
     return plugin
@@ -116,11 +126,14 @@ def c_flags(plugin: str) -> tuple[list[str], list[str]]:
 
 
 def duty_qp_function(unit, cycle: float, h_max: float, *,
-                     plugin: str = "qrqp", **qp_options) -> ca.Function:
-    """Build the thruster duty-cycle QP as one casadi Function.
+                     plugin: str | None = None,
+                     **qp_options) -> ca.Function:
+    """Build the thruster duty-cycle QP as one certified casadi Function.
 
-    Built from `thrusters.build_qp` data by the CasADi conic backend of
-    `thrusters` (q, l, u formed from ``theta`` inside the graph).
+    `thrusters.qp.certified.certified_duty_function` on `thrusters.build_qp`
+    data: a test of the demand against the thrusters' attainable set, the
+    fast path of `DutyCycleAllocator.duty_fast` (equalities eliminated,
+    DAQP, a KKT certificate) and a status.
 
     Parameters
     ----------
@@ -130,25 +143,26 @@ def duty_qp_function(unit, cycle: float, h_max: float, *,
         Cycle T_T [s].
     h_max : float
         Momentum bound [N·m·s].
-    plugin : str
-        CasADi conic plugin (``"qrqp"``: self-contained C).
+    plugin : {None, "daqp", "qrqp"}
+        Conic of the fast path: daqp (sub-microsecond in C; links the
+        casadi wheel's ``libdaqpstat.a``), qrqp (self-contained C, about
+        5 µs) or None: daqp when `daqp_available`.
     **qp_options
         Forwarded to `thrusters.build_qp` (tracking, bound, weights).
 
     Returns
     -------
     casadi.Function
-        ``duty_qp(theta[9], kmax[n]) -> (x[n+1], violation)``: duties and
-        slack, and the largest scaled constraint violation (check it: qrqp
-        can report success on a violated point); ``kmax`` scales each
-        thruster's upper duty (ones at the build pressure, see
-        `DutyCycleAllocator.set_pressure`).
+        ``duty_qp(theta[9], kmax[n]) -> (duty[n], slack, violation,
+        status)``; ``status`` indexes `thrusters.DUTY_STATUS` (0 optimal,
+        1 bound relaxed, 2 infeasible, 3 invalid input, 4 solver failed).
     """
     from thrusters import build_qp
-    from thrusters.qp.casadi_functions import conic_function
+    from thrusters.qp.certified import certified_duty_function
 
-    return conic_function(build_qp(unit, cycle, h_max, **qp_options),
-                          plugin)
+    return certified_duty_function(
+        build_qp(unit, cycle, h_max, **qp_options),
+        _resolve_wheel_qp_plugin(plugin, "plugin"))
 
 
 def default_functions(*, wheels: WheelArray, inertia=None,
@@ -157,7 +171,8 @@ def default_functions(*, wheels: WheelArray, inertia=None,
                       horizon: int = 20,
                       mpc_variants=("mpc_step", "mpc_rti_step"),
                       wheel_qp_plugin: str | None = "qrqp",
-                      wheel_qp_fast_path: bool = True
+                      wheel_qp_fast_path: bool = True,
+                      duty_qp_plugin: str | None = "qrqp"
                       ) -> tuple[dict[str, ca.Function],
                                  dict[str, list[np.ndarray]],
                                  SpacecraftModel]:
@@ -202,11 +217,20 @@ def default_functions(*, wheels: WheelArray, inertia=None,
     samples["wheel_qp:saturated"] = [
         4.0 * float(np.sum(wheels.m_max)) * M / np.linalg.norm(M), h]
     if thrusters is not None:
-        f = duty_qp_function(thrusters, cycle, thruster_h_max)
-        fns["duty_qp"] = f
+        fns["duty_qp"] = duty_qp_function(thrusters, cycle, thruster_h_max,
+                                          plugin=duty_qp_plugin)
         samples["duty_qp"] = [np.array([0.0, 0.01, -0.02, 0.004, 0.0,
                                         -0.003, 1e-4, 0.0, 0.0]),
                               np.ones(thrusters.n)]
+        # a burn (thrust demanded) and a hold whose demand relaxes the
+        # momentum bound: timed as "duty_qp:burn", "duty_qp:relaxed"
+        samples["duty_qp:burn"] = [np.array([0.5, 0.002, -0.001, 0.004,
+                                             0.0, -0.003, 0.0, 0.0, 0.0]),
+                                   np.ones(thrusters.n)]
+        samples["duty_qp:relaxed"] = [np.array([0.0, 0.02, -0.008, 0.01,
+                                                0.0, -0.01, 0.0, 0.0,
+                                                0.0]),
+                                      np.ones(thrusters.n)]
     fns["dynamics"] = model.dynamics
     x = model.state(quat_from_axis_angle([1, 2, 3], 0.7),
                     0.01 * rng.normal(size=3), 0.3 * h)
@@ -260,6 +284,7 @@ def export_c(out_dir, spacecraft=None, *,
              mpc_variants=("mpc_step", "mpc_rti_step"),
              wheel_qp_plugin: str | None = None,
              wheel_qp_fast_path: bool = True,
+             duty_qp_plugin: str | None = None,
              qrqp_reuse_factorization: bool = True,
              build: bool = False,
              cc: str = "gcc", repeats: int = 1000) -> ExportResult:
@@ -302,6 +327,10 @@ def export_c(out_dir, spacecraft=None, *,
         form for 3 or 4 working wheels, so ``wheel_qp`` then needs no
         solver library; with more wheels the minimum-norm point when it
         is within the bounds, else the conic).
+    duty_qp_plugin : {None, "daqp", "qrqp"}
+        Conic of ``duty_qp``'s fast path (`duty_qp_function`): daqp
+        (sub-microsecond; links ``libdaqpstat.a``), qrqp (self-contained)
+        or None: daqp when `daqp_available`.
     qrqp_reuse_factorization : bool
         Edit the generated qrqp to reuse its KKT factorization when the
         active set recurs within a solve (`patch_qrqp`: same results bit
@@ -337,23 +366,28 @@ def export_c(out_dir, spacecraft=None, *,
     mpc_variants = _check_variants(mpc_variants)
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
     method = wheel_qp_method(wheels, wheel_qp_fast_path)
+    duty_plugin = _resolve_wheel_qp_plugin(duty_qp_plugin, "duty_qp_plugin")
     # a closed-form wheel_qp holds no conic: no solver library to link
-    cflags, ldflags = c_flags(plugin if method != "closed form" else "")
+    # unless the duty QP's fast path calls daqp
+    uses_daqp = (plugin == "daqp" and method != "closed form") or (
+        thrusters is not None and duty_plugin == "daqp")
+    cflags, ldflags = c_flags("daqp" if uses_daqp else "")
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
-        wheel_qp_fast_path=wheel_qp_fast_path)
+        wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin)
     cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True})
     for f in fns.values():
         cg.add(f)
     cg.generate(f"{out}/")
     source = out / f"{SOURCE}.c"
     patched = False
+    text, daqp_patched = patch_daqp_failure(source.read_text())
+    text, _ = patch_minmax(text)
     if qrqp_reuse_factorization:
-        text, patched = patch_qrqp(source.read_text())
-        if patched:
-            source.write_text(text)
+        text, patched = patch_qrqp(text)
+    source.write_text(text)
     driver = out / "main.c"
     driver.write_text(_driver_source(fns, samples, int(repeats), model,
                                      dt))
@@ -363,14 +397,16 @@ def export_c(out_dir, spacecraft=None, *,
         libs=" ".join(ldflags)))
     readme = out / "README.md"
     readme.write_text(_readme(fns, samples, plugin, cflags, ldflags,
-                              method, patched))
+                              method, patched, duty_plugin))
     res = ExportResult(out_dir=out, functions=fns, samples=samples,
                        source=out / f"{SOURCE}.c",
                        header=out / f"{SOURCE}.h", driver=driver,
                        makefile=makefile, readme=readme,
                        extras={"wheel_qp_plugin": plugin,
+                               "duty_qp_plugin": duty_plugin,
                                "wheel_qp_method": method,
                                "qrqp_patched": patched,
+                               "daqp_patched": daqp_patched,
                                "cflags": cflags, "ldflags": ldflags})
     if build:
         return build_exported(res, cc=cc)

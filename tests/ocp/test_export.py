@@ -15,7 +15,7 @@ from ocp.codegen.export import (
     patch_qrqp,
     run_driver,
 )
-from thrusters import six_thruster_unit
+from thrusters import DUTY_STATUS, DutyCycleAllocator, six_thruster_unit
 
 pytestmark = [
     pytest.mark.slow,
@@ -48,8 +48,10 @@ def test_files_written(exported):
     plugin = "daqp" if daqp_available() else "qrqp"
     assert r.extras["wheel_qp_plugin"] == plugin
     assert r.extras["wheel_qp_method"] == "closed form"
-    assert "daqp/api.h" not in r.source.read_text()
-    assert "libdaqpstat.a" not in r.makefile.read_text()
+    # the duty QP's fast path links DAQP when it is there
+    assert r.extras["duty_qp_plugin"] == plugin
+    assert ("daqp/api.h" in r.source.read_text()) == (plugin == "daqp")
+    assert ("libdaqpstat.a" in r.makefile.read_text()) == (plugin == "daqp")
     assert "-O3" in r.makefile.read_text()
 
 
@@ -165,11 +167,78 @@ def test_generated_mpc_step_equals_casadi(exported):
     assert np.max(np.abs(np.asarray(a[0]))) <= 0.05 + 1e-12
 
 
+def duty_cycles(rng, n):
+    """Yield holds, burns, bound-relaxing and infeasible demands."""
+    alloc = DutyCycleAllocator(six_thruster_unit(), 2.0, 0.012)
+    for i in range(n):
+        P_T = 0.0 if i % 2 else rng.uniform(0.0, 1.0)
+        M = rng.uniform(-1, 1, 2) * (0.004, 0.02, 0.3)[i % 3]
+        H = (rng.uniform(-0.01, 0.01), 0.0, rng.uniform(-0.01, 0.01))
+        yield alloc, alloc.theta(P_T, M, H, rng.uniform(-1e-5, 1e-5, 3))
+
+
+def test_duty_qp_in_c_equals_the_allocator_and_says_its_status(exported):
+    """The C ``duty_qp`` is the Python allocator's answer (1e-10)."""
+    ext = ca.external("duty_qp", str(exported.shared_library))
+    seen = set()
+    for alloc, th in duty_cycles(np.random.default_rng(4), 90):
+        ref = alloc.solve_theta(th)
+        duty, slack, viol, status = (np.asarray(v).ravel()
+                                     for v in ext(th, np.ones(6)))
+        status = DUTY_STATUS[int(status[0])]
+        seen.add(status)
+        assert status == ref.status
+        if ref.success:
+            np.testing.assert_allclose(duty, ref.duty, atol=1e-10, rtol=0)
+            assert viol[0] <= 1e-6
+    assert seen == {"optimal", "bound_relaxed", "infeasible"}
+    for th, km in [(np.full(9, np.nan), np.ones(6)),
+                   (np.zeros(9), np.r_[1.0, 1.0, 0.0, 1.0, 1.0, 1.0])]:
+        out = [np.asarray(v).ravel() for v in ext(th, km)]
+        assert DUTY_STATUS[int(out[3][0])] == "invalid_input"
+        assert np.all(out[0] == 0.0)
+    assert exported.extras["daqp_patched"] == (
+        exported.extras["duty_qp_plugin"] == "daqp")
+
+
+def test_duty_qp_in_c_writes_every_output_on_every_call(exported):
+    """Raw C calls with one set of output buffers: nothing is left over."""
+    import ctypes
+
+    lib = ctypes.CDLL(str(exported.shared_library))
+    cint = ctypes.c_longlong
+    sizes = [cint() for _ in range(4)]
+    lib.duty_qp_work(*[ctypes.byref(v) for v in sizes])
+    n_arg, n_res, n_iw, n_w = (max(v.value, 4) for v in sizes)
+    iw = (cint * n_iw)()
+    w = (ctypes.c_double * n_w)()
+    theta = (ctypes.c_double * 9)()
+    kmax = (ctypes.c_double * 6)(*np.ones(6))
+    outs = [(ctypes.c_double * k)() for k in (6, 1, 1, 1)]
+    arg = (ctypes.POINTER(ctypes.c_double) * n_arg)(
+        ctypes.cast(theta, ctypes.POINTER(ctypes.c_double)),
+        ctypes.cast(kmax, ctypes.POINTER(ctypes.c_double)))
+    res = (ctypes.POINTER(ctypes.c_double) * n_res)(
+        *[ctypes.cast(o, ctypes.POINTER(ctypes.c_double)) for o in outs])
+    ext = ca.external("duty_qp", str(exported.shared_library))
+    cases = [th for _, th in duty_cycles(np.random.default_rng(5), 12)]
+    cases.insert(3, np.full(9, np.inf))
+    for th in cases:
+        for o in outs:            # poison: every value must be rewritten
+                ctypes.memmove(o, (ctypes.c_double * len(o))(
+                *[np.nan] * len(o)), ctypes.sizeof(o))
+        theta[:] = list(th)
+        assert lib.duty_qp(arg, res, iw, w, 0) == 0
+        want = [np.asarray(v).ravel() for v in ext(th, np.ones(6))]
+        for o, v in zip(outs, want):
+            np.testing.assert_array_equal(np.array(o[:]), v)
+
+
 def test_driver_runs_and_times(exported):
     t = run_driver(exported)
     for name in ("min_norm", "wheel_qp", "wheel_qp:saturated", "duty_qp",
-                 "dynamics", "rk4", "mpc_rti_step",
-                 "closed_loop:mpc_rti_step"):
+                 "duty_qp:burn", "duty_qp:relaxed", "dynamics", "rk4",
+                 "mpc_rti_step", "closed_loop:mpc_rti_step"):
         assert t[name]["median_us"] > 0.0
     # the C closed loop (RK4 plant, 80 steps of 0.5 s) ends on target
     assert t["closed_loop:mpc_rti_step"]["final_error_deg"] < 1e-2

@@ -1,0 +1,68 @@
+"""Small exact edits of CasADi-generated C (DAQP failures, fmax/fmin)."""
+
+from __future__ import annotations
+
+#: CasADi's generated DAQP conic aborts the whole Function on a failed
+#: solve (its ``error_on_fail`` option is not generated), before the
+#: caller's certificate can read the point.
+_DAQP_ABORT = "  if (!d_qp.success) {\n    return -1;\n  }\n"
+_DAQP_CHECKED = ("  /* a failed solve is judged by the caller's certificate "
+                 "(ocp.codegen.patch_daqp_failure) */\n")
+
+
+def patch_daqp_failure(source: str) -> tuple[str, int]:
+    """Let generated DAQP conics return their point when a solve fails.
+
+    Every Function of the toolbox that calls DAQP checks the point
+    (``wheel_qp``'s violation, ``duty_qp``'s KKT certificate and status),
+    as the Python Functions built with ``error_on_fail=False`` do; the
+    generated C would instead return 1 from the whole call and leave the
+    outputs unwritten. This edit removes that early return.
+
+    Parameters
+    ----------
+    source : str
+        Generated C text.
+
+    Returns
+    -------
+    text : str
+        The edited text.
+    count : int
+        DAQP conics edited (0: none in the source, or a CasADi version
+        whose text differs).
+    """
+    count = source.count(_DAQP_ABORT)
+    return source.replace(_DAQP_ABORT, _DAQP_CHECKED), count
+
+
+#: CasADi's C99 min/max helpers call libm's fmax/fmin, which gcc does not
+#: inline (their NaN rules); the same rules written as comparisons let it.
+_MINMAX_EDITS = (
+    ("  return fmax(x, y);\n#endif",
+     "  return x != x ? y : (y != y || x > y) ? x : y;\n#endif"),
+    ("  return fmin(x, y);\n#endif",
+     "  return x != x ? y : (y != y || x < y) ? x : y;\n#endif"),
+)
+
+
+def patch_minmax(source: str) -> tuple[str, int]:
+    """Write the generated ``casadi_fmax``/``casadi_fmin`` inline.
+
+    Same results as C99 ``fmax``/``fmin``, NaN rules included (a NaN
+    argument gives the other one); the compiler can then inline them
+    (about 10 % off the certified duty QP, which takes many maxima).
+
+    Returns
+    -------
+    text : str
+        The edited text.
+    count : int
+        Helpers edited (0 to 2).
+    """
+    count = 0
+    for old, new in _MINMAX_EDITS:
+        if source.count(old) == 1:
+            source = source.replace(old, new)
+            count += 1
+    return source, count
