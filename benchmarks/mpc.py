@@ -63,6 +63,10 @@ def run(quick: bool = False, with_c: bool = True, daqp: bool = False,
         r = simulate_mpc(mpc, q0, qf, t_final=t_final)
         rows.append((f"Python {label}", 1e3 * r.step_time_median,
                      1e3 * r.step_time_max, np.rad2deg(r.final_error)))
+        rows.append((f"Python {label}: whole `step` call",
+                     1e3 * r.extras["step_call_median"],
+                     1e3 * r.extras["step_call_max"],
+                     np.rad2deg(r.final_error)))
     per_call: dict[str, float] = {}
     if with_c and shutil.which("gcc"):
         from ocp.codegen.export import export_c, run_driver

@@ -45,11 +45,11 @@ import numpy as np
 
 from adcs_common.exceptions import (
     ThreadOwnershipError,
-    InfeasibleError,
     InvalidValueError,
     SolverError,
     SolverNotFound,
 )
+from adcs_common.buffers import BoundCall
 from adcs_common.quaternion import as_unit_quaternion
 from adcs_common.validation import (
     as_count,
@@ -72,6 +72,7 @@ from .problem import (
     QP_SOLVERS,
     NLP_PLUGINS,
     available_mpc_solvers,
+    check_reachable,
 )
 
 
@@ -114,7 +115,10 @@ class AttitudeMPC:
         state outside the bounds (qrqp can return such a step on
         degenerate active sets), the step falls back to the full SQP from
         the same warm start (status ``"rti_fallback:..."``); the exported
-        step Function does the same.
+        step Function does the same. A checked RTI step is one call of
+        `rti_function` through a bound buffer (status ``"rti_step"``, one
+        iteration): no Python between the shift, the SQP step and the
+        checks.
     weights : MPCWeights, optional
         Cost weights.
     rate_max : float, optional
@@ -205,6 +209,7 @@ class AttitudeMPC:
         self._plan: np.ndarray | None = None
         self._lam_x = np.zeros(self.nz)
         self._lam_g = np.zeros(self.ng)
+        self._rti_buffer: BoundCall | None = None
 
     # ------------------------------------------------------------ layout
     @property
@@ -381,6 +386,15 @@ class AttitudeMPC:
         sol = self.nlpsol(x0=sh[0], p=p, lbx=self.lbz, ubx=self.ubz,
                           lbg=0, ubg=0, lam_x0=sh[1], lam_g0=sh[2])
         zo, lxo, lgo = sol["x"], sol["lam_x"], sol["lam_g"]
+        names = (["x", "qf", "tau", "z_prev", "lam_x_prev", "lam_g_prev"],
+                 ["u", "z", "lam_x", "lam_g", "cost", "violation",
+                  "first_violation", "defect"])
+        #: ``step_function`` without the RTI fallback: what `step` calls
+        #: (through a bound buffer) with ``rti=True``.
+        self.rti_function = ca.Function(
+            "mpc_rti_single",
+            [x_par, qf, tau, z_prev, lam_x_prev, lam_g_prev],
+            [zo[us[0]], zo, lxo, lgo, *self.check_function(zo, p)], *names)
         if self.fallback is not None:
             # evaluated only when the RTI step fails its check
             a = [ca.MX.sym(n, s.sparsity()) for n, s in
@@ -399,10 +413,7 @@ class AttitudeMPC:
         self.step_function = ca.Function(
             "mpc_step",
             [x_par, qf, tau, z_prev, lam_x_prev, lam_g_prev],
-            [zo[us[0]], zo, lxo, lgo, *chk],
-            ["x", "qf", "tau", "z_prev", "lam_x_prev", "lam_g_prev"],
-            ["u", "z", "lam_x", "lam_g", "cost", "violation",
-             "first_violation", "defect"])
+            [zo[us[0]], zo, lxo, lgo, *chk], *names)
 
     def _default_options(self, z, p, r, g) -> dict:
         if self.solver == "ipopt":
@@ -509,20 +520,28 @@ class AttitudeMPC:
                 f"is {nq:.6g}")
         qf = as_unit_quaternion(qf, "qf")
         tau = np.zeros(3) if tau is None else as_vector(tau, 3, "tau")
-        self._check_reachable(x)
+        check_reachable(self, x)
         z_prev = self._plan if self._plan is not None else \
             self.initial_guess(x)
-        z0, lx0, lg0 = self.shift_function(x, z_prev, self._lam_x,
-                                           self._lam_g)
         p = np.r_[x, qf, tau]
         t0 = time.perf_counter()
-        sol = self.nlpsol(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz, lbg=0,
-                          ubg=0, lam_x0=lx0, lam_g0=lg0)
+        if self.rti:
+            # one buffered call: shift, one SQP step, checks
+            z, lam_x, lam_g, u, cost, viol, viol1, defect = \
+                self._rti_call(x, qf, tau, z_prev)
+            status, iters = "rti_step", 1
+        if not self.rti or viol1 > BOUND_TOL:
+            z0, lx0, lg0 = self.shift_function(x, z_prev, self._lam_x,
+                                               self._lam_g)
+        if not self.rti:
+            sol = self.nlpsol(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz, lbg=0,
+                              ubg=0, lam_x0=lx0, lam_g0=lg0)
+            stats = self.nlpsol.stats()
+            z, lam_x, lam_g, u, cost, viol, viol1, defect = self._unpack(
+                sol, p)
+            status = str(stats.get("return_status", "unknown"))
+            iters = int(stats.get("iter_count", -1))
         solve_time = time.perf_counter() - t0
-        stats = self.nlpsol.stats()
-        z, lam_x, lam_g, u, cost, viol, viol1, defect = self._unpack(sol, p)
-        status = str(stats.get("return_status", "unknown"))
-        iters = int(stats.get("iter_count", -1))
         if self.fallback is not None and viol1 > BOUND_TOL:
             sol = self.fallback(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz,
                                 lbg=0, ubg=0, lam_x0=lx0, lam_g0=lg0)
@@ -554,6 +573,21 @@ class AttitudeMPC:
         self._plan, self._lam_x, self._lam_g = z, lam_x, lam_g
         return result
 
+    def _rti_call(self, x, qf, tau, z_prev) -> tuple:
+        """One RTI step through `rti_function`'s bound buffer."""
+        call = self._rti_buffer
+        if call is None:
+            f = self.rti_function
+            call = self._rti_buffer = BoundCall(
+                f, tuple(np.zeros(f.nnz_in(i)) for i in range(f.n_in())),
+                tuple(np.zeros(f.nnz_out(i)) for i in range(f.n_out())))
+        ins, outs = call.inputs, call.outputs
+        ins[0][:], ins[1][:], ins[2][:], ins[3][:] = x, qf, tau, z_prev
+        ins[4][:], ins[5][:] = self._lam_x, self._lam_g
+        call.trigger()
+        u, z, lam_x, lam_g = (o.copy() for o in outs[:4])
+        return (z, lam_x, lam_g, u, *(float(o[0]) for o in outs[4:]))
+
     def _unpack(self, sol: dict, p: np.ndarray) -> tuple:
         """Plan, multipliers, command and the checks of one NLP solution."""
         z = np.asarray(sol["x"]).ravel()
@@ -561,32 +595,3 @@ class AttitudeMPC:
         lam_g = np.asarray(sol["lam_g"]).ravel()
         checks = (float(o) for o in self.check_function(z, p))
         return (z, lam_x, lam_g, z[self._us[0]].copy(), *checks)
-
-    def _check_reachable(self, x: np.ndarray) -> None:
-        """Raise `InfeasibleError` when x_1 cannot meet the state bounds."""
-        wh = self.wheels
-        h = x[7:]
-        m_hi = np.where(wh.active, wh.m_max, 0.0)
-        gap = np.abs(h) - m_hi * self.dt - wh.h_max
-        if np.any(gap > 1e-12):
-            i = int(np.argmax(gap))
-            raise InfeasibleError(
-                f"x: wheel {i} momentum {h[i]:.4g} N·m·s cannot return "
-                f"inside h_max = {wh.h_max[i]:.4g} within one step of "
-                f"{self.dt:g} s at m_max = {m_hi[i]:.4g} N·m: the MPC "
-                "horizon is infeasible", problem=x)
-        if self.rate_max is not None:
-            excess = np.max(np.abs(x[4:7])) - self.rate_max
-            # the reachable change of rate in one step
-            J = self.model.inertia
-            reach = np.linalg.norm(wh.working_axes * m_hi, axis=0).sum()
-            if self.model.thrusters is not None:
-                reach += np.linalg.norm(
-                    self.model.thrusters.torque_matrix(), axis=0).sum()
-            dmax = self.dt * reach / np.linalg.eigvalsh(J).min()
-            if excess > dmax:
-                raise InfeasibleError(
-                    f"x: body rate {np.max(np.abs(x[4:7])):.4g} rad/s "
-                    f"exceeds rate_max = {self.rate_max:.4g} rad/s by more "
-                    f"than one step can remove ({dmax:.3g} rad/s): the MPC "
-                    "horizon is infeasible", problem=x)

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
+
 import casadi as ca
 import numpy as np
 from adcs_common.exceptions import (
+    InfeasibleError,
     InvalidValueError,
 )
 from adcs_common.validation import (
@@ -123,3 +126,36 @@ class MPCStep:
     solve_time: float
     iterations: int
     status: str
+
+
+def check_reachable(mpc: Any, x: np.ndarray) -> None:
+    """Raise `InfeasibleError` when x_1 cannot meet the state bounds.
+
+    ``mpc`` is the `AttitudeMPC` (its wheels, dt, rate bound and model).
+    """
+    wh = mpc.wheels
+    h = x[7:]
+    m_hi = np.where(wh.active, wh.m_max, 0.0)
+    gap = np.abs(h) - m_hi * mpc.dt - wh.h_max
+    if np.any(gap > 1e-12):
+        i = int(np.argmax(gap))
+        raise InfeasibleError(
+            f"x: wheel {i} momentum {h[i]:.4g} N·m·s cannot return "
+            f"inside h_max = {wh.h_max[i]:.4g} within one step of "
+            f"{mpc.dt:g} s at m_max = {m_hi[i]:.4g} N·m: the MPC "
+            "horizon is infeasible", problem=x)
+    if mpc.rate_max is not None:
+        excess = np.max(np.abs(x[4:7])) - mpc.rate_max
+        # the reachable change of rate in one step
+        J = mpc.model.inertia
+        reach = np.linalg.norm(wh.working_axes * m_hi, axis=0).sum()
+        if mpc.model.thrusters is not None:
+            reach += np.linalg.norm(
+                mpc.model.thrusters.torque_matrix(), axis=0).sum()
+        dmax = mpc.dt * reach / np.linalg.eigvalsh(J).min()
+        if excess > dmax:
+            raise InfeasibleError(
+                f"x: body rate {np.max(np.abs(x[4:7])):.4g} rad/s "
+                f"exceeds rate_max = {mpc.rate_max:.4g} rad/s by more "
+                f"than one step can remove ({dmax:.3g} rad/s): the MPC "
+                "horizon is infeasible", problem=x)

@@ -202,3 +202,24 @@ def test_thrusters_unload_wheels_under_a_secular_disturbance():
                                atol=1e-6)
     assert r.extras["propellant"] > 0.0
     assert r.extras["thruster_on_time"] == pytest.approx(duty.sum() * 0.5)
+
+
+def test_buffered_rti_step_equals_the_step_function(model):
+    """`step` (one buffered call) gives the exported step's answer."""
+    mpc = AttitudeMPC(model, horizon=20, dt=0.5, rti=True)
+    ref = AttitudeMPC(model, horizon=20, dt=0.5, rti=True).step_function
+    F = model.integrator(0.5)
+    x = model.state(Q0)
+    z, lx, lg = mpc.initial_guess(x), np.zeros(mpc.nz), np.zeros(mpc.ng)
+    for _ in range(12):           # the saturated start of the slew
+        s = mpc.step(x, QF)
+        out = ref(x, QF, np.zeros(3), z, lx, lg)
+        np.testing.assert_allclose(s.u, np.asarray(out[0]).ravel(),
+                                   atol=1e-10, rtol=0)
+        np.testing.assert_allclose(s.plan, np.asarray(out[1]).ravel(),
+                                   atol=1e-10, rtol=0)
+        assert s.status == "rti_step" and s.iterations == 1
+        z, lx, lg = (np.asarray(o).ravel() for o in out[1:4])
+        x = np.asarray(F(x0=x, p=np.r_[s.u, 0, 0, 0])["xf"]).ravel()
+    r = simulate_mpc(mpc, Q0, QF, t_final=4.0)
+    assert r.extras["step_call_median"] > 0.0
