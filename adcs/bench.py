@@ -301,7 +301,7 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
     """Time the thruster duty-cycle QP across backends.
 
     The spacecraft's thruster set (none: no rows), by default the
-    six-thruster unit of seed 004, T_T = 2 s, ``h_max = 0.012`` N·m·s,
+    six-thruster unit of [4], T_T = 2 s, ``h_max = 0.012`` N·m·s,
     weighted torque tracking, momentum box; random cycles with P_T in
     [0, 0.739] N, torques up to 0.05 N·m, momenta inside the bound.
     Each answer (duties and slack) is KKT-certified on the canonical QP

@@ -20,14 +20,14 @@ from ocp.spacecraft import load_spacecraft
 #: study key -> (module in adcs.studies, title); the order of the report.
 STUDIES: dict[str, tuple[str, str]] = {
     "spacecraft": ("spacecraft", "Your spacecraft through every tool"),
-    "wheels": ("wheels", "Meteor-M No. 2 wheel pyramid (seed 001)"),
+    "wheels": ("wheels", "Meteor-M No. 2 wheel pyramid ([1])"),
     "accuracy": ("accuracy", "Torque accuracy under mounting and "
-                 "scale-factor errors (seed 001)"),
+                 "scale-factor errors ([1])"),
     "thrusters": ("thrusters", "Six-thruster unit in pulse-cycle mode "
-                  "(seed 004)"),
+                  "([4])"),
     "four_wheel": ("four_wheel", "Four-wheel nonlinear model (Lagrange)"),
     "chibis": ("chibis", "Chibis-M: coil and wheel failures, gravity boom "
-               "(seed 002)"),
+               "([2])"),
     "slews": ("slews", "Slews: NLPs and MPC vs eigenaxis and quaternion "
               "feedback"),
 }
@@ -95,7 +95,7 @@ def paper_row(quantity: str, paper: float | str, ours: float,
     return [quantity, paper, ours, diff, note]
 
 
-PAPER_COLUMNS = ["quantity", "paper / SPEC", "ours", "ours − paper", "note"]
+PAPER_COLUMNS = ["quantity", "reference", "ours", "ours − paper", "note"]
 
 
 @dataclass(frozen=True)

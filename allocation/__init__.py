@@ -1,4 +1,9 @@
-"""Reaction-wheel arrays and torque allocation (seed 001, SPEC section 1)."""
+"""Reaction-wheel arrays and torque allocation ([1], theory §1).
+
+Citations: [1]–[4] are the source papers and "theory §N" the sections of
+the project's docs (docs/references.md and docs/theory.md in the
+repository; the misprints the code corrects are in docs/errata.md).
+"""
 
 from .accuracy import (
     AccuracyResult,

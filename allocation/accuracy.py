@@ -1,4 +1,4 @@
-"""Torque accuracy under mounting and scale errors (seed 001, SPEC 1.3)."""
+"""Torque accuracy under mounting and scale errors ([1], theory §1.3)."""
 
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ _LAW_AXES = ("nominal", "measured")
 def actual_axes(delta_i, gamma_i) -> np.ndarray:
     r"""Actual spin axes of the pyramid for per-wheel angles, vectorised.
 
-    Seed 001, accuracy section ("actual matrix of direction cosines"),
+    [1], accuracy section ("actual matrix of direction cosines"),
     with the signs of the nominal A (eq. 6):
 
     .. math::
@@ -75,8 +75,8 @@ def actual_axes(delta_i, gamma_i) -> np.ndarray:
 def paper_actual_axes_as_printed(delta_i, gamma_i) -> np.ndarray:
     """Return the paper's printed "actual" A: row 2 all positive (ERRATUM).
 
-    Kept only to show the misprint (SPEC 5): at zero error it is not the
-    nominal A of eq. (6), whose row 2 has signs (+, -, -, +). Use
+    Kept only to show the misprint (docs/errata.md): at zero error it is
+    not the nominal A of eq. (6), whose row 2 has signs (+, -, -, +). Use
     `actual_axes`.
 
     Parameters
@@ -108,7 +108,7 @@ def gain_error_uniform(d_delta: float, d_gamma: float, d_scale: float, *,
         \frac{\sin(\delta-\Delta\delta)\cos(\gamma-\Delta\gamma)(1-\Delta)
               - \sin\delta\cos\gamma}{\sin\delta\cos\gamma}
 
-    (ERRATUM, SPEC 1.3: the paper prints the numerator only, without the
+    (ERRATUM, theory §1.3: the paper prints the numerator only, without the
     division by sδcγ; see `gain_error_uniform_as_printed`.)
 
     Parameters
@@ -134,7 +134,7 @@ def gain_error_uniform_as_printed(d_delta: float, d_gamma: float,
                                   gamma: float = _GAMMA) -> float:
     """Return the paper's printed case-(a) ΔMx/Mx, lacking 1/(sδcγ).
 
-    ERRATUM (SPEC 1.3): this is the bracket
+    ERRATUM (theory §1.3): this is the bracket
     ``sin(δ−Δδ)cos(γ−Δγ)(1−Δ) − sδcγ`` [1] that the paper multiplies by
     Mx; it is not the relative error (see `gain_error_uniform`). Kept to
     show the misprint.
@@ -158,7 +158,7 @@ def _case_a_terms(d_delta, d_gamma, d_scale, delta, gamma
 # ------------------------------------------------------ torque error
 @dataclass(frozen=True, eq=False)
 class TorqueError:
-    r"""Error of the realised torque (seed 001, accuracy section).
+    r"""Error of the realised torque ([1], accuracy section).
 
     Attributes
     ----------
@@ -234,7 +234,7 @@ class ErrorSummary:
 
 @dataclass(frozen=True, eq=False)
 class AccuracyResult:
-    """Monte Carlo of the torque accuracy of the pyramid (SPEC 1.3).
+    """Monte Carlo of the torque accuracy of the pyramid (theory §1.3).
 
     Attributes
     ----------
@@ -335,7 +335,7 @@ def monte_carlo_accuracy(*, d_delta_tol: float, d_gamma_tol: float,
 
     where A_L is the nominal A (``law_axes="nominal"``) or the measured
     axes, the actual angles plus measurement errors of tolerance
-    ``measure_*_tol`` (``law_axes="measured"``; seed 001: then the
+    ``measure_*_tol`` (``law_axes="measured"``; [1]: then the
     measurement errors take the place of the mounting tolerances). Failed
     wheels have their columns zeroed in A_L and A_1. Vectorised over
     samples: (S, 3, 4) stacks and a batched 3×3 solve.

@@ -16,7 +16,7 @@ from adcs_common.validation import (
     check_positive,
 )
 
-#: Column signs of the Meteor-M No. 2 pyramid (SPEC 1.1, seed 001 eq. 6):
+#: Column signs of the Meteor-M No. 2 pyramid (theory §1.1, [1] eq. 6):
 #: h_i = (-sin d cos g, SY_i sin d sin g, SZ_i cos d).
 PYRAMID_SIGN_Y = np.array([1.0, -1.0, -1.0, 1.0])
 PYRAMID_SIGN_Z = np.array([-1.0, -1.0, 1.0, 1.0])
@@ -32,7 +32,7 @@ def _readonly(arr: np.ndarray) -> np.ndarray:
 
 
 def pyramid_axes(delta, gamma) -> np.ndarray:
-    r"""Spin axes of the four-wheel pyramid, seed 001 eq. (6).
+    r"""Spin axes of the four-wheel pyramid, [1] eq. (6).
 
     .. math::
         h_i = (-\sin\delta_i\cos\gamma_i,\;
@@ -68,7 +68,7 @@ class WheelArray:
     Wheel ``i`` (0-based in code, named ``i + 1`` in reports) spins about
     the unit column ``axes[:, i]`` of the body frame. Motor torques ``m``
     (on the rotors, :math:`\dot H_i = m_i`) give the array torque
-    :math:`M = A m` of seed 001 eq. (1); the reaction on the body is
+    :math:`M = A m` of [1] eq. (1); the reaction on the body is
     :math:`-M`.
 
     Attributes
@@ -85,7 +85,7 @@ class WheelArray:
         Wheel names for reports (default ``"RW1"``..``"RWN"``).
     scale : numpy.ndarray, shape (N,)
         Actual / commanded torque of each wheel, ``1 + Δ_i`` (scale-factor
-        errors, seed 001); ones when ideal.
+        errors, [1]); ones when ideal.
     """
 
     axes: np.ndarray
@@ -153,7 +153,7 @@ class WheelArray:
     def working_axes(self) -> np.ndarray:
         """Axes (3, N) with the columns of failed wheels zeroed.
 
-        Seed 001: "the elements of the column of the failed wheel must be
+        [1]: "the elements of the column of the failed wheel must be
         zeroed" so that the general law (5) still applies.
         """
         a = np.array(self.axes)
@@ -269,7 +269,7 @@ class WheelArray:
                 gamma: float = np.deg2rad(45.0), *, h_max=1.0, m_max=1.0,
                 d_delta=None, d_gamma=None,
                 failed: Sequence[int] = ()) -> "WheelArray":
-        """Four-wheel pyramid of Meteor-M No. 2 (seed 001 eq. 6, SPEC 1.1).
+        """Four-wheel pyramid of Meteor-M No. 2 ([1] eq. 6, theory §1.1).
 
         Parameters
         ----------
@@ -295,7 +295,7 @@ class WheelArray:
                              phi2: float = np.pi / 4,
                              phi3: float = np.pi / 4, h_max=1.0, m_max=1.0,
                              failed: Sequence[int] = ()) -> "WheelArray":
-        """Three wheels on the body axes plus one skewed (seed 003).
+        """Three wheels on the body axes plus one skewed ([3]).
 
         Parameters
         ----------
@@ -322,7 +322,7 @@ class WheelArray:
     @classmethod
     def orthogonal_pairs(cls, *, h_max=1.0, m_max=1.0,
                          failed: Sequence[int] = ()) -> "WheelArray":
-        """Three orthogonal pairs of wheels, six in all (Chibis-M, seed 002).
+        """Three orthogonal pairs of wheels, six in all (Chibis-M, [2]).
 
         Wheels 1-2 spin about x, 3-4 about y, 5-6 about z.
         """

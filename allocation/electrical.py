@@ -14,7 +14,7 @@ The model (per wheel, SI units):
   ``p(x) = max(x, η x)``, a convex function, so power-optimal allocation
   stays a QP.
 
-Seed 001 weighs wheel torques by a positive function of each motor's current
+[1] weighs wheel torques by a positive function of each motor's current
 draw (criterion ``J = Σ V_i m_i²``, ref. [10]). Here
 ``V_i = 1 / m_avail,i(Ω_i)²``: J is the sum of squared current draws, each
 as a fraction of the current the drive can still deliver at that speed,

@@ -1,4 +1,4 @@
-"""Momentum and torque envelopes of a wheel array (seed 001, SPEC 1.2)."""
+"""Momentum and torque envelopes of a wheel array ([1], theory §1.2)."""
 
 from __future__ import annotations
 
@@ -128,7 +128,7 @@ class Envelope:
     r"""Attainable momentum or torque set of a wheel array: a zonotope.
 
     The set :math:`S = \{A\,\mathrm{diag}(c)\,x : |x_i| \le 1\}` of
-    seed 001 ("properties of the wheel system"), ``c`` the momentum
+    [1] ("properties of the wheel system"), ``c`` the momentum
     capacity H* [N·m·s] or torque capacity m_max [N·m] of each working
     wheel; failed wheels are left out. For the Meteor-M pyramid it is the
     12-faced polyhedron with rhombic faces of side 2H*.
@@ -250,7 +250,7 @@ class Envelope:
 
 
 def envelope(array: WheelArray, kind: str = "momentum") -> Envelope:
-    r"""Momentum or torque envelope of a wheel array (seed 001, SPEC 1.2).
+    r"""Momentum or torque envelope of a wheel array ([1], theory §1.2).
 
     .. math::
         S = \{A H : |H_i| \le H^*_i\}\ \text{(momentum)},\qquad

@@ -1,4 +1,4 @@
-"""Closed-form allocation laws of seed 001 (numpy)."""
+"""Closed-form allocation laws of [1] (numpy)."""
 
 from __future__ import annotations
 
@@ -17,8 +17,8 @@ from adcs_common.validation import (
 
 from .arrays import WheelArray
 
-#: Eq. (9) of seed 001 as printed (4 decimals). Its m2 row repeats m1:
-#: ERRATUM, see `EQ9_GAINS` and SPEC section 5.
+#: Eq. (9) of [1] as printed (4 decimals). Its m2 row repeats m1:
+#: ERRATUM, see `EQ9_GAINS` and the errata (docs/errata.md)
 PAPER_EQ9_GAINS_PRINTED = np.array([
     [-0.4316, 0.4316, -0.4359],
     [-0.4316, 0.4316, -0.4359],
@@ -26,7 +26,7 @@ PAPER_EQ9_GAINS_PRINTED = np.array([
     [-0.4316, 0.4316, 0.4359],
 ])
 
-#: Eq. (9) corrected (SPEC 1.1): gains for δ = 55°, γ = 45°, 4 decimals.
+#: Eq. (9) corrected (theory §1.1): gains for δ = 55°, γ = 45°, 4 decimals.
 EQ9_GAINS = np.array([
     [-0.4316, 0.4316, -0.4359],
     [-0.4316, -0.4316, -0.4359],
@@ -99,12 +99,12 @@ def _pinv_with_failures(array: WheelArray, weights=None) -> np.ndarray:
 
 
 def min_norm_gains(array: WheelArray) -> np.ndarray:
-    r"""Minimum-norm gains, seed 001 eq. (5), failures included.
+    r"""Minimum-norm gains, [1] eq. (5), failures included.
 
     .. math:: m = A^T (A A^T)^{-1} M
 
     minimises :math:`J = \sum m_i^2` (eq. 4) subject to :math:`A m = M`.
-    Failed wheels have their column of A zeroed (seed 001, "control
+    Failed wheels have their column of A zeroed ([1], "control
     algorithm under failures"), which makes their row of G zero: this is
     the general failure law for any set of failed wheels.
 
@@ -161,7 +161,7 @@ def pyramid_failure_gains(failed: int, delta: float,
                           gamma: float) -> np.ndarray:
     r"""Return the paper's single-failure law of the pyramid.
 
-    Seed 001, "four variants": the failed wheel gives zero and the other
+    [1], "four variants": the failed wheel gives zero and the other
     three solve the 3x3 system, e.g. wheel 1 (index 0) failed:
     :math:`m_2 = \tfrac12(-\hat M_x - \hat M_z)`,
     :math:`m_3 = \tfrac12(-\hat M_y + \hat M_z)`,
@@ -186,7 +186,7 @@ def pyramid_failure_gains(failed: int, delta: float,
 
 
 def weighted_gains(array: WheelArray, weights) -> np.ndarray:
-    r"""Weighted minimum-norm gains (seed 001, criterion of ref. [10]).
+    r"""Weighted minimum-norm gains ([1], criterion of ref. [10]).
 
     .. math::
         \min \sum V_i m_i^2 \;\text{s.t.}\; A m = M \;\Rightarrow\;

@@ -118,7 +118,7 @@ def plot_accuracy_histogram(result: "AccuracyResult", ax: Any = None, *,
                             quantity: str = "relative_error",
                             bins: int = 60, label: str | None = None
                             ) -> Any:
-    """Histogram of a Monte Carlo accuracy study (seed 001, SPEC 1.3).
+    """Histogram of a Monte Carlo accuracy study ([1], theory §1.3).
 
     Parameters
     ----------

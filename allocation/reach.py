@@ -1,4 +1,4 @@
-"""Share of the attainable torque set an allocation law reaches (SPEC 1.2)."""
+"""Share of the attainable torque set a law reaches (theory §1.2)."""
 
 from __future__ import annotations
 
@@ -351,9 +351,9 @@ def torque_reach(array: WheelArray, law: Any, *,
                  name: str | None = None) -> ReachResult:
     r"""Measure the share of the attainable torque set a law reaches.
 
-    SPEC 1.2: with :math:`|m_i| \le m_{\max}` the attainable torque set is
+    theory §1.2: with :math:`|m_i| \le m_{\max}` the attainable torque set is
     the zonotope :math:`A\cdot[-m_{\max}, m_{\max}]^N`; the minimum-norm
-    law (seed 001 eq. 5) saturates a wheel before the demand leaves it.
+    law ([1] eq. 5) saturates a wheel before the demand leaves it.
 
     By directions: for unit u, ``r_law(u)`` (see `law_extent`) against
     the set's radial extent ``r_set(u)``. By volume, from the radial

@@ -10,7 +10,7 @@ from .laws import SIGN_MATRIX
 
 
 def pyramid_axes_sym(delta: ca.SX, gamma: ca.SX) -> ca.SX:
-    """Symbolic pyramid axes (3, 4), seed 001 eq. (6).
+    """Symbolic pyramid axes (3, 4), [1] eq. (6).
 
     ``delta`` and ``gamma`` are scalars or 4-vectors (per-wheel angles).
     """

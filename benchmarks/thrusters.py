@@ -1,6 +1,6 @@
 """Per-cycle allocation time of the thruster laws and QP backends.
 
-Prints the median time per cycle [µs] of the closed forms (seed 004
+Prints the median time per cycle [µs] of the closed forms ([4]
 eqs. 2 and 8-9), of the allocator's certified fast path
 (`DutyCycleAllocator.duty_fast`) and of every installed duty-cycle QP
 backend, with the ratio to the closed form measured in the same run. Run:

@@ -1,4 +1,9 @@
-"""`ocp`: spacecraft models, guidance, slews, MPC and C code generation."""
+"""`ocp`: spacecraft models, guidance, slews, MPC and C code generation.
+
+Citations: [1]–[4] are the source papers and "theory §N" the sections of
+the project's docs (docs/references.md and docs/theory.md in the
+repository; the misprints the code corrects are in docs/errata.md).
+"""
 
 from adcs_common.quaternion import (
     quat_conj,

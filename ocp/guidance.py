@@ -1,4 +1,4 @@
-"""Closed-form slew laws flight software uses (SPEC 4).
+"""Closed-form slew laws flight software uses (theory §4).
 
 * `eigenaxis_slew`: rest-to-rest bang–coast–bang rotation about the
   eigenaxis, limited by the actuators' capability along it.
@@ -349,7 +349,7 @@ def quaternion_feedback_slew(inertia, q0, qf, *,
         K_p = 2ω_n^2 J,\\; K_d = 2ζω_n J,
 
     i.e. the array torque :math:`A m = K_p q_{e,v} + K_d ω - ω\\times(Jω +
-    A H_w)`, allocated by the minimum-norm law (seed 001 eq. 5) and
+    A H_w)`, allocated by the minimum-norm law ([1] eq. 5) and
     scaled down as a whole when a wheel would exceed ``m_max`` (direction
     kept); a wheel at ``h_max`` cannot be pushed further. With a torque
     box the body torque :math:`-K_p q_{e,v} - K_d ω + ω\\times Jω` is

@@ -1,4 +1,4 @@
-"""Shared fixtures: the SPEC's reference arrays."""
+"""Shared fixtures: the reference reference arrays."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,9 @@
-"""`thrusters`: six-thruster unit, duty-cycle laws and allocator."""
+"""`thrusters`: six-thruster unit, duty-cycle laws and allocator.
+
+Citations: [1]–[4] are the source papers and "theory §N" the sections of
+the project's docs (docs/references.md and docs/theory.md in the
+repository; the misprints the code corrects are in docs/errata.md).
+"""
 
 from .exceptions import (
     AdcsError,

@@ -27,12 +27,12 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     burn = burn_scenario(allocation=args.allocation, solver=args.solver)
     print(format_table(burn_table(burn),
-                       f"Seed 004 Table 3 (burn, {args.allocation})"))
+                       f"[4] Table 3 (burn, {args.allocation})"))
     print()
     reo = reorientation_scenario(allocation=args.allocation,
                                  solver=args.solver)
     print(format_table(reorientation_table(reo),
-                       f"Seed 004 Table 5 (reorientation, "
+                       f"[4] Table 5 (reorientation, "
                        f"{args.allocation})"))
     if args.plots:
         out = Path(args.plots)

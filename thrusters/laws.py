@@ -1,4 +1,4 @@
-"""Closed-form duty-cycle laws of seed 004: eqs. (2), (8)-(9), Table 4."""
+"""Closed-form duty-cycle laws of [4]: eqs. (2), (8)-(9), Table 4."""
 
 from __future__ import annotations
 
@@ -124,9 +124,9 @@ def _mode(P_T: float) -> str:
 
 def unloading_law(unit: ThrusterSet, P_T: float, H, T_T: float,
                   K_unl: float = 1.0) -> LawResult:
-    """Duties for a translation with wheel unloading, seed 004 eq. (2).
+    """Duties for a translation with wheel unloading, [4] eq. (2).
 
-    (Reconstructed form, SPEC section 2.)
+    (Reconstructed form, theory §2.)
 
     One group fires (group 1, +Y, when ``P_T > 0``; group 2, -Y, when
     ``P_T < 0``). Its three duty coefficients solve
@@ -231,7 +231,7 @@ def pair_forces(unit: ThrusterSet, P_T: float, M) -> np.ndarray:
 
 
 def reorientation_law(unit: ThrusterSet, P_T: float, M) -> LawResult:
-    """Reorientation and hold, seed 004 eqs. (8)-(9) (reconstructed).
+    """Reorientation and hold, [4] eqs. (8)-(9) (reconstructed).
 
     Solves eq. (8) for the signed pair forces (`pair_forces`), then
     eq. (9): :math:`F_i > 0` fires engine i of group 1 with

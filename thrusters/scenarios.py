@@ -1,4 +1,4 @@
-"""Pulse-cycle simulation of the 54 kg spacecraft (seed 004, Tables 2-5)."""
+"""Pulse-cycle simulation of the 54 kg spacecraft ([4], Tables 2-5)."""
 
 from __future__ import annotations
 
@@ -21,8 +21,8 @@ from thrusters.qp import DutyCycleAllocator, MinOnTimeCarry
 from thrusters.unit import G0, ThrusterSet, six_thruster_unit
 
 
-#: Spacecraft of seed 004 (mass from Table 2's Δv; inertia, R and L are
-#: not given by the seed: SPEC section 2's stated values).
+#: Spacecraft of [4] (mass from Table 2's Δv; inertia, R and L are
+#: not given by the seed: theory §2's stated values).
 MASS = 54.0                                   # [kg]
 
 
@@ -34,7 +34,7 @@ INERTIA = np.diag([3.0, 2.5, 3.5])            # [kg·m²]
 BURN_DISTURBANCE = 0.0012 * np.array([0.8, 0.0, -0.6])
 
 
-#: Seed 004 Table 2 (burn inputs) and Table 3 (achieved accuracy).
+#: [4] Table 2 (burn inputs) and Table 3 (achieved accuracy).
 TABLE2 = {"T_imp": 340.0, "T_T": 10.0, "P_T": 0.739, "H_max": 0.012,
           "yaw": 64.51, "pitch": 35.32, "dV": 4.65}
 
@@ -46,7 +46,7 @@ TABLE3 = {"thrust_dev_max": 0.0021, "thrust_dev_max_pct": 0.28,
           "dV_err": 0.025, "dV_err_pct": 0.54}
 
 
-#: Seed 004 Table 5 (reorientation and hold, T_T = 2 s): per group
+#: [4] Table 5 (reorientation and hold, T_T = 2 s): per group
 #: (Δv [m/s], max and mean group thrust in a cycle [N]) and per engine
 #: (valve openings, total / max / mean open time [ms]).
 TABLE5_GROUPS = {"group 1": (0.15967, 0.11947, 0.01432),
@@ -58,7 +58,7 @@ TABLE5_ENGINES = {"D1": (148, 12078, 745, 40), "D2": (102, 6917, 698, 23),
                   "D5": (149, 8007, 659, 27), "D6": (170, 8956, 494, 30)}
 
 
-#: Seed 004 text bounds of the reorientation run.
+#: [4] text bounds of the reorientation run.
 REORIENT_BOUNDS = {"hold_error_deg": 0.4, "propellant_g": 8.0,
                    "max_open_ms": 750.0, "residual_dv": 3.22e-4,
                    "H_y_peak": 0.03}

@@ -44,7 +44,7 @@ def force_torque_function(n: int) -> ca.Function:
     casadi.Function
         ``thruster_matrices(positions[3xn], directions[3xn], com[3],
         pressure, a[n], b[n], K_p[n]) -> (F[3xn], M[3xn])`` with levels
-        :math:`K_p (a p + b)` (seed 004 eqs. 1, 4).
+        :math:`K_p (a p + b)` ([4] eqs. 1, 4).
     """
     pos = ca.SX.sym("positions", 3, n)
     dirs = ca.SX.sym("directions", 3, n)

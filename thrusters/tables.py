@@ -22,7 +22,7 @@ def _row(quantity, paper, ours):
 
 
 def burn_table(result: ScenarioResult) -> list[tuple]:
-    """Table 3 of seed 004 beside ours: rows (quantity, paper, ours, diff).
+    """Table 3 of [4] beside ours: rows (quantity, paper, ours, diff).
 
     Yaw error is the rotation of the thrust axis (+Y) about body Z, pitch
     error about body X (for small errors these are the deviations of the
@@ -74,7 +74,7 @@ def _cycle_start_momentum(result):
 
 
 def reorientation_table(result: ScenarioResult) -> list[tuple]:
-    """Table 5 of seed 004 beside ours, plus the text's bounds.
+    """Table 5 of [4] beside ours, plus the text's bounds.
 
     Rows (quantity, paper, ours, diff). Group Δv: the group's impulse
     over the initial mass; group thrust: per-cycle mean thrust of the
@@ -181,7 +181,7 @@ def plot_scenario(result: ScenarioResult, path) -> None:
         ax[4].set_ylabel("attitude [deg]")
     ax[4].legend()
     ax[4].set_xlabel("t [s]")
-    fig.suptitle(f"seed 004 {result.name} scenario")
+    fig.suptitle(f"[4] {result.name} scenario")
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

@@ -1,4 +1,4 @@
-"""Thruster sets: geometry, thrust model, pulse transients (seed 004)."""
+"""Thruster sets: geometry, thrust model, pulse transients ([4])."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ KGF_PER_CM2 = 98066.5
 #: Standard gravity [m/s²] (propellant mass = impulse / (Isp g0)).
 G0 = 9.80665
 #: Mounting angles θ of D1, D2, D3 in the XZ plane, from +X towards +Z
-#: [rad] (SPEC section 2); D4, D6, D5 share the positions of D1, D2, D3.
+#: [rad] (theory §2); D4, D6, D5 share the positions of D1, D2, D3.
 SIX_UNIT_ANGLES = np.deg2rad([180.0, 300.0, 60.0])
 #: Engine pairs (0-based) of the six-thruster unit: D1-D4, D2-D6, D3-D5.
 SIX_UNIT_PAIRS = ((0, 3), (1, 5), (2, 4))
@@ -41,7 +41,7 @@ class ThrusterSet:
 
     Thruster ``i`` (0-based in code, named ``names[i]`` in reports) sits at
     ``positions[:, i]`` and pushes the spacecraft along the unit vector
-    ``directions[:, i]`` (body frame). Its steady thrust is seed 004
+    ``directions[:, i]`` (body frame). Its steady thrust is [4]
     eq. (1) and its thrust in a cycle eq. (4):
 
     .. math::
@@ -395,14 +395,14 @@ def six_thruster_unit(R: float = 0.25, L: float = 0.3, thrust: float = 0.5,
                       thrust_offset=0.0,
                       center_of_mass: Sequence[float] = (0.0, 0.0, 0.0),
                       correction=1.0, **kwargs) -> ThrusterSet:
-    """Build the six-thruster unit of seed 004 (engines ordered D1..D6).
+    """Build the six-thruster unit of [4] (engines ordered D1..D6).
 
     Two groups of three engines on a circle of radius ``R`` in planes
     ``y = -L`` (group 1, D1-D3, thrust along +Y) and ``y = +L`` (group 2,
     D4-D6, thrust along -Y). Angles θ from +X towards +Z: D1 180°,
     D2 300°, D3 60°; D4 shares D1's (x, z), D6 D2's, D5 D3's. A +Y thrust
     P at (x, z) gives :math:`M_x = -zP`, :math:`M_z = xP` (Table 1,
-    reconstructed in SPEC section 2).
+    reconstructed in theory §2).
 
     Parameters
     ----------

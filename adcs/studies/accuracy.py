@@ -1,4 +1,4 @@
-"""Study 2: torque accuracy of the pyramid (SPEC 1.3, seed 001)."""
+"""Study 2: torque accuracy of the pyramid (theory §1.3, [1])."""
 
 from __future__ import annotations
 
@@ -153,10 +153,10 @@ def run(ctx: StudyContext) -> Section:
     mc, fig, summary = monte_carlo(ctx)
     section = Section(
         "accuracy", "2. Torque accuracy: mounting and scale-factor errors",
-        "Seed 001's accuracy section: the torque the wheels actually "
+        "[1]'s accuracy section: the torque the wheels actually "
         "produce when the axes are mounted with errors and the torque "
         "scale factors differ, with the nominal axes in law (5) and with "
-        "measured axes (seed 001: measuring the axes removes the coupling "
+        "measured axes ([1]: measuring the axes removes the coupling "
         "and leaves the measurement errors).", [analytic, mc], [fig])
     section.summary = [
         f"case (a): {analytic.rows[1][2]:.3f} % (paper prints "

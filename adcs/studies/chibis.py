@@ -1,4 +1,4 @@
-"""Study 5: Chibis-M actuator failures and the gravity boom (seed 002)."""
+"""Study 5: Chibis-M actuator failures and the gravity boom ([2])."""
 
 from __future__ import annotations
 
@@ -240,7 +240,7 @@ def run(ctx: StudyContext) -> Section:
     spin, tilt = spin_up(ctx, orbit, inertia)
     section = Section(
         "chibis", "5. Chibis-M: coil and wheel failures, gravity boom "
-        "(seed 002)",
+        "([2])",
         "Closed-loop simulations (CVODES) of the Chibis-M microsatellite on "
         "a 6850 km, 51.7° circular orbit with the direct-dipole field: "
         "-Bdot with a coil off, the gravity boom with a pitch wheel, the "

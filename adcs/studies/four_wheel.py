@@ -1,4 +1,4 @@
-"""Study 4: the seed 003 four-wheel nonlinear model."""
+"""Study 4: the [3] four-wheel nonlinear model."""
 
 from __future__ import annotations
 
@@ -21,10 +21,10 @@ def run(ctx: StudyContext) -> Section:
     free = four_wheel_run(sc)
     held = four_wheel_run(sc, controller="pd")
     fig = free.plot()
-    fig.suptitle("seed 003: 150 s, 1e-2 N·m step about X, free wheels")
+    fig.suptitle("[3]: 150 s, 1e-2 N·m step about X, free wheels")
     name = ctx.savefig(fig, "four_wheel_free.png")
     fig = held.plot()
-    fig.suptitle("seed 003: the same disturbance, PD stabilisation")
+    fig.suptitle("[3]: the same disturbance, PD stabilisation")
     name_pd = ctx.savefig(fig, "four_wheel_pd.png")
     ang = float(np.degrees(np.abs(free.angles).max()))
     spd = float(np.abs(free.wheel_speed).max())
@@ -40,7 +40,7 @@ def run(ctx: StudyContext) -> Section:
                   float(np.abs(held.wheel_speed).max()), ""),
     ]
     flags = [r[2] > r[1] for r in rows]
-    table = Table("Seed 003 run: 150 s under a 1e-2 N·m disturbance",
+    table = Table("[3] run: 150 s under a 1e-2 N·m disturbance",
                   PAPER_COLUMNS, rows,
                   "Inertia (86.215, 85.070, 113.565) kg·m², three wheels "
                   "on the axes plus the skewed (0.5, 0.5, −0.707) one "
@@ -50,7 +50,7 @@ def run(ctx: StudyContext) -> Section:
                   "CVODES with the paper's ode15s tolerances. The 'paper' "
                   "column holds its bounds.", flags, digits=4)
     section = Section(
-        "four_wheel", "4. Seed 003: four-wheel nonlinear model",
+        "four_wheel", "4. [3]: four-wheel nonlinear model",
         "The paper's 150 s run of the body with three orthogonal wheels "
         "and one skewed wheel, from the Lagrange model.", [table],
         [Figure(name, "Angles, body rates and wheel speeds, free wheels"),

@@ -93,7 +93,7 @@ def keep_out_table(ctx: StudyContext) -> Table:
 
 #: The slew-against-angle cases: label -> (inertia, wheels, body axis).
 CASES = {"Meteor-M pyramid": (*meteor_m_spacecraft(), (1.0, 1.0, 1.0)),
-         "seed 003": (*four_wheel_slew_spacecraft(), (1.0, -0.5, 0.3))}
+         "[3]": (*four_wheel_slew_spacecraft(), (1.0, -0.5, 0.3))}
 METHODS = ("eigenaxis", "time_optimal", "min_energy", "quaternion_feedback")
 FIELDS = ("T", "energy", "peak_wheel_torque", "peak_wheel_momentum",
           "success", "solve_time")

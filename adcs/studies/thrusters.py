@@ -1,4 +1,4 @@
-"""Study 3: the six-thruster unit in pulse-cycle mode (seed 004)."""
+"""Study 3: the six-thruster unit in pulse-cycle mode ([4])."""
 
 from __future__ import annotations
 
@@ -83,7 +83,7 @@ def run(ctx: StudyContext) -> Section:
                 "than the paper's; flagged rows would break the paper's "
                 "bounds.")
     section = Section(
-        "thrusters", "3. Six-thruster unit in pulse-cycle mode (seed 004)",
+        "thrusters", "3. Six-thruster unit in pulse-cycle mode ([4])",
         "The paper's two scenarios simulated cycle by cycle with the "
         "closed-form duty laws (the QP allocator gives the same duties "
         "where no bound is active, see the tests), and the MPC holding "

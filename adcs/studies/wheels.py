@@ -1,4 +1,4 @@
-"""Study 1: the Meteor-M No. 2 pyramid (SPEC 1.1-1.2, seed 001)."""
+"""Study 1: the Meteor-M No. 2 pyramid (theory §1.1-1.2, [1])."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ GAMMA = np.deg2rad(45.0)
 
 
 def spec_table(arr: WheelArray) -> Table:
-    """SPEC 1.2 reference values (H* = 1) computed beside the paper's."""
+    """Theory §1.2 reference values (H* = 1) computed beside the paper's."""
     env = envelope(arr, "momentum")
     one = envelope(arr.with_failed(0), "momentum")
     rows = [
@@ -42,9 +42,9 @@ def spec_table(arr: WheelArray) -> Table:
         paper_row("circumscribed sphere radius", 2.3169,
                   env.circumscribed_radius, "= H*x"),
         paper_row("inscribed sphere radius r", 1.63, env.inscribed_radius,
-                  "paper ≈1.63; SPEC 1.6303"),
+                  "paper ≈1.63; reference 1.6303"),
         paper_row("utilisation r / 4H*", 0.4, env.utilisation,
-                  "paper ≈0.4; SPEC 0.4076"),
+                  "paper ≈0.4; reference 0.4076"),
         paper_row("facets", 12.0, float(env.n_facets), "rhombic faces"),
         paper_row("wheel 1 failed: inscribed radius", 0.8151,
                   one.inscribed_radius, "halved, as the paper says"),
@@ -58,7 +58,7 @@ def spec_table(arr: WheelArray) -> Table:
                   float(one.support([0, 0, 1.0])), "reached off the axis"),
     ]
     flags = [abs(r[3]) > (0.01 if "≈" in r[4] else 1e-4) for r in rows]
-    return Table("Momentum envelope, SPEC table 1.2 (H* = 1 N·m·s)",
+    return Table("Momentum envelope, theory §1.2 (H* = 1 N·m·s)",
                  PAPER_COLUMNS, rows,
                  "Paper values the paper rounds (≈) are compared to 0.01; "
                  "the others to 1e-4. A flagged row would be a value not "
@@ -109,7 +109,7 @@ def failure_table(arr: WheelArray) -> Table:
 
 
 def reach_headline(arr: WheelArray, results) -> Table:
-    """Set the SPEC 1.2 reach figures beside ours."""
+    """Set the theory §1.2 reach figures beside ours."""
     from allocation.reach import law_extent
     from allocation import min_norm_law
 
@@ -124,8 +124,8 @@ def reach_headline(arr: WheelArray, results) -> Table:
                   mn.mean_direction_fraction),
         paper_row("min-norm: worst-direction fraction", 0.676,
                   mn.min_direction_fraction,
-                  "SPEC's 0.676 is a sampled minimum; the exact minimum is "
-                  "2/3, towards the vertex A·(1,−1,1,1) (tests)"),
+                  "the reference 0.676 is a sampled minimum; the exact "
+                  "minimum is 2/3, towards the vertex A·(1,−1,1,1) (tests)"),
         paper_row("min-norm reach along (−0.577, 0.563, 0.592) [m_max]",
                   1.334, float(law_extent(arr, min_norm_law(arr), u))),
         paper_row("zonotope extent along it [m_max]", 1.973,
@@ -138,10 +138,10 @@ def reach_headline(arr: WheelArray, results) -> Table:
                   "bisection per direction"),
     ]
     flags = [abs(r[3]) > 2e-3 for r in rows]
-    return Table("Minimum-norm law vs bounded QP: SPEC 1.2 figures",
+    return Table("Minimum-norm law vs bounded QP: theory §1.2 figures",
                  PAPER_COLUMNS, rows,
-                 "A flagged row differs from the SPEC beyond 2e-3; see its "
-                 "note.", flags)
+                 "A flagged row differs from the reference beyond 2e-3; "
+                 "see its note.", flags)
 
 
 def reach_results(arr: WheelArray, n_directions: int) -> list:
@@ -157,7 +157,7 @@ def reach_results(arr: WheelArray, n_directions: int) -> list:
 
 
 def reach_rows(results) -> Table:
-    """Share of the torque zonotope each law reaches (SPEC 1.2)."""
+    """Share of the torque zonotope each law reaches (theory §1.2)."""
     rows = []
     for r in results:
         failed = ", ".join(str(i + 1) for i in r.failed) or "none"
@@ -165,7 +165,7 @@ def reach_rows(results) -> Table:
         rows.append([r.law, failed, 100 * r.mean_direction_fraction,
                      100 * r.min_direction_fraction,
                      100 * r.volume_fraction,
-                     "SPEC: 86.7 / 67.6 / ≈66.7" if is_mn else ""])
+                     "reference: 86.7 / 67.6 / ≈66.7" if is_mn else ""])
     return Table("Attainable torque set reached by each law (m_max = 1)",
                  ["law", "failed", "mean over directions %",
                   "worst direction %", "volume %", "reference"], rows,
@@ -242,7 +242,7 @@ def run(ctx: StudyContext) -> Section:
     headline = reach_headline(arr, results)
     trade_fig, trade_line = trade_maps(ctx)
     section = Section(
-        "wheels", "1. Meteor-M No. 2 wheel pyramid (seed 001)",
+        "wheels", "1. Meteor-M No. 2 wheel pyramid ([1])",
         "Four wheels in a pyramid, δ = 55°, γ = 45°. The envelope and "
         "allocation figures are computed by `allocation` and set beside the "
         "paper's values; ⚠ marks an erratum or a value not reproduced.",
@@ -252,7 +252,7 @@ def run(ctx: StudyContext) -> Section:
     mn = reach.rows[0]
     qp_rows = [r for r in reach.rows if r[0].startswith("QP")]
     section.summary = [
-        f"SPEC table 1.2: {ok}/{len(spec.rows)} rows reproduced",
+        f"theory §1.2: {ok}/{len(spec.rows)} rows reproduced",
         f"minimum-norm law reaches {mn[2]:.1f} % (mean), {mn[3]:.1f} % "
         f"(worst direction), {mn[4]:.1f} % of the volume; the bounded QP "
         f"{min(r[3] for r in qp_rows):.1f} % in its worst direction, "

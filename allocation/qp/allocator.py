@@ -79,7 +79,7 @@ class QPAllocator:
         \quad\text{s.t.}\quad A m = M,\;|m_i| \le m_{max,i},\;
         |h_i + m_i\,dt| \le h_{max,i},\; m_{failed} = 0
 
-    (seed 001's weighted criterion with the wheels' limits). The
+    ([1]'s weighted criterion with the wheels' limits). The
     null-space term drives wheel momenta towards ``momentum_target`` with
     ``m_d = -k (h - h_target)``; since A m = M is hard it acts only in the
     null space of A. The power term ``P_e`` is `WheelMotor`'s electrical

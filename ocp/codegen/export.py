@@ -22,7 +22,7 @@ them (`patch_minmax`, the same NaN rules).
 
 Exported functions (names are the C symbols):
 
-* ``min_norm(M[3]) -> m[N]``: seed 001 eq. (5), the closed form;
+* ``min_norm(M[3]) -> m[N]``: [1] eq. (5), the closed form;
 * ``wheel_qp(M[3], h[N]) -> (m[N], alpha, violation)``: the bounded wheel
   QP (`allocation.conic_allocator_function`, torque and momentum bounds;
   closed form, or daqp / qrqp, ``wheel_qp_plugin``);
@@ -303,11 +303,11 @@ def export_c(out_dir, spacecraft=None, *,
     thrusters : thrusters.ThrusterSet, optional
         Thruster set of the duty-cycle QP (skipped when None).
     inertia : array_like (3, 3) or (3,), optional
-        J [kg·m²] of the model (default diag(3.0, 2.5, 3.5), SPEC 2).
+        J [kg·m²] of the model (default diag(3.0, 2.5, 3.5), theory §2).
     cycle : float
         Thruster cycle T_T [s].
     thruster_h_max : float
-        Momentum bound of the duty QP [N·m·s] (0.012 in seed 004).
+        Momentum bound of the duty QP [N·m·s] (0.012 in [4]).
     dt : float
         Sample time of the wheel QP momentum bound, RK4 and MPC [s].
     horizon : int

@@ -1,7 +1,7 @@
-"""Seed 003: spacecraft with four wheels from Lagrange's equations.
+"""[3]: spacecraft with four wheels from Lagrange's equations.
 
 Kulik, Gordin, Reznikova, "Nonlinear model of the spacecraft with four
-reaction wheels" (seed 003, SPEC 3). Generalised coordinates
+reaction wheels" ([3], theory §3). Generalised coordinates
 ``q = (γ, ψ, ϑ, φ_1..φ_4)``: the Euler–Krylov angles of the body (roll γ
 about X, yaw ψ about Y, pitch ϑ about Z, eq. 1) and the rotor angles
 relative to the body. The kinetic energy (eqs. 4–9, centre-of-mass
@@ -62,7 +62,7 @@ __all__ = [
     "four_wheel_craft",
 ]
 
-#: Body inertia of seed 003 [kg·m²] (products of inertia zero).
+#: Body inertia of [3] [kg·m²] (products of inertia zero).
 FOUR_WHEEL_INERTIA = np.diag([86.215, 85.070, 113.565])
 #: 17M71 wheel: momentum [N·m·s], speed [rad/s], torque [N·m].
 WHEEL_17M71 = {"h_max": 4.27, "speed_max": 3500 * 2 * np.pi / 60,
@@ -71,7 +71,7 @@ WHEEL_17M71 = {"h_max": 4.27, "speed_max": 3500 * 2 * np.pi / 60,
 
 @dataclass(frozen=True, eq=False)
 class FourWheelCraft:
-    """The seed 003 spacecraft: body, four wheels, both models.
+    """The [3] spacecraft: body, four wheels, both models.
 
     Attributes
     ----------
@@ -124,7 +124,7 @@ def four_wheel_craft(*, body_inertia=FOUR_WHEEL_INERTIA,
                        wheels: WheelArray | None = None,
                        spin_inertia=None, transverse_inertia=None,
                        mass=3.0, offsets=None) -> FourWheelCraft:
-    """Build the seed 003 spacecraft (Lagrange and Newton–Euler models).
+    """Build the [3] spacecraft (Lagrange and Newton–Euler models).
 
     Parameters
     ----------
@@ -164,7 +164,7 @@ def four_wheel_craft(*, body_inertia=FOUR_WHEEL_INERTIA,
          else as_finite_array(offsets, "offsets", (3, n)))
     A = np.array(wheels.axes)
 
-    # --- kinetic energy (seed 003 eqs. 4-9) and Lagrange's equations
+    # --- kinetic energy ([3] eqs. 4-9) and Lagrange's equations
     q = ca.SX.sym("q", 3 + n)
     qd = ca.SX.sym("qdot", 3 + n)
     w = body_rates_from_angle_rates(q[:3], qd[:3])  # eq. (1)
@@ -206,7 +206,7 @@ def _step_disturbance(axis: int, amplitude: float
 
 @dataclass(frozen=True, eq=False)
 class FourWheelRun:
-    """Trajectories of a seed 003 simulation.
+    """Trajectories of a [3] simulation.
 
     Attributes
     ----------
@@ -272,7 +272,7 @@ def four_wheel_run(spacecraft: FourWheelCraft | None = None, *,
                 controller: str = "none", natural_frequency: float = 0.05,
                 damping: float = 0.9, x0=None, reltol: float = 0.01,
                 abstol: float = 1e-6) -> FourWheelRun:
-    """Reproduce the seed 003 run: response to disturbance torques.
+    """Reproduce the [3] run: response to disturbance torques.
 
     The paper integrates its Lagrange model for 150 s with Gear's method
     (ode15s, relative tolerance 0.01, absolute 1e-6) under disturbance
@@ -351,7 +351,7 @@ def four_wheel_run(spacecraft: FourWheelCraft | None = None, *,
         m = ca.MX.zeros(n)
     law = ca.Function("law", [xs], [m])
     ode = sc.lagrange(xs, m, tau)
-    F = ca.integrator("seed003", "cvodes", {"x": xs, "p": tau, "ode": ode},
+    F = ca.integrator("four_wheel", "cvodes", {"x": xs, "p": tau, "ode": ode},
                       0.0, dt, {"reltol": float(reltol),
                                 "abstol": float(abstol)})
     k = int(np.ceil(t_final / dt - 1e-9))

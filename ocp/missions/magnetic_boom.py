@@ -1,4 +1,4 @@
-"""Chibis-M (seed 002): magnetic and wheel actuators, failures, gravity boom.
+"""Chibis-M ([2]): magnetic and wheel actuators, failures, gravity boom.
 
 One closed-loop ODE holds the spacecraft in the orbit frame (`environment`)
 with three coils running "-Bdot" (eq. 1.7) plus an optional constant
@@ -106,9 +106,9 @@ class CircularOrbit:
         return dipole_field_orbit(u, self.inclination, self.radius)
 
 
-#: Inertia before the boom is deployed [kg·m²] (seed 002).
+#: Inertia before the boom is deployed [kg·m²] ([2]).
 STOWED_INERTIA = (1.02, 1.51, 1.73)
-#: Chibis-M coil saturation [A·m²] (seed 002).
+#: Chibis-M coil saturation [A·m²] ([2]).
 MAX_DIPOLE = 3.2
 
 
@@ -414,7 +414,7 @@ def planar_model_critical_dipole(inertia, orbit: CircularOrbit,
                                  ) -> float:
     r"""Largest dipole that keeps the boom oscillating: the paper's model.
 
-    Seed 002 simplifies (3.4) to a linear oscillator with the largest
+    [2] simplifies (3.4) to a linear oscillator with the largest
     forcing: the free amplitude
     :math:`\alpha_{gr} = \sqrt{\alpha_0^2 + (\dot\alpha_0/\lambda)^2}`,
     :math:`\lambda^2 = 3\omega_0^2 (A-C)/B`, plus the forced amplitude

@@ -1,6 +1,6 @@
-"""Orbit environment of seed 002 (SPEC 3): gravity gradient, dipole field.
+"""Orbit environment of [2] (theory §3): gravity gradient, dipole field.
 
-Orbit frame (SPEC 3): X1 along the velocity, X3 along the radius vector,
+Orbit frame (theory §3): X1 along the velocity, X3 along the radius vector,
 X2 completing the right-handed triad (along the orbit normal r × v); on a
 circular orbit it turns at :math:`ω_0 = \\sqrt{μ/r^3}` about X2. The
 attitude quaternion ``q`` maps body vectors to the orbit frame and ``ω``
@@ -91,7 +91,7 @@ def gravity_gradient_torque(inertia, e3_body, w0: float):
 
 def dipole_field_orbit(u, inclination: float, radius: float,
                        dipole: float = EARTH_DIPOLE):
-    """Direct-dipole field in orbit axes [T] (seed 002, SPEC 3).
+    """Direct-dipole field in orbit axes [T] ([2], theory §3).
 
     Parameters
     ----------
@@ -162,7 +162,7 @@ class OrbitModel:
 def orbit_model(inertia, *, radius: float = 6_850e3,
                 inclination: float = np.deg2rad(51.7), u0: float = 0.0,
                 dipole: float = EARTH_DIPOLE) -> OrbitModel:
-    """Build the orbit model of seed 002 (Chibis-M orbit by default).
+    """Build the orbit model of [2] (Chibis-M orbit by default).
 
     Parameters
     ----------
@@ -221,7 +221,7 @@ def orbit_model(inertia, *, radius: float = 6_850e3,
 
 def orbit_wheel_law(model: OrbitModel, k_omega: float,
                       k_a: float) -> ca.Function:
-    """Nominal wheel law of seed 002, eq. (1.8).
+    """Nominal wheel law of [2], eq. (1.8).
 
     .. math::
         \\dot H + ω \\times H = k_ω ω_{rel} + k_a S - ω \\times Jω
@@ -231,7 +231,7 @@ def orbit_wheel_law(model: OrbitModel, k_omega: float,
     with A the direction-cosine matrix body ← orbit and
     :math:`A ω_0 = ω_0 A e_2` the orbit rate in body axes, so
     :math:`\\dot A ω_0 = (ω_0 A e_2) \\times ω_{rel}`. The last term is
-    read from the extraction (SPEC 3 omits it): with it the closed loop is
+    read from the extraction (theory §3 omits it): with it the closed loop is
     exactly :math:`J \\dot ω_{rel} = -k_ω ω_{rel} - k_a S + M_{ext}`.
 
     Parameters

@@ -30,7 +30,7 @@ EK_SINGULAR_TOL = 1e-6
 
 
 def dcm_body_from_ref_ek(angles):
-    """:math:`C_{body\\leftarrow ref} = R_1(γ) R_2(ψ) R_3(ϑ)` (seed 003).
+    """:math:`C_{body\\leftarrow ref} = R_1(γ) R_2(ψ) R_3(ϑ)` ([3]).
 
     Parameters
     ----------
@@ -53,7 +53,7 @@ def dcm_body_from_ref_ek(angles):
 
 
 def body_rates_from_angle_rates(angles, rates):
-    """Body rates from angle rates, seed 003 eq. (1).
+    """Body rates from angle rates, [3] eq. (1).
 
     .. math::
         ω_x = \\dot γ - \\dot ϑ \\sin ψ,\\quad
@@ -76,7 +76,7 @@ def body_rates_from_angle_rates(angles, rates):
 
 
 def ek_angle_rates(angles, w):
-    """Angle rates from body rates: the inverse of seed 003 eq. (1).
+    """Angle rates from body rates: the inverse of [3] eq. (1).
 
     .. math::
         \\dot ϑ = \\frac{ω_y \\sin γ + ω_z \\cos γ}{\\cos ψ},\\quad

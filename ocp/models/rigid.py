@@ -1,10 +1,10 @@
-"""Rigid spacecraft with reaction wheels, a torque box or thrusters (SPEC 3).
+"""Rigid spacecraft with wheels, a torque box or thrusters (theory §3).
 
 State ``x = (q, ω, H_w)``: attitude quaternion ``q`` (4, scalar-first,
 body to reference), body rate ``ω`` (3) [rad/s] and the wheel momenta
 ``H_w`` (N) [N·m·s], each the absolute angular momentum of rotor ``i``
 along its spin axis. Control ``u``: the motor torques ``m`` (N) [N·m]
-acting on the rotors. Dynamics (SPEC 3):
+acting on the rotors. Dynamics (theory §3):
 
 .. math::
     J\\dot ω = -ω \\times (Jω + A H_w) - A m + τ_{ext},\\qquad
@@ -15,10 +15,10 @@ inertia excluded (their momentum is in ``H_w``). Without wheels the state
 is ``(q, ω)`` and ``u`` is a body torque (3) [N·m] bounded per axis (an
 ideal torque box): :math:`J\\dot ω = -ω\\times Jω + u + τ_{ext}`.
 
-A thruster set (`thrusters.ThrusterSet`, e.g. seed 004's six-engine unit)
+A thruster set (`thrusters.ThrusterSet`, e.g. [4]'s six-engine unit)
 adds its duty fractions ``k`` (n_t) in [0, 1] to the controls, after the
 wheel torques: ``u = (m, k)``. It acts through its mean torque over a
-pulse cycle, :math:`τ_{thr} = T k` with ``T = torque_matrix()`` (seed 004
+pulse cycle, :math:`τ_{thr} = T k` with ``T = torque_matrix()`` ([4]
 eqs. 5-6), on the right-hand side of the body equation. That is the
 cycle-averaged model, valid when the cycle is short against the attitude
 motion; the pulses themselves are in `thrusters.scenarios`.
@@ -338,7 +338,7 @@ def rigid_spacecraft(inertia, wheels: WheelArray | None = None, *,
     thrusters : thrusters.ThrusterSet, optional
         Thruster set; its duties follow the wheel torques in ``u`` and act
         through the cycle-averaged torque ``torque_matrix() @ k``. With
-        wheels this is seed 004's spacecraft (wheels plus an unloading
+        wheels this is [4]'s spacecraft (wheels plus an unloading
         unit); alone, a thruster-only spacecraft.
 
     Returns
@@ -410,10 +410,10 @@ def rigid_spacecraft(inertia, wheels: WheelArray | None = None, *,
 
 def euler_krylov_model(inertia, wheels: WheelArray | None = None
                        ) -> ca.Function:
-    """Dynamics in Euler–Krylov angles, for comparison with seed 003.
+    """Dynamics in Euler–Krylov angles, for comparison with [3].
 
     State ``(γ, ψ, ϑ, ω, H_w)``; the angle rates follow the inverse of
-    seed 003 eq. (1) (see `ocp.models.angles.ek_angle_rates`) and are singular
+    [3] eq. (1) (see `ocp.models.angles.ek_angle_rates`) and are singular
     at ``cos ψ = 0`` (yaw ±90°), where the Function returns inf/NaN: use
     the quaternion model for large slews.
 

@@ -1,4 +1,4 @@
-"""Receding-horizon (MPC) attitude control with wheel-level limits (SPEC 4).
+"""Receding-horizon (MPC) attitude control with wheel-level limits (theory §4).
 
 The optimal-control problem is formulated once, by multiple shooting over
 ``horizon`` RK4 intervals of length ``dt``, with the parameters

@@ -1,4 +1,4 @@
-"""Slew comparisons: NLP vs eigenaxis vs quaternion feedback (SPEC 4)."""
+"""Slew comparisons: NLP vs eigenaxis vs quaternion feedback (theory §4)."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ __all__ = [
     "four_wheel_slew_spacecraft",
 ]
 
-#: ASSUMED inertia of Meteor-M No. 2 [kg·m²]: seed 001 gives the wheel
+#: ASSUMED inertia of Meteor-M No. 2 [kg·m²]: [1] gives the wheel
 #: pyramid but no inertia; a 2.7 t spacecraft of about 5 x 2.5 x 2.5 m.
 METEOR_M_INERTIA = np.diag([3000.0, 2700.0, 2000.0])
 
@@ -52,7 +52,7 @@ def meteor_m_spacecraft(h_max: float = 25.0, m_max: float = 0.2
 
 
 def four_wheel_slew_spacecraft() -> tuple[np.ndarray, WheelArray]:
-    """Newton–Euler inertia and 17M71 wheels of the seed 003 spacecraft."""
+    """Newton–Euler inertia and 17M71 wheels of the [3] spacecraft."""
     sc = four_wheel_craft()
     return sc.inertia, sc.wheels
 

@@ -1,4 +1,4 @@
-"""Rest-to-rest slews as NLPs: time-optimal and minimum-energy (SPEC 4).
+"""Rest-to-rest slews as NLPs: time-optimal and minimum-energy (theory §4).
 
 The NLP is built with CasADi ``nlpsol`` on ``N`` intervals of length
 ``T/N`` with piecewise-constant controls, by multiple shooting (one RK4

@@ -1,4 +1,4 @@
-"""Accuracy of the realised torque, seed 001 "accuracy estimate" (SPEC 1.3).
+"""Accuracy of the realised torque, [1] "accuracy estimate" (theory §1.3).
 
 M1 = A_1 m̂ with the actual axes A_1 and m̂_i = m_i (1 ± Δ_i); the error
 ΔM = M − M1 and the cross-coupling angle Δα between M and M1.
@@ -217,7 +217,7 @@ def test_monte_carlo_per_sample_demands_and_failed_wheel():
                              scale_tol=0.0, failed=[0, 1])
 
 
-# ------------------------------------------------- any array (SPEC 1.4)
+# ------------------------------------------------- any array (theory §1.4)
 def test_tilted_axes_match_with_mounting_errors():
     arr = WheelArray.orthogonal_plus_skew()
     rng = np.random.default_rng(2)

@@ -1,4 +1,4 @@
-"""WheelArray: constructors of SPEC 1.1 / 1.4, failures, bad input."""
+"""WheelArray: constructors of theory §1.1 / 1.4, failures, bad input."""
 
 import casadi as ca
 import numpy as np
@@ -24,7 +24,7 @@ def test_pyramid_columns_follow_spec_1_1(pyramid):
     np.testing.assert_allclose(pyramid.axes, expected, atol=1e-15)
 
 
-def test_orthogonal_plus_skew_paper_axis_is_seed_003():
+def test_orthogonal_plus_skew_paper_axis_is_the_four_wheel_papers():
     arr = WheelArray.orthogonal_plus_skew()
     np.testing.assert_allclose(arr.axes[:, 3], [0.5, 0.5, -np.sqrt(0.5)],
                                atol=1e-15)

@@ -1,6 +1,6 @@
-"""Momentum envelope of seed 001 ("properties of the wheel system"), SPEC 1.2.
+"""Momentum envelope of [1] ("properties of the wheel system"), theory §1.2.
 
-One test per row of the SPEC 1.2 table (H* = 1), nominal and after each
+One test per row of the theory §1.2 table (H* = 1), nominal and after each
 single failure. The pyramid is symmetric under the reflections y -> -y
 (swaps wheels 1-2 and 3-4) and z -> -z (swaps 1-4 and 2-3), so all four
 single failures give the same numbers; the tests check every wheel.
@@ -31,7 +31,7 @@ def env(pyramid) -> Envelope:
     return envelope(pyramid, "momentum")
 
 
-# ------------------------------------------------------ SPEC 1.2, nominal
+# ------------------------------------------------------ theory §1.2, nominal
 def test_row_Hx_star_is_4_sin_delta_cos_gamma_2_3169(env):
     assert env.axis_max[0] == pytest.approx(4 * SD * CG, abs=1e-12)
     assert env.axis_max[0] == pytest.approx(2.3169, abs=5e-5)
@@ -83,7 +83,7 @@ def test_row_12_facets_rhombic_with_side_2Hstar(env):
         np.testing.assert_allclose(sides, 2.0, atol=1e-12)
 
 
-# ------------------------------------------- SPEC 1.2, one wheel failed
+# ------------------------------------------- theory §1.2, one wheel failed
 @pytest.mark.parametrize("failed", WHEELS)
 def test_row_after_failure_inscribed_radius_0_8151_halved(pyramid, env,
                                                           failed):
@@ -262,7 +262,7 @@ def test_orthogonal_plus_equal_angle_skew_inscribed_radius_sqrt2():
 
 
 def test_utilisation_of_arrays_with_more_wheels_stays_below_0_47():
-    # seed 001 quoting ref. [5]: with more wheels the coefficient of use
+    # [1] quoting ref. [5]: with more wheels the coefficient of use
     # does not exceed 0.47; e.g. six wheels on the icosahedron's axes,
     # N wheels on a 54.7° cone
     p = (1.0 + np.sqrt(5.0)) / 2.0

@@ -1,4 +1,4 @@
-"""Closed-form laws of seed 001: eqs. (5), (7)-(9), failure laws, weights."""
+"""Closed-form laws of [1]: eqs. (5), (7)-(9), failure laws, weights."""
 
 import numpy as np
 import pytest

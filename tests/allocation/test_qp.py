@@ -77,7 +77,7 @@ def test_backends_agree_on_a_bounded_case(solver):
 
 @pytest.mark.parametrize("solver", BACKENDS)
 def test_saturated_demand_keeps_its_direction(solver):
-    """SPEC 1.2: in the worst direction the QP reaches 1.973 m_max."""
+    """Theory §1.2: in the worst direction the QP reaches 1.973 m_max."""
     arr = WheelArray.pyramid(DELTA, GAMMA, h_max=1.0, m_max=1.0)
     res = QPAllocator(arr, solver=solver).allocate(3.0 * WORST)
     assert res.status == "saturated" and res.mode == "scale"

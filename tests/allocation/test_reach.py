@@ -1,7 +1,7 @@
-"""Reach of allocation laws in the attainable torque set (SPEC 1.2).
+"""Reach of allocation laws in the attainable torque set (theory §1.2).
 
 The set is the zonotope A·[-m_max, m_max]^4 (m_max = 1 N·m here). The
-minimum-norm law of seed 001 eq. (5) saturates a wheel before the demand
+minimum-norm law of [1] eq. (5) saturates a wheel before the demand
 leaves it; a bounded (direct) allocator reaches all of it.
 """
 
@@ -30,8 +30,8 @@ from allocation.reach import (
 )
 
 WHEELS = [0, 1, 2, 3]
-#: SPEC 1.2's worst direction and extents, printed to 3 decimals.
-SPEC_WORST_DIRECTION = np.array([-0.577, 0.563, 0.592])
+#: theory §1.2's worst direction and extents, printed to 3 decimals.
+REFERENCE_WORST_DIRECTION = np.array([-0.577, 0.563, 0.592])
 
 
 class Allocation(NamedTuple):
@@ -85,7 +85,7 @@ def sampling_tolerance(result) -> float:
     return 3.0 * np.std(result.fractions) / np.sqrt(result.n_directions)
 
 
-# ------------------------------------------------------------ SPEC 1.2
+# ------------------------------------------------------------ theory §1.2
 def test_min_norm_reaches_the_zonotope_along_the_body_axes(nominal):
     env = envelope(nominal, "torque")
     axes = np.hstack([np.eye(3), -np.eye(3)])
@@ -97,7 +97,7 @@ def test_min_norm_reaches_the_zonotope_along_the_body_axes(nominal):
 
 def test_min_norm_reaches_86_7_percent_on_average(min_norm_reach_random):
     r = min_norm_reach_random
-    # SPEC rounds to 0.1 %; the sample mean has a standard error
+    # The reference rounds to 0.1 %; the sample mean has a standard error
     # std/sqrt(20000) = 0.0006 (std of the fraction about 0.08)
     tol = 0.0005 + sampling_tolerance(r)
     assert r.mean_direction_fraction == pytest.approx(0.867, abs=tol)
@@ -110,7 +110,7 @@ def test_min_norm_mean_fraction_on_a_fibonacci_sphere(nominal):
 
 
 def test_spec_worst_direction_1_334_against_1_973(nominal):
-    u = SPEC_WORST_DIRECTION / np.linalg.norm(SPEC_WORST_DIRECTION)
+    u = REFERENCE_WORST_DIRECTION / np.linalg.norm(REFERENCE_WORST_DIRECTION)
     law = law_extent(nominal, min_norm_law(nominal), u)
     zono = envelope(nominal, "torque").radial_extent(u)
     # the direction is printed to 3 decimals, which moves the extents by
@@ -122,7 +122,7 @@ def test_spec_worst_direction_1_334_against_1_973(nominal):
 
 def test_true_worst_direction_is_a_vertex_with_two_thirds(
         nominal, min_norm_reach_random):
-    # The SPEC's 67.6 % is a sampled minimum. The refined minimum is at
+    # the reference 67.6 % is a sampled minimum. The refined minimum is at
     # the zonotope vertex A s, s = (1, -1, 1, 1) (and its mirror images):
     # |A s| = 2, and the minimum-norm law gives m = s - n with the null
     # vector n = (1, -1, 1, -1)/2 (s·n = 1), max |m_i| = 3/2: 4/3 reached.
@@ -133,10 +133,10 @@ def test_true_worst_direction_is_a_vertex_with_two_thirds(
     vertex = nominal.axes @ np.array([1.0, -1.0, 1.0, 1.0])
     np.testing.assert_allclose(np.abs(r.worst_direction),
                                np.abs(vertex) / 2.0, atol=1e-6)
-    # and it is the SPEC's direction up to the pyramid's mirror symmetry
+    # and it is the reference direction up to the pyramid's mirror symmetry
     # (sign changes of any body axis), within rounding of that sample
-    spec = np.abs(SPEC_WORST_DIRECTION) / np.linalg.norm(
-        SPEC_WORST_DIRECTION)
+    spec = np.abs(REFERENCE_WORST_DIRECTION) / np.linalg.norm(
+        REFERENCE_WORST_DIRECTION)
     angle = np.degrees(np.arccos(spec @ np.abs(r.worst_direction)))
     assert angle < 2.0
     assert r.min_direction_fraction <= 0.676

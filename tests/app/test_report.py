@@ -29,8 +29,8 @@ def test_report_has_every_section(quick_report):
 
 def test_report_tables_set_paper_beside_ours(quick_report):
     md = (quick_report / "report.md").read_text()
-    assert md.count("| quantity | paper / SPEC | ours | ours − paper |") >= 3
-    # SPEC 1.2 inscribed radius, computed
+    assert md.count("| quantity | reference | ours | ours − paper |") >= 3
+    # theory §1.2 inscribed radius, computed
     assert re.search(r"inscribed sphere radius r \| 1.63 \| 1.6303", md)
     # the errata are flagged
     assert "⚠ m2" in md and "ERRATUM" in md

@@ -1,4 +1,4 @@
-"""Seed 003: Lagrange model by automatic differentiation, the 150 s run."""
+"""[3]: Lagrange model by automatic differentiation, the 150 s run."""
 
 import matplotlib
 

@@ -1,4 +1,4 @@
-"""Closed-form slews of SPEC 4: eigenaxis bang–coast–bang, quaternion PD."""
+"""Closed-form slews of theory §4: eigenaxis bang–coast–bang, quaternion PD."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The Chibis-M closed loop (seed 002) against hand values and eq. (3.7)."""
+"""The Chibis-M closed loop ([2]) against hand values and eq. (3.7)."""
 
 import numpy as np
 import pytest
@@ -50,7 +50,7 @@ def test_torque_free_motion_conserves_angular_momentum_and_norm():
 
 
 def test_bdot_with_coil_1_off_damps_slowest_about_axis_3():
-    """Seed 002 Fig. 2: the third component is damped more slowly."""
+    """[2] Fig. 2: the third component is damped more slowly."""
     cfg = ChibisConfig(bdot_gain=5e5, coils=(0, 1, 1))
     r = simulate(cfg, initial_state(cfg, (5, 5, 5), (10, 10, 10)),
                  2 * ORBIT.period, n_out=200)
@@ -65,7 +65,7 @@ def test_deployed_inertia_inferred_from_epsilon_and_six_degrees():
     assert eps == pytest.approx(0.16)
     assert np.degrees(pitch_offset_eq37(ORBIT, (A, B, C), 0.1)) == \
         pytest.approx(6.0)
-    assert B > A > C  # stable orbital attitude with the boom (seed 002)
+    assert B > A > C  # stable orbital attitude with the boom ([2])
 
 
 @pytest.mark.slow

@@ -165,9 +165,9 @@ def test_rti_large_slew_150deg_within_limits(model):
     assert r.extras["mean_iterations"] < 2.0
 
 
-# thrusters in the loop: seed 004's spacecraft unloads its wheels -----------
+# thrusters in the loop: [4]'s spacecraft unloads its wheels -----------
 def test_thrusters_unload_wheels_under_a_secular_disturbance():
-    """Seed 004: 0.0012 N·m about X against wheels with |H| <= 0.012.
+    """[4]: 0.0012 N·m about X against wheels with |H| <= 0.012.
 
     Wheels alone saturate after ~10 s and the attitude drifts; with the
     six-thruster unit in the MPC (duties in [0, 1], propellant in the

@@ -1,4 +1,4 @@
-"""Models of SPEC 3: quaternion and Euler–Krylov kinematics, wheel dynamics."""
+"""Models of theory §3: quaternion and Euler–Krylov kinematics, wheels."""
 
 import casadi as ca
 import numpy as np
@@ -255,8 +255,8 @@ def test_idas_and_cvodes_agree_on_a_torque_free_tumble():
     np.testing.assert_allclose(e, e[0], rtol=1e-8)
 
 
-# thrusters as the external torque (seed 004's spacecraft) ---------------
-J54 = np.diag([3.0, 2.5, 3.5])          # seed 004's 54 kg spacecraft
+# thrusters as the external torque ([4]'s spacecraft) ---------------
+J54 = np.diag([3.0, 2.5, 3.5])          # [4]'s 54 kg spacecraft
 
 
 def test_wheels_plus_thrusters_equal_the_numpy_reference():

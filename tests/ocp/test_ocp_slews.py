@@ -1,4 +1,4 @@
-"""NLP slews of SPEC 4 against the eigenaxis law and Bilimoria & Wie (1993)."""
+"""NLP slews (theory §4) against the eigenaxis law and Bilimoria & Wie."""
 
 import matplotlib
 

@@ -1,4 +1,4 @@
-"""Orbit environment of seed 002: gravity gradient, dipole field, −Bdot."""
+"""Orbit environment of [2]: gravity gradient, dipole field, −Bdot."""
 
 import casadi as ca
 import numpy as np
@@ -15,7 +15,7 @@ from ocp.missions.orbit_environment import (
     orbit_rate,
 )
 
-CHIBIS_J = np.diag([1.02, 1.51, 1.73])  # seed 002, boom stowed
+CHIBIS_J = np.diag([1.02, 1.51, 1.73])  # [2], boom stowed
 R_ORBIT = 6_850e3
 INC = np.deg2rad(51.7)
 

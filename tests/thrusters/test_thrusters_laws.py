@@ -1,4 +1,4 @@
-"""Seed 004 closed forms: eq. (2) unloading, eqs. (8)-(10), Table 4."""
+"""[4] closed forms: eq. (2) unloading, eqs. (8)-(10), Table 4."""
 
 import numpy as np
 import pytest

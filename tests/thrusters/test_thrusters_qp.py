@@ -1,4 +1,4 @@
-"""Duty-cycle QP (SPEC 2): backends vs an exact KKT reference.
+"""Duty-cycle QP (theory §2): backends vs an exact KKT reference.
 
 Also the closed forms of eqs. (2), (8)-(9) vs the QP, the momentum bound
 and the min on-time carry.

@@ -1,4 +1,4 @@
-"""Seed 004 scenarios: Table 2/3 burn, Table 5 reorientation, bounds."""
+"""[4] scenarios: Table 2/3 burn, Table 5 reorientation, bounds."""
 
 import numpy as np
 import pytest

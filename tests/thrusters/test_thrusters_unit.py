@@ -1,4 +1,4 @@
-"""Seed 004: the six-thruster unit, eqs. (1), (3)-(6), Table 1, transients."""
+"""[4]: the six-thruster unit, eqs. (1), (3)-(6), Table 1, transients."""
 
 import casadi as ca
 import numpy as np
@@ -25,7 +25,7 @@ def unit():
 
 def test_table1_arms_group1_as_reconstructed(unit):
     M = unit.torque_matrix()
-    # Table 1 (SPEC section 2): Mx, Mz of D1..D3 for thrust P
+    # Table 1 (theory §2): Mx, Mz of D1..D3 for thrust P
     np.testing.assert_allclose(M[0, :3], [0.0, S3 * R * P, -S3 * R * P],
                                atol=1e-15)
     np.testing.assert_allclose(M[2, :3], [-R * P, 0.5 * R * P, 0.5 * R * P],

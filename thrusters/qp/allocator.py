@@ -132,7 +132,7 @@ class DutyCycleAllocator:
         \\text{s.t.}\\ \\ \\sum_i k_i P_{y,i} = P_T,\\ \\
         H + T_T(M_{thr} k + \\tau_{dist}) \\in \\mathcal{B}(h_{max})
 
-    (SPEC section 2; details and scaling in `build_qp`). It generalises
+    (theory §2; details and scaling in `build_qp`). It generalises
     eq. (2) (``P_T != 0``, ``M = -K_{unl} H / T_T``) and eqs. (8)-(9)
     (``P_T = 0``): where they stay inside [0, 1] the hard-tracking QP
     returns the same duties; where they must clip, the QP returns the
@@ -148,7 +148,7 @@ class DutyCycleAllocator:
     cycle : float
         Cycle length T_T [s] (>= ``unit.min_on_time``).
     h_max : float
-        Momentum bound [N·m·s] (0.012 in seed 004's Table 2).
+        Momentum bound [N·m·s] (0.012 in [4]'s Table 2).
     solver : str
         Backend name (default ``"daqp"``: DAQP called directly, exact);
         see `available_solvers`. When another backend fails on a feasible

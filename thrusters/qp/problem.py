@@ -128,7 +128,7 @@ def build_qp(unit: ThrusterSet, cycle: float, h_max: float,
              propellant_weight: float = 1.0,
              regularization: float = 1e-4,
              slack_weight: float = 1e4) -> DutyCycleQP:
-    """Build the canonical duty-cycle QP of a thruster set (SPEC 2).
+    """Build the canonical duty-cycle QP of a thruster set (theory §2).
 
     Cost: propellant per cycle :math:`\\sum_i k_i T_T P_i/(I_{sp} g_0)`
     (scaled to a maximum coefficient of ``propellant_weight``), a small
