@@ -38,6 +38,7 @@ from adcs_common.exceptions import (
 )
 from adcs_common.paths import output_folder
 from ocp.spacecraft import load_spacecraft
+from adcs.provenance import provenance
 
 __all__ = [
     "BenchRow",
@@ -527,24 +528,40 @@ def run_bench(out_dir=None, *, problems: Sequence[str] = PROBLEMS,
     _check_backends(backends)
     if spacecraft is not None:
         spacecraft = load_spacecraft(spacecraft)
+    out = None if out_dir is None else output_folder(out_dir, "out")
     show = _progress_fn(progress)
     rows: list[BenchRow] = []
-    if "wheels" in probs:
-        show("[wheels] bounded allocation QP")
-        rows += bench_wheels(backends, reps, seed, show, spacecraft)
-    if "thrusters" in probs:
-        show("[thrusters] duty-cycle QP, six-thruster unit")
-        rows += bench_thrusters(backends, reps, seed, show, spacecraft)
-    if "slew" in probs:
-        show("[slew] MPC slew NLP, horizon 20")
-        rows += bench_slew(backends, max(reps // 5, 2) if not quick else 2,
-                           show, quick, spacecraft)
+    stopped = None
+    try:
+        if "wheels" in probs:
+            stopped = "wheels"
+            show("[wheels] bounded allocation QP")
+            rows += bench_wheels(backends, reps, seed, show, spacecraft)
+        if "thrusters" in probs:
+            stopped = "thrusters"
+            show("[thrusters] duty-cycle QP, six-thruster unit")
+            rows += bench_thrusters(backends, reps, seed, show, spacecraft)
+        if "slew" in probs:
+            stopped = "slew"
+            show("[slew] MPC slew NLP, horizon 20")
+            rows += bench_slew(backends, max(reps // 5, 2) if not quick
+                               else 2, show, quick, spacecraft)
+        stopped = None
+    except KeyboardInterrupt:
+        pass
     print(format_table(rows))
-    if out_dir is not None:
-        out = output_folder(out_dir, "out")
+    if out is not None:
         (out / "bench.json").write_text(json.dumps(
             {"tolerance": TOL, "repetitions": reps,
+             "interrupted_during": stopped,
+             "provenance": dict(provenance()),
              "rows": [asdict(r) for r in rows]}, indent=2))
-        _plot(rows, out / "bench.png")
-        print(f"wrote {out / 'bench.json'} and {out / 'bench.png'}")
+        if rows:
+            _plot(rows, out / "bench.png")
+        print(f"wrote {out / 'bench.json'}" + (
+            f" and {out / 'bench.png'}" if rows else ""))
+    if stopped is not None:
+        raise KeyboardInterrupt(
+            f"benchmark stopped during {stopped!r}; {len(rows)} finished "
+            "rows kept" + (f" in {out / 'bench.json'}" if out else ""))
     return rows

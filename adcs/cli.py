@@ -273,6 +273,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except AdcsError as exc:
         print(f"adcs: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as exc:
+        note = f": {exc}" if str(exc) else ""
+        print(f"adcs: interrupted{note}", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -244,6 +244,9 @@ def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
     ------
     InvalidValueError
         An unknown study key.
+    KeyboardInterrupt
+        Ctrl-C during a study: the report of the studies finished before
+        it is written first (its title says so), and the message names it.
     """
     import matplotlib
 
@@ -262,21 +265,33 @@ def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
         if stream is not None else (lambda msg: None)
     sections = []
     t_all = time.perf_counter()
+    stopped = None
     for i, key in enumerate(keys, 1):
         module, title = STUDIES[key]
         say(f"[{i}/{len(keys)}] {title} ...")
         t0 = time.perf_counter()
-        study = importlib.import_module(f"adcs.studies.{module}")
-        section = study.run(ctx)
+        try:
+            study = importlib.import_module(f"adcs.studies.{module}")
+            section = study.run(ctx)
+        except KeyboardInterrupt:
+            stopped = title
+            break
         section.seconds = time.perf_counter() - t0
         sections.append(section)
         for line in section.summary:
             say(f"      {line}")
         say(f"      done in {section.seconds:.1f} s")
     title = "ADCS toolbox report" + (" (quick)" if quick else "")
+    if stopped is not None:
+        title += (f" (interrupted during {stopped!r}: {len(sections)} of "
+                  f"{len(keys)} studies)")
     made = provenance(time.perf_counter() - t_all)
     (out / "report.md").write_text(_markdown(sections, title, made))
     (out / "report.html").write_text(_html(sections, title, out, made))
+    if stopped is not None:
+        raise KeyboardInterrupt(
+            f"{len(sections)} of {len(keys)} studies finished, saved in "
+            f"{out / 'report.html'}")
     say(f"wrote {out / 'report.html'} and {out / 'report.md'} "
         f"in {time.perf_counter() - t_all:.1f} s")
     return sections

@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 
 from adcs_common.exceptions import InvalidValueError
-from adcs_common.validation import as_finite_array
+from adcs_common.validation import as_angle, as_finite_array
 
 __all__ = [
     "as_unit_quaternion",
@@ -96,13 +96,14 @@ def quat_from_axis_angle(axis, angle: float) -> np.ndarray:
     Raises
     ------
     InvalidValueError
-        ``axis`` has zero length.
+        ``axis`` has zero length, or ``|angle| > 2π`` (degrees given for
+        radians: the message suggests ``np.deg2rad``).
     """
     a = as_finite_array(axis, "axis", (3,))
     n = np.linalg.norm(a)
     if n < 1e-12:
         raise InvalidValueError(f"axis must be non-zero, got {a}")
-    half = 0.5 * float(angle)
+    half = 0.5 * as_angle(angle, "angle")
     return np.concatenate([[np.cos(half)], np.sin(half) * a / n])
 
 

@@ -123,3 +123,43 @@ def check_instance(value, cls: type, name: str) -> None:
     if not isinstance(value, cls):
         raise InvalidValueError(
             f"{name} must be a {cls.__name__}, got {type(value).__name__}")
+
+
+def as_angle(value, name: str, limit: float = 2.0 * np.pi) -> float:
+    """Return ``value`` as a finite angle [rad] with ``|value| <= limit``.
+
+    A larger value is almost always degrees given where radians are
+    expected (``WheelArray.pyramid(55, 45)``): the error says so and
+    suggests ``np.deg2rad``.
+
+    Raises
+    ------
+    InvalidValueError
+        Not a finite number, or beyond ``limit``.
+    """
+    v = as_finite_scalar(value, name)
+    if abs(v) > limit:
+        raise InvalidValueError(
+            f"{name} = {v:g} rad is beyond {limit:.4g} rad: angles are in "
+            f"radians; for degrees pass np.deg2rad({v:g})")
+    return v
+
+
+def as_angles(value, n: int | None, name: str,
+              limit: float = 2.0 * np.pi) -> np.ndarray:
+    """Return ``value`` as a vector of angles [rad], each within ``limit``.
+
+    Raises
+    ------
+    ShapeError, InvalidValueError
+        Wrong length, not finite, or an angle beyond ``limit`` (degrees
+        given for radians: the error suggests ``np.deg2rad``).
+    """
+    v = as_vector(value, n, name)
+    big = np.abs(v) > limit
+    if big.any():
+        i = int(np.argmax(big))
+        raise InvalidValueError(
+            f"{name}[{i}] = {v[i]:g} rad is beyond {limit:.4g} rad: angles "
+            f"are in radians; for degrees pass np.deg2rad(...)")
+    return v

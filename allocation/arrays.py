@@ -9,7 +9,8 @@ import numpy as np
 
 from adcs_common.exceptions import InvalidValueError, RankError, ShapeError
 from adcs_common.validation import (
-    as_finite_scalar,
+    as_angle,
+    as_angles,
     as_index,
     as_finite_array,
     as_vector,
@@ -225,8 +226,8 @@ class WheelArray:
             Tilt angles [rad].
         """
         n = self.n_wheels
-        ta = as_vector(tilt_a, n, "tilt_a")
-        tb = as_vector(tilt_b, n, "tilt_b")
+        ta = as_angles(tilt_a, n, "tilt_a")
+        tb = as_angles(tilt_b, n, "tilt_b")
         h = self.axes
         e1, e2 = perpendicular_frames(h)
         h1 = np.cos(ta) * h + np.sin(ta) * e1
@@ -281,11 +282,11 @@ class WheelArray:
             Per-wheel mounting errors [rad]: ``δ_i = δ + Δδ_i``,
             ``γ_i = γ + Δγ_i``.
         """
-        delta = as_finite_scalar(delta, "delta")
-        gamma = as_finite_scalar(gamma, "gamma")
-        dd = np.zeros(4) if d_delta is None else as_vector(
+        delta = as_angle(delta, "delta")
+        gamma = as_angle(gamma, "gamma")
+        dd = np.zeros(4) if d_delta is None else as_angles(
             d_delta, 4, "d_delta")
-        dg = np.zeros(4) if d_gamma is None else as_vector(
+        dg = np.zeros(4) if d_gamma is None else as_angles(
             d_gamma, 4, "d_gamma")
         return cls(axes=pyramid_axes(delta + dd, gamma + dg),
                    h_max=h_max, m_max=m_max, failed=tuple(failed))
@@ -308,6 +309,8 @@ class WheelArray:
         phi2, phi3 : float
             The paper's angles [rad] (used with ``skew="paper"``).
         """
+        phi2 = as_angle(phi2, "phi2")
+        phi3 = as_angle(phi3, "phi3")
         if skew == "paper":
             h4 = [np.cos(phi2) * np.cos(phi3), np.cos(phi2) * np.sin(phi3),
                   -np.sin(phi2)]

@@ -127,3 +127,25 @@ def test_failed_index_out_of_range(pyramid):
 def test_arrays_are_immutable(pyramid):
     with pytest.raises(ValueError):
         pyramid.axes[0, 0] = 1.0
+
+
+@pytest.mark.parametrize("call", [
+    lambda: WheelArray.pyramid(55, 45),
+    lambda: WheelArray.pyramid(np.deg2rad(55), 45),
+    lambda: WheelArray.pyramid(d_delta=[0.0, 0.0, 30.0, 0.0]),
+    lambda: WheelArray.orthogonal_plus_skew(phi2=45),
+    lambda: WheelArray.pyramid().with_mounting_errors([0, 0, 0, 10],
+                                                      [0, 0, 0, 0]),
+], ids=["delta", "gamma", "d_delta", "phi2", "tilt"])
+def test_degrees_for_radians_are_named_with_the_fix(call):
+    with pytest.raises(InvalidValueError, match=r"np\.deg2rad"):
+        call()
+
+
+def test_quaternion_angle_in_degrees_is_refused():
+    from adcs_common.quaternion import quat_from_axis_angle
+
+    with pytest.raises(InvalidValueError, match=r"np\.deg2rad\(90\)"):
+        quat_from_axis_angle([0, 0, 1], 90)
+    q = quat_from_axis_angle([0, 0, 1], -2 * np.pi)
+    np.testing.assert_allclose(q, [-1, 0, 0, 0], atol=1e-15)

@@ -71,3 +71,25 @@ def test_fast_wrong_answers_are_reported_wrong():
     # KKT certificate catches them even when the duties look close)
     assert loose.wrong > 0
     assert loose.max_kkt > 1e-3
+
+
+def test_ctrl_c_keeps_the_finished_rows_and_exits_130(tmp_path, capsys,
+                                                      monkeypatch):
+    import json
+
+    import adcs.bench as bench
+
+    def stop(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(bench, "bench_thrusters", stop)
+    code = main(["bench", "--quick", "--problems", "wheels,thrusters",
+                 "--backends", "daqp", "--out", str(tmp_path),
+                 "--no-progress"])
+    assert code == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "stopped during 'thrusters'" in err[0]
+    saved = json.loads((tmp_path / "bench.json").read_text())
+    assert saved["interrupted_during"] == "thrusters"
+    assert [r["problem"] for r in saved["rows"]] == ["wheels"]
+    assert dict(saved["provenance"])["python"]

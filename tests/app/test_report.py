@@ -107,3 +107,28 @@ def test_version_flag(capsys):
         main(["--version"])
     assert info.value.code == 0
     assert capsys.readouterr().out.strip() == f"adcs-toolbox {__version__}"
+
+
+def test_ctrl_c_keeps_the_finished_studies_and_exits_130(tmp_path, capsys,
+                                                         monkeypatch):
+    import adcs.studies.spacecraft as first
+    import adcs.studies.wheels as second
+    from adcs.report import Section, Table
+
+    def done(ctx):
+        return Section("spacecraft", "first", tables=[
+            Table("t", ["a", "b"], [["x", 1.0]])])
+
+    def stop(ctx):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(first, "run", done)
+    monkeypatch.setattr(second, "run", stop)
+    code = main(["report", "--out", str(tmp_path), "--studies",
+                 "spacecraft,wheels"])
+    assert code == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("adcs: interrupted: 1 of 2")
+    md = (tmp_path / "report.md").read_text()
+    assert "interrupted during" in md and "## first" in md
+    assert (tmp_path / "report.html").exists()

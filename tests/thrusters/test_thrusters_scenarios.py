@@ -211,3 +211,25 @@ def test_bad_scenario_arguments():
         burn_scenario(pressure_drop=1.5)
     with pytest.raises(InvalidValueError, match="valve_jitter"):
         reorientation_scenario(valve_jitter=-1.0, t_end=10.0)
+
+
+def test_main_answers_user_mistakes_in_one_line(capsys):
+    import subprocess
+    import sys
+
+    import thrusters.__main__ as cli
+
+    assert cli.main(["--allocation", "qp", "--solver", "nosuch"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nosuch" in err[0]
+    assert err[0].startswith("python -m thrusters: error:")
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["--solver", "osqp"])            # needs --allocation qp
+    assert stop.value.code == 2
+    assert "--allocation qp" in capsys.readouterr().err
+    # importing the module runs nothing; --help names the command
+    run = subprocess.run([sys.executable, "-m", "thrusters", "--help"],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0
+    assert run.stdout.startswith("usage: python -m thrusters")
+    assert "closed-form laws" in run.stdout and "DIR" in run.stdout
