@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import base64
-import html
 import importlib
 import math
+import re
 import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence, TextIO
+
+from jinja2 import Environment, PackageLoader, select_autoescape
+from markupsafe import Markup, escape
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.paths import output_folder
@@ -46,7 +49,8 @@ class Table:
     note : str
         Text under the table.
     flags : list of bool
-        Per row: True marks an erratum / a paper value not reproduced.
+        Per row: True marks an erratum / a paper value not reproduced
+        (derived from a "verdict" column when not given).
     digits : int
         Significant digits for floats.
     """
@@ -57,6 +61,13 @@ class Table:
     note: str = ""
     flags: list[bool] = field(default_factory=list)
     digits: int = 5
+
+    def __post_init__(self) -> None:
+        """Flag the rows whose verdict is a miss or an erratum."""
+        if not self.flags and "verdict" in self.columns:
+            k = self.columns.index("verdict")
+            self.flags = [str(r[k]).startswith(("not met", "erratum"))
+                          for r in self.rows]
 
     def cell(self, value: Any) -> str:
         """Format one cell."""
@@ -88,14 +99,61 @@ class Section:
     seconds: float = 0.0
 
 
-def paper_row(quantity: str, paper: float | str, ours: float,
-              note: str = "") -> list[Any]:
-    """Row ``quantity | paper | ours | difference | note``."""
-    diff = ours - paper if isinstance(paper, (int, float)) else float("nan")
-    return [quantity, paper, ours, diff, note]
+def _num(v: float) -> str:
+    return f"{v:.4g}"
 
 
-PAPER_COLUMNS = ["quantity", "reference", "ours", "ours − paper", "note"]
+def verdict(paper: float | str | None, ours: float, *,
+            tol: float | None = None, rel: float | None = None,
+            bound: float | None = None, erratum: str = "",
+            reason: str = "") -> str:
+    """Judge ``ours`` against a paper's figure; a short sentence.
+
+    ``bound``: ours must not exceed it; ``tol``/``rel``: absolute or
+    relative tolerance around ``paper``; ``erratum``: the paper's value is
+    a misprint (the text says which). ``reason`` explains a miss. The
+    verdict starts with "within tolerance", "bound met", "not met",
+    "erratum" or "no tolerance stated".
+    """
+    why = f" ({reason})" if reason else ""
+    if erratum:
+        return f"erratum: {erratum}"
+    if not isinstance(ours, (int, float)) or math.isnan(float(ours)):
+        return "not met: no value computed" + why
+    if bound is not None:
+        if ours <= bound * (1.0 + 1e-12) + 1e-300:
+            return "bound met"
+        return f"not met: {_num(ours)} > {_num(bound)}" + why
+    if not isinstance(paper, (int, float)):
+        return "no tolerance stated" + why
+    diff = abs(float(ours) - float(paper))
+    limit = tol if tol is not None else (
+        None if rel is None else rel * abs(float(paper)))
+    if limit is None:
+        return "no tolerance stated" + why
+    if diff <= limit:
+        return f"within tolerance (±{_num(limit)})"
+    return f"not met: |Δ| = {_num(diff)} > {_num(limit)}" + why
+
+
+def paper_row(quantity: str, paper: float | str | None, ours: float,
+              note: str = "", *, tol: float | None = None,
+              rel: float | None = None, bound: float | None = None,
+              erratum: str = "", reason: str = "") -> list[Any]:
+    """Row of `PAPER_COLUMNS`: the figures, the bound and a verdict.
+
+    A bound goes in its own column (``≤ b``); the verdict is `verdict`'s.
+    """
+    diff = (ours - paper if isinstance(paper, (int, float))
+            and isinstance(ours, (int, float)) else float("nan"))
+    return [quantity, "—" if paper is None else paper,
+            "" if bound is None else f"≤ {_num(bound)}", ours, diff,
+            verdict(paper, ours, tol=tol, rel=rel, bound=bound,
+                    erratum=erratum, reason=reason), note]
+
+
+PAPER_COLUMNS = ["quantity", "paper", "bound", "ours", "ours − paper",
+                 "verdict", "note"]
 
 
 @dataclass(frozen=True)
@@ -162,54 +220,56 @@ def _markdown(sections: Sequence[Section], title: str,
             out += ["", t.note, ""] if t.note else [""]
         for f in s.figures:
             out += [f"![{f.caption}]({f.filename})", "", f"*{f.caption}*", ""]
-    return "\n".join(out)
+    out += ["## References", ""]
+    out += [f"{i}. {ref}" for i, ref in enumerate(REFERENCES, 1)]
+    return "\n".join(out) + "\n"
 
 
-_CSS = """body{font-family:sans-serif;max-width:1100px;margin:auto;padding:1em}
-table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;
-padding:3px 8px;text-align:right}td:first-child,th:first-child{text-align:left}
-tr.erratum{background:#fff2cc}figure{display:inline-block;margin:.5em}
-img{max-width:520px}.note{color:#444;font-size:90%}"""
+#: The source papers, as the report's References list them (the full
+#: entries, with what is and is not known of each, are docs/references.md).
+REFERENCES = (
+    "A. D. Belenky, V. N. Vasiliev, A. S. Semenov, M. E. Semenov. A control "
+    "algorithm for the four reaction-wheel system of the Meteor-M No. 2 "
+    "series spacecraft. OAO Corporation VNIIEM, 2013.",
+    "M. Ovchinnikov, S. Tkachev, D. Roldugin. Attitude control system "
+    "failure cases response using operational actuators (Chibis-M). "
+    "Preprint No. 83, 2013.",
+    "A nonlinear model of a spacecraft with four reaction wheels (authors, "
+    "venue and year not stated in the copy used).",
+    "The pulse-cycle mode of a six-thruster propulsion unit for "
+    "translation with wheel unloading and for reorientation (authors, "
+    "title, venue and year not stated in the copy used).",
+)
+
+_CODE = re.compile(r"`([^`]+)`")
+
+
+def _inline(text: Any) -> Markup:
+    """Escape ``text`` for HTML and show its `code` spans as code."""
+    return Markup(_CODE.sub(lambda m: f"<code>{m.group(1)}</code>",
+                            str(escape(str(text)))))
+
+
+def _cell_class(column: str, value: Any) -> str:
+    if column == "verdict":
+        miss = str(value).startswith(("not met", "erratum"))
+        return "text verdict-miss" if miss else "text verdict-met"
+    return "" if isinstance(value, (int, float)) else "text"
 
 
 def _html(sections: Sequence[Section], title: str, out: Path,
           made: list[tuple[str, str]]) -> str:
-    esc = html.escape
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'>"
-             f"<title>{esc(title)}</title><style>{_CSS}</style></head><body>",
-             f"<h1>{esc(title)}</h1><table>"]
-    parts += [f"<tr><td>{esc(k)}</td><td>{esc(v)}</td></tr>"
-              for k, v in made]
-    parts.append("</table><ul>")
-    parts += [f"<li><a href='#{s.key}'>{esc(s.title)}</a></li>"
-              for s in sections]
-    parts.append("</ul>")
-    for s in sections:
-        parts.append(f"<section id='{s.key}'><h2>{esc(s.title)}</h2>"
-                     f"<p>{esc(s.intro)}</p>")
-        for t in s.tables:
-            parts.append(f"<h3>{esc(t.title)}</h3><table><tr>" + "".join(
-                f"<th>{esc(c)}</th>" for c in t.columns) + "</tr>")
-            for i, row in enumerate(t.rows):
-                flag = t.flags[i] if i < len(t.flags) else False
-                cls = " class='erratum'" if flag else ""
-                cells = [esc(t.cell(v)) for v in row]
-                if flag:
-                    cells[0] = "⚠ " + cells[0]
-                parts.append(f"<tr{cls}>" + "".join(
-                    f"<td>{c}</td>" for c in cells) + "</tr>")
-            parts.append("</table>")
-            if t.note:
-                parts.append(f"<p class='note'>{esc(t.note)}</p>")
-        for f in s.figures:
-            data = base64.b64encode((out / f.filename).read_bytes()).decode()
-            parts.append(f"<figure><img alt='{esc(f.caption)}' "
-                         f"src='data:image/png;base64,{data}'>"
-                         f"<figcaption>{esc(f.caption)}</figcaption></figure>")
-        parts.append(f"<p class='note'>computed in {s.seconds:.1f} s</p>"
-                     "</section>")
-    parts.append("</body></html>")
-    return "\n".join(parts)
+    """Render ``report.html`` from its Jinja2 template (figures inline)."""
+    env = Environment(loader=PackageLoader("adcs", "templates"),
+                      autoescape=select_autoescape(["html", "j2"]),
+                      trim_blocks=True, lstrip_blocks=True)
+    env.filters["inline"] = _inline
+    images = {f.filename: base64.b64encode(
+        (out / f.filename).read_bytes()).decode()
+        for s in sections for f in s.figures}
+    return env.get_template("report.html.j2").render(
+        title=title, made=made, sections=sections, images=images,
+        references=REFERENCES, cell_class=_cell_class)
 
 
 def run_report(out: str | Path = "adcs-report", *, quick: bool = False,

@@ -24,17 +24,61 @@ def test_report_writes_html_markdown_and_figures(quick_report):
 def test_report_has_every_section(quick_report):
     html = (quick_report / "report.html").read_text()
     for key in STUDIES:
-        assert f"<section id='{key}'>" in html
+        assert f'<section id="{key}">' in html
 
 
 def test_report_tables_set_paper_beside_ours(quick_report):
     md = (quick_report / "report.md").read_text()
-    assert md.count("| quantity | reference | ours | ours − paper |") >= 3
-    # theory §1.2 inscribed radius, computed
-    assert re.search(r"inscribed sphere radius r \| 1.63 \| 1.6303", md)
-    # the errata are flagged
-    assert "⚠ m2" in md and "ERRATUM" in md
+    header = "| quantity | paper | bound | ours | ours − paper | verdict |"
+    assert md.count(header) >= 3
+    # theory §1.2 inscribed radius, computed, judged by its tolerance
+    assert re.search(r"inscribed sphere radius r \| 1.63 \|  \| 1.6303 \| "
+                     r"[0-9.e-]+ \| within tolerance \(±0.01\)", md)
+    # the errata are flagged, with the erratum named
+    assert "⚠ m2" in md and "erratum: the printed m2 row repeats m1" in md
     assert "⚠ case (a) ΔMx/Mx, formula as printed" in md
+
+
+def test_every_comparison_row_has_a_verdict_and_bounds_apart(quick_report):
+    """Verdict column: met / within tolerance / not met (why) / erratum."""
+    md = (quick_report / "report.md").read_text().splitlines()
+    split = re.compile(r"(?<!\\)\|")
+    verdicts, header = [], None
+    for line in md:
+        if not line.startswith("|"):
+            header = None
+            continue
+        cells = [c.strip() for c in split.split(line)[1:-1]]
+        if header is None:
+            header = cells
+            continue
+        if "verdict" in header and not set(line) <= set("|-"):
+            row = dict(zip(header, cells))
+            verdicts.append(row)
+            assert row["verdict"].startswith((
+                "within tolerance", "bound met", "not met", "erratum",
+                "no tolerance stated")), row
+            missed = row["verdict"].startswith(("not met", "erratum"))
+            assert cells[0].startswith("⚠") == missed, row
+            if row.get("bound"):
+                assert row["bound"].startswith("≤ ")
+    assert len(verdicts) > 60
+    # the burn's momentum excursion: a bound not met, with its reason
+    burn = [v for v in verdicts if v.get("quantity", "").startswith(
+        "⚠ max \\|H_X\\|, \\|H_Z\\| during")]
+    assert burn and burn[0]["bound"] == "≤ 0.012"
+    assert burn[0]["verdict"].startswith("not met") and "cycle" in \
+        burn[0]["verdict"]
+
+
+def test_html_is_templated_with_full_size_figures(quick_report):
+    html = (quick_report / "report.html").read_text()
+    assert "520px" not in html and "`" not in html
+    assert html.count('title="open full size"') >= 3
+    assert "<code>allocation</code>" in html
+    assert '<section id="references">' in html
+    assert "Meteor-M No. 2" in html.split('id="references"')[1]
+    assert 'class="text verdict-miss"' in html
 
 
 def test_report_images_are_embedded(quick_report):
