@@ -107,7 +107,8 @@ def _bench(args: argparse.Namespace) -> int:
                 or None)
     run_bench(args.out, problems=problems, backends=backends,
               repetitions=args.repetitions, quick=args.quick,
-              progress=not args.no_progress, spacecraft=args.spacecraft)
+              progress=not args.no_progress, spacecraft=args.spacecraft,
+              budget=args.budget)
     return 0
 
 
@@ -245,8 +246,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="solves per backend (default 200, 20 quick)")
     ben.add_argument("--quick", action="store_true",
                      help="small settings (CI, a first look)")
+    ben.add_argument("--budget", type=float, default=None,
+                     help="seconds each backend may spend on a problem "
+                     "before it is marked too slow (default 8, 2 quick)")
     ben.add_argument("--no-progress", action="store_true",
-                     help="do not print progress")
+                     help="no progress bar")
     ben.add_argument("--spacecraft", default=None,
                      help=SPACECRAFT_HELP + " (default: the pyramid, the "
                      "six-thruster unit and the demo craft)")

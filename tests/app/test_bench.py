@@ -93,3 +93,26 @@ def test_ctrl_c_keeps_the_finished_rows_and_exits_130(tmp_path, capsys,
     assert saved["interrupted_during"] == "thrusters"
     assert [r["problem"] for r in saved["rows"]] == ["wheels"]
     assert dict(saved["provenance"])["python"]
+
+
+def test_a_backend_past_its_budget_is_cut_short_and_marked_too_slow():
+    from adcs.bench import to_frame
+
+    rows = run_bench(problems=["wheels"], backends=["daqp", "osqp@loose"],
+                     repetitions=50, progress=False, budget=1e-9)
+    for r in rows:
+        assert r.n == 1 and r.requested == 50 and r.too_slow
+        assert "too slow: 1 of 50 solves" in r.note
+    loose = next(r for r in rows if r.backend == "osqp@loose")
+    assert "control row" in loose.note
+    frame = to_frame(rows)
+    assert list(frame["backend"]) == ["daqp", "osqp@loose"]
+    assert frame["too_slow"].all() and "note" in frame
+    with pytest.raises(InvalidValueError, match="budget"):
+        run_bench(problems=["wheels"], budget=0.0, progress=False)
+
+
+def test_unknown_backend_is_one_line_and_status_2(capsys):
+    assert main(["bench", "--backends", "nosuch", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'nosuch' is not available" in err[0]
