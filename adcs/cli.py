@@ -85,18 +85,37 @@ def _export(args: argparse.Namespace) -> int:
     print(f"adcs export: generating C for {sc.name!r} in {args.out} ...",
           flush=True)
     res = export_c(args.out, sc, dt=args.dt, horizon=args.horizon,
-                   mpc_variants=variants, build=args.build or args.run)
+                   mpc_variants=variants, build=args.build or args.run,
+                   cc=args.cc, progress=args.build or args.run)
     for p in (res.source, res.header, res.driver, res.makefile,
               res.readme):
         print(f"  wrote {p}")
+    if "warnings" in res.extras:
+        print(f"  built with {args.cc} (-Wall -Wextra): "
+              f"{res.extras['warnings']} warnings")
     if args.run:
-        times = run_driver(res)
-        print(f"{'function':32s} {'median [us]':>12s} {'max [us]':>12s}")
-        for name, t in times.items():
-            if name.startswith("_"):
-                continue
-            print(f"{name:32s} {t['median_us']:12.3f} {t['max_us']:12.3f}")
+        _print_driver(run_driver(res))
     return 0
+
+
+def _print_driver(times: dict) -> None:
+    """Print the driver's timings (first call, median, worst), checks."""
+    print(f"{'function':30s} {'first call':>11s} {'median':>10s} "
+          f"{'worst':>10s}  [µs]")
+    failed = []
+    for name, t in times.items():
+        if name.startswith("_"):
+            continue
+        first = t.get("first_us", float("nan"))
+        print(f"{name:30s} {first:11.3f} {t['median_us']:10.3f} "
+              f"{t['max_us']:10.3f}")
+        if t.get("flag", 0):
+            failed.append(name)
+        if "final_error_deg" in t:
+            print(f"{'':30s} closed loop ends {t['final_error_deg']:.2e}° "
+                  "from the target")
+    print("driver checks: " + ("every call returned 0" if not failed else
+                               "nonzero return from " + ", ".join(failed)))
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -181,6 +200,33 @@ def _add_sweep(sub) -> None:
     swp.set_defaults(func=_sweep)
 
 
+def _add_bench(sub) -> None:
+    """Add the ``adcs bench`` subcommand and its options."""
+    ben = sub.add_parser("bench", help="time and check every installed "
+                         "QP/NLP backend on the allocation and slew "
+                         "problems")
+    ben.add_argument("--out", default="adcs-bench",
+                     help="output folder for JSON and PNG")
+    ben.add_argument("--problems", default="wheels,thrusters,slew",
+                     help="comma-separated: wheels, thrusters, slew")
+    ben.add_argument("--backends", default="",
+                     help="comma-separated backend names (default: all "
+                     "installed)")
+    ben.add_argument("--repetitions", type=int, default=None,
+                     help="solves per backend (default 200, 20 quick)")
+    ben.add_argument("--quick", action="store_true",
+                     help="small settings (CI, a first look)")
+    ben.add_argument("--budget", type=float, default=None,
+                     help="seconds each backend may spend on a problem "
+                     "before it is marked too slow (default 8, 2 quick)")
+    ben.add_argument("--no-progress", action="store_true",
+                     help="no progress bar")
+    ben.add_argument("--spacecraft", default=None,
+                     help=SPACECRAFT_HELP + " (default: the pyramid, the "
+                     "six-thruster unit and the demo craft)")
+    ben.set_defaults(func=_bench)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser of ``adcs``."""
     parser = argparse.ArgumentParser(
@@ -230,31 +276,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="compile the driver and a shared library (gcc)")
     exp.add_argument("--run", action="store_true",
                      help="build and run the driver, print timings")
+    exp.add_argument("--cc", default="gcc",
+                     help="C compiler of --build/--run (default gcc)")
     exp.set_defaults(func=_export)
 
-    ben = sub.add_parser("bench", help="time and check every installed "
-                         "QP/NLP backend on the allocation and slew "
-                         "problems")
-    ben.add_argument("--out", default="adcs-bench",
-                     help="output folder for JSON and PNG")
-    ben.add_argument("--problems", default="wheels,thrusters,slew",
-                     help="comma-separated: wheels, thrusters, slew")
-    ben.add_argument("--backends", default="",
-                     help="comma-separated backend names (default: all "
-                     "installed)")
-    ben.add_argument("--repetitions", type=int, default=None,
-                     help="solves per backend (default 200, 20 quick)")
-    ben.add_argument("--quick", action="store_true",
-                     help="small settings (CI, a first look)")
-    ben.add_argument("--budget", type=float, default=None,
-                     help="seconds each backend may spend on a problem "
-                     "before it is marked too slow (default 8, 2 quick)")
-    ben.add_argument("--no-progress", action="store_true",
-                     help="no progress bar")
-    ben.add_argument("--spacecraft", default=None,
-                     help=SPACECRAFT_HELP + " (default: the pyramid, the "
-                     "six-thruster unit and the demo craft)")
-    ben.set_defaults(func=_bench)
+    _add_bench(sub)
 
     _add_sweep(sub)
 

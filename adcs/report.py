@@ -325,6 +325,11 @@ def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
         if stream is not None else (lambda msg: None)
     sections = []
     t_all = time.perf_counter()
+    from tqdm.auto import tqdm
+
+    # a bar with ETA on a terminal (tqdm's test: None), beside the lines
+    bar = tqdm(total=len(keys), unit="study", file=sys.stderr,
+               disable=None if stream is not None else True)
     stopped = None
     for i, key in enumerate(keys, 1):
         module, title = STUDIES[key]
@@ -341,6 +346,8 @@ def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
         for line in section.summary:
             say(f"      {line}")
         say(f"      done in {section.seconds:.1f} s")
+        bar.update(1)
+    bar.close()
     title = "ADCS toolbox report" + (" (quick)" if quick else "")
     if stopped is not None:
         title += (f" (interrupted during {stopped!r}: {len(sections)} of "

@@ -100,7 +100,8 @@ def generate_c(functions: Sequence[ca.Function], folder, name: str,
 def compile_c(sources: Sequence, output, *, cc: str | None = None,
               opt: str = "-O2", shared: bool = True,
               flags: Sequence[str] = (), libs: Sequence[str] = ("-lm",),
-              timeout: float = 900.0) -> Path:
+              timeout: float = 900.0,
+              log: list[str] | None = None) -> Path:
     """Compile C ``sources`` to ``output`` (a shared library by default).
 
     Parameters
@@ -117,6 +118,8 @@ def compile_c(sources: Sequence, output, *, cc: str | None = None,
         Build a shared library (``-shared -fPIC``); else an executable.
     flags, libs : sequence of str
         Extra compiler flags (before the sources) and libraries (after).
+    log : list of str, optional
+        Receives the compiler's messages (warnings) of a successful build.
 
     Raises
     ------
@@ -130,6 +133,8 @@ def compile_c(sources: Sequence, output, *, cc: str | None = None,
     if run.returncode != 0:
         raise CompileError(f"compilation failed: {' '.join(cmd)}\n"
                            f"{run.stderr.strip()[-2000:]}")
+    if log is not None and run.stderr.strip():
+        log.append(run.stderr)
     return Path(output)
 
 

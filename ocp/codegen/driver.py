@@ -48,7 +48,7 @@ def _driver_source(fns: dict[str, ca.Function],
                 f"    casadi_real* r[] = {{{res}}};\n"
                 f"    time_call(\"{case}\", {name}, {name}_work, "
                 f"{name}_checkout, {name}_release, a, {len(ins)}, r, "
-                f"{f.n_out()}, {reps}); }}")
+                f"{f.n_out()}, {reps}, {f.nnz_out(0)}); }}")
     body = "\n".join(lines)
     loops = []
     for name in fns:

@@ -57,7 +57,11 @@ from ocp.models.rigid import SpacecraftModel, rigid_spacecraft
 from ocp.spacecraft import load_spacecraft
 from .build import build_exported, run_driver
 from .driver import _MAKEFILE, _driver_source, _readme
-from .patches import patch_daqp_failure, patch_minmax
+from .patches import (
+    patch_daqp_failure,
+    patch_minmax,
+    patch_unused_parameters,
+)
 from .qrqp_patch import patch_qrqp
 from .result import ExportResult, OPT_FLAGS, SOURCE
 
@@ -287,7 +291,8 @@ def export_c(out_dir, spacecraft=None, *,
              duty_qp_plugin: str | None = None,
              qrqp_reuse_factorization: bool = True,
              build: bool = False,
-             cc: str = "gcc", repeats: int = 1000) -> ExportResult:
+             cc: str = "gcc", repeats: int = 1000,
+             progress: bool = False) -> ExportResult:
     """Generate C for the toolbox's laws, QPs, model and MPC step.
 
     Parameters
@@ -341,6 +346,8 @@ def export_c(out_dir, spacecraft=None, *,
         C compiler.
     repeats : int
         Calls per function timed by the driver.
+    progress : bool
+        Show a progress bar during the build.
 
     Returns
     -------
@@ -387,7 +394,8 @@ def export_c(out_dir, spacecraft=None, *,
     text, _ = patch_minmax(text)
     if qrqp_reuse_factorization:
         text, patched = patch_qrqp(text)
-    source.write_text(text)
+    text, _ = patch_unused_parameters(text)       # last: the others
+    source.write_text(text)                      # match CasADi's text
     driver = out / "main.c"
     driver.write_text(_driver_source(fns, samples, int(repeats), model,
                                      dt))
@@ -409,5 +417,5 @@ def export_c(out_dir, spacecraft=None, *,
                                "daqp_patched": daqp_patched,
                                "cflags": cflags, "ldflags": ldflags})
     if build:
-        return build_exported(res, cc=cc)
+        return build_exported(res, cc=cc, progress=progress)
     return res

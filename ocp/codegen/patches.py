@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 #: CasADi's generated DAQP conic aborts the whole Function on a failed
 #: solve (its ``error_on_fail`` option is not generated), before the
 #: caller's certificate can read the point.
@@ -66,3 +68,61 @@ def patch_minmax(source: str) -> tuple[str, int]:
             source = source.replace(old, new)
             count += 1
     return source, count
+
+
+_DEFINITION = re.compile(r"^[A-Za-z_][\w\s\*]*?\b\w+\((?P<params>[^;{]*)\)"
+                         r"\s*\{\s*$", re.S)
+_PARAM_NAME = re.compile(r"(\w+)\s*(?:\[\s*\w*\s*\])?\s*$")
+
+
+def patch_unused_parameters(source: str) -> tuple[str, int]:
+    """Mark every parameter of every generated function as used.
+
+    CasADi's generated functions share one calling convention, so many
+    leave ``mem``, ``iw`` or ``w`` unused, and ``gcc -Wall -Wextra``
+    warns about each (flight builds use ``-Werror``). After the opening
+    brace of each definition this adds ``(void)name;`` per parameter (no
+    code is generated for it).
+
+    Returns
+    -------
+    text : str
+        The edited text.
+    count : int
+        Definitions edited.
+    """
+    lines = source.split("\n")
+    out: list[str] = []
+    count = 0
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        if line[:1].isalpha() or line[:1] == "_":
+            j = i
+            head = line
+            # a signature may span lines; it ends at "{" (definition) or
+            # ";" (declaration)
+            while not head.rstrip().endswith(("{", ";", "}")) and \
+                    j + 1 < len(lines) and j - i < 6:
+                j += 1
+                head += "\n" + lines[j]
+            m = _DEFINITION.match(head)
+            if m and not head.lstrip().startswith(("typedef", "struct ",
+                                                   "#")):
+                names = []
+                for p in m.group("params").split(","):
+                    p = p.strip()
+                    if not p or p == "void" or p == "...":
+                        continue
+                    name = _PARAM_NAME.search(p)
+                    if name:
+                        names.append(name.group(1))
+                out.extend(lines[i:j + 1])
+                if names:
+                    out.append("  " + " ".join(f"(void){n};" for n in names))
+                    count += 1
+                i = j + 1
+                continue
+        out.append(line)
+        i += 1
+    return "\n".join(out), count

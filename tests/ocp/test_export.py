@@ -53,6 +53,11 @@ def test_files_written(exported):
     assert ("daqp/api.h" in r.source.read_text()) == (plugin == "daqp")
     assert ("libdaqpstat.a" in r.makefile.read_text()) == (plugin == "daqp")
     assert "-O3" in r.makefile.read_text()
+    # flight builds use -Werror: the source compiles warning-free, once
+    assert r.extras["warnings"] == 0, r.extras["warning_text"][:2000]
+    make = r.makefile.read_text()
+    assert make.count("adcs_codegen.c\n") == 1 and "-Wall -Wextra" in make
+    assert "main.c adcs_codegen.o" in make
 
 
 @pytest.mark.skipif(not daqp_available(), reason="needs casadi daqp")
@@ -240,6 +245,8 @@ def test_driver_runs_and_times(exported):
                  "duty_qp:burn", "duty_qp:relaxed", "dynamics", "rk4",
                  "mpc_rti_step", "closed_loop:mpc_rti_step"):
         assert t[name]["median_us"] > 0.0
+        assert t[name].get("flag", 0) == 0     # every call returned 0
+    assert t["duty_qp"]["first_us"] > 0.0
     # the C closed loop (RK4 plant, 80 steps of 0.5 s) ends on target
     assert t["closed_loop:mpc_rti_step"]["final_error_deg"] < 1e-2
     # closed forms are sub-microsecond, the MPC step is milliseconds
@@ -268,3 +275,19 @@ def test_cli_export_writes_sources(tmp_path, capsys):
     assert (tmp_path / "adcs_codegen.c").exists()
     assert (tmp_path / "main.c").exists()
     assert "wrote" in capsys.readouterr().out
+
+
+def test_cli_export_run_prints_cold_and_warm_times_and_checks(tmp_path,
+                                                              capsys):
+    from adcs.cli import main
+
+    assert main(["export", "--out", str(tmp_path), "--mpc", "", "--run",
+                 "--cc", "gcc"]) == 0
+    out = capsys.readouterr().out
+    assert "first call" in out and "median" in out and "worst" in out
+    assert "(-Wall -Wextra): 0 warnings" in out
+    assert "driver checks: every call returned 0" in out
+    assert main(["export", "--out", str(tmp_path), "--mpc", "", "--build",
+                 "--cc", "no-such-cc"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no-such-cc" in err[0]
