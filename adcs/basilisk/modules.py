@@ -1,0 +1,118 @@
+"""Basilisk modules (Python ``SysModel``) wrapping the toolbox's laws."""
+
+from __future__ import annotations
+
+import ctypes
+from typing import Any
+
+import numpy as np
+
+from adcs_common.exceptions import InvalidValueError
+from adcs_common.validation import as_finite_scalar, as_vector
+from allocation import QPAllocator, WheelAllocation, WheelArray
+
+from . import require_basilisk
+
+require_basilisk()
+
+from Basilisk.architecture import messaging, sysModel  # noqa: E402
+
+
+def _entries(value: Any, n: int, ctype: Any = ctypes.c_int) -> list:
+    """Return the first ``n`` entries of a payload's array field.
+
+    A list normally; a raw SWIG pointer once another Basilisk module (e.g.
+    ``rwMotorTorque``) has wrapped the same struct: then read through its
+    address.
+    """
+    try:
+        return list(value)[:n]
+    except TypeError:
+        return list((ctype * n).from_address(int(value)))
+
+
+def _padded(values: np.ndarray) -> list[float]:
+    out = [0.0] * messaging.MAX_EFF_CNT
+    out[:len(values)] = [float(v) for v in values]
+    return out
+
+
+class WheelQPAllocatorModule(sysModel.SysModel):
+    """`QPAllocator` as a Basilisk module, in place of ``rwMotorTorque``.
+
+    Reads ``vehControlInMsg`` (``CmdTorqueBodyMsg``: the torque ``L_r``
+    the body should receive), and optionally ``rwSpeedsInMsg`` (wheel
+    speeds Ω [rad/s]; with ``Js`` and ``dt`` the momentum bound
+    ``|J_s Ω + m dt| <= h_max``) and ``rwAvailInMsg`` (unavailable wheels
+    are failed wheels of the QP). Writes ``rwMotorTorqueOutMsg``
+    (``ArrayMotorTorqueMsg``): the motor torques ``m`` of
+    ``A m = -L_r`` (α-scaled when unattainable: the direction is kept),
+    within ``|m_i| <= m_max``, so Basilisk's torque clipping never acts.
+
+    Parameters
+    ----------
+    array : WheelArray
+        The wheels, in the order of Basilisk's wheel list (``A = G_s``).
+    Js : float or array_like (N,), optional
+        Wheel spin inertias [kg·m²] (for the momenta from the speeds).
+    dt : float, optional
+        Control period [s] of the momentum bound.
+    **allocator_options
+        Passed to `QPAllocator` (weights, solver, momentum management).
+
+    Attributes
+    ----------
+    last : WheelAllocation or None
+        The last allocation (status, α, torques).
+    """
+
+    def __init__(self, array: WheelArray, Js=None, dt: float | None = None,
+                 **allocator_options: Any) -> None:
+        super().__init__()
+        if not isinstance(array, WheelArray):
+            raise InvalidValueError(
+                f"array must be a WheelArray, got {type(array).__name__}")
+        self.array = array
+        n = array.n_wheels
+        self.Js = None if Js is None else as_vector(
+            np.broadcast_to(np.asarray(Js, float), (n,)) if np.ndim(Js) == 0
+            else Js, n, "Js")
+        self.dt = None if dt is None else as_finite_scalar(dt, "dt")
+        self.options = allocator_options
+        self._allocators: dict[tuple, QPAllocator] = {}
+        self.vehControlInMsg = messaging.CmdTorqueBodyMsgReader()
+        self.rwSpeedsInMsg = messaging.RWSpeedMsgReader()
+        self.rwAvailInMsg = messaging.RWAvailabilityMsgReader()
+        self.rwMotorTorqueOutMsg = messaging.ArrayMotorTorqueMsg()
+        self.last: WheelAllocation | None = None
+
+    def allocator(self, failed: tuple[int, ...] = ()) -> QPAllocator:
+        """Return the allocator of a set of unavailable wheels (built once)."""
+        if failed not in self._allocators:
+            arr = self.array.with_failed(*failed) if failed else self.array
+            self._allocators[failed] = QPAllocator(arr, **self.options)
+        return self._allocators[failed]
+
+    def Reset(self, CurrentSimNanos: int) -> None:  # noqa: N802, N803
+        """Basilisk's reset: nothing is carried between runs."""
+        self.last = None
+
+    def UpdateState(self, CurrentSimNanos: int) -> None:  # noqa: N802,N803
+        """Allocate the commanded torque; write the motor torques."""
+        n = self.array.n_wheels
+        L = np.array(self.vehControlInMsg().torqueRequestBody, float)
+        failed: tuple[int, ...] = tuple(self.array.failed)
+        if self.rwAvailInMsg.isLinked():
+            avail = _entries(self.rwAvailInMsg().wheelAvailability, n)
+            failed = tuple(sorted(set(failed) | {
+                i for i, a in enumerate(avail) if a != messaging.AVAILABLE}))
+        h = dt = None
+        if self.rwSpeedsInMsg.isLinked() and self.Js is not None \
+                and self.dt is not None:
+            h = self.Js * np.array(_entries(
+                self.rwSpeedsInMsg().wheelSpeeds, n, ctypes.c_double))
+            dt = self.dt
+        self.last = self.allocator(failed).allocate(-L, h, dt)
+        out = messaging.ArrayMotorTorqueMsgPayload()
+        out.motorTorque = _padded(self.last.torques)
+        self.rwMotorTorqueOutMsg.write(out, CurrentSimNanos, self.moduleID)
