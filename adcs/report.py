@@ -33,6 +33,8 @@ STUDIES: dict[str, tuple[str, str]] = {
                "([2])"),
     "slews": ("slews", "Slews: NLPs and MPC vs eigenaxis and quaternion "
               "feedback"),
+    "basilisk": ("basilisk", "In Basilisk: rwMotorTorque vs the bounded QP "
+                 "(optional extra)"),
 }
 
 

@@ -104,3 +104,51 @@ def test_mrp_and_quaternion_round_trip():
     assert np.linalg.norm(s) <= 1.0
     np.testing.assert_allclose(mrp_to_quaternion(s), q, atol=1e-15)
     np.testing.assert_allclose(4 * np.arctan(np.linalg.norm(s)), 2.5)
+
+
+@pytest.fixture(scope="module")
+def saturated():
+    from adcs.basilisk.scenarios import compare_loops
+
+    return compare_loops(t_final=120.0)
+
+
+def test_saturated_slew_ours_keeps_the_torque_direction(saturated):
+    """Demands beyond the wheels: clipping turns the torque, ours not."""
+    clipped, ours = saturated["rwMotorTorque"], saturated["QPAllocator"]
+    assert np.degrees(clipped.direction_error.max()) > 20.0
+    assert np.degrees(ours.direction_error.max()) < 1e-4
+    # both within the wheels' torque limit, the slew under way
+    for r in (clipped, ours):
+        assert np.abs(r.wheel_torque).max() <= 0.2 + 1e-12
+        assert np.degrees(r.pointing_error[-1]) < 20.0
+    assert clipped.summary()["max direction error [deg]"] > 20.0
+
+
+def test_a_wheel_failing_mid_slew_is_dropped_by_both_allocators():
+    from adcs.basilisk.scenarios import compare_loops
+
+    runs = compare_loops(t_final=60.0, fail_wheel=1, t_fail=10.0)
+    k = np.searchsorted(runs["QPAllocator"].t, 11.0)
+    for r in runs.values():
+        assert np.all(r.wheel_torque[k:, 1] == 0.0)
+    assert np.degrees(runs["QPAllocator"].direction_error.max()) < 1e-4
+    assert np.degrees(runs["rwMotorTorque"].direction_error.max()) > 20.0
+
+
+def test_loop_figure_and_bad_arguments(saturated):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from adcs.basilisk.plots import plot_loops
+    from adcs.basilisk.scenarios import run_loop
+    from adcs_common.exceptions import InvalidValueError
+
+    fig = plot_loops(saturated)
+    assert len(fig.axes) == 4
+    with pytest.raises(InvalidValueError, match="allocator"):
+        run_loop("nosuch")
+    with pytest.raises(InvalidValueError, match="deg2rad"):
+        run_loop("QPAllocator", angle=40.0)
+    with pytest.raises(InvalidValueError, match="t_fail"):
+        run_loop("QPAllocator", fail_wheel=1, t_fail=500.0, t_final=100.0)

@@ -18,6 +18,9 @@ def test_there_are_notebooks():
 @pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_notebook_executes(path, monkeypatch, tmp_path):
+    if "basilisk" in path.stem:
+        pytest.importorskip("Basilisk", reason="Basilisk is an optional "
+                            'extra: pip install -e ".[basilisk]"')
     monkeypatch.setenv("ADCS_NOTEBOOK_SMALL", "1")
     monkeypatch.setenv("MPLBACKEND", "Agg")
     book = nbformat.read(path, as_version=4)
