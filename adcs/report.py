@@ -236,8 +236,9 @@ REFERENCES = (
     "M. Ovchinnikov, S. Tkachev, D. Roldugin. Attitude control system "
     "failure cases response using operational actuators (Chibis-M). "
     "Preprint No. 83, 2013.",
-    "A nonlinear model of a spacecraft with four reaction wheels (authors, "
-    "venue and year not stated in the copy used).",
+    "A. S. Kulik, A. G. Gordin, O. V. Reznikova. Nonlinear model of the "
+    "spacecraft with four reaction wheels (venue and year not stated in "
+    "the copy used).",
     "The pulse-cycle mode of a six-thruster propulsion unit for "
     "translation with wheel unloading and for reorientation (authors, "
     "title, venue and year not stated in the copy used).",
