@@ -22,7 +22,7 @@ from thrusters.unit import G0, ThrusterSet, six_thruster_unit
 
 
 #: Spacecraft of [4] (mass from Table 2's Δv; inertia, R and L are
-#: not given by the seed: theory §2's stated values).
+#: not given by [4]: theory §2's stated values).
 MASS = 54.0                                   # [kg]
 
 
@@ -30,7 +30,7 @@ INERTIA = np.diag([3.0, 2.5, 3.5])            # [kg·m²]
 
 
 #: Disturbance torque of the burn (thrust mismatch and misalignment,
-#: 0.0012 N·m in the seed), direction chosen in the XZ plane [N·m].
+#: 0.0012 N·m in [4]), direction chosen in the XZ plane [N·m].
 BURN_DISTURBANCE = 0.0012 * np.array([0.8, 0.0, -0.6])
 
 
@@ -400,7 +400,7 @@ def reorientation_scenario(allocation: str = "law", solver: str = "daqp",
     `DutyCycleAllocator` (``"qp"``, P_T = 0, bound 0.05 N·m·s on the
     cycle's momentum increment); `MinOnTimeCarry` applies the min
     on-time. A Y-axis wheel (the thrusters make no Y torque) holds the
-    Y attitude and absorbs the gyroscopic coupling. The seed ran on a
+    Y attitude and absorbs the gyroscopic coupling. [4] ran on a
     real-time prototype with actual command delays: here each valve time
     is off by a Gaussian error of ``valve_jitter`` seconds (seeded by
     ``seed``), the source of the residual Δv; ``disturbance`` is a

@@ -61,7 +61,7 @@ def force_torque_function(n: int) -> ca.Function:
 
 
 def six_unit_geometry_sym(R, L):
-    """Positions and directions (3, 6) of the seed-004 unit, symbolic."""
+    """Positions and directions (3, 6) of the unit of [4], symbolic."""
     c = [float(np.cos(t)) for t in SIX_UNIT_ANGLES]
     s = [float(np.sin(t)) for t in SIX_UNIT_ANGLES]
     order = [0, 1, 2, 0, 2, 1]
@@ -74,7 +74,7 @@ def six_unit_geometry_sym(R, L):
 
 
 def six_unit_function() -> ca.Function:
-    """Build the seed-004 six-thruster unit as a casadi Function.
+    """Build the six-thruster unit of [4] as a casadi Function.
 
     Returns
     -------

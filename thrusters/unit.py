@@ -16,7 +16,7 @@ from adcs_common.validation import (
     check_positive,
 )
 
-#: 1 kgf/cm² in Pa (the seed gives inlet pressures in kgf/cm²).
+#: 1 kgf/cm² in Pa ([4] gives inlet pressures in kgf/cm²).
 KGF_PER_CM2 = 98066.5
 #: Standard gravity [m/s²] (propellant mass = impulse / (Isp g0)).
 G0 = 9.80665
@@ -54,8 +54,8 @@ class ThrusterSet:
     :math:`k_i P^{cyc}_{Di} (r_i - c) \\times d_i` over the cycle
     (eqs. 5-6), i.e. ``force_matrix() @ k`` and ``torque_matrix() @ k``.
 
-    Pulse transients (the seed's "rise and tail-off" model, [11, 14] of
-    the seed, here a documented first-order model): all valves are
+    Pulse transients ([4]'s "rise and tail-off" model, its refs. [11, 14],
+    here a documented first-order model): all valves are
     commanded open at the start of the cycle; valve ``i`` opens after
     ``open_delay`` and closes ``close_delay`` after its close command at
     ``t_on``; the thrust rises as :math:`P(1 - e^{-t'/\\tau_r})` from the
@@ -412,7 +412,7 @@ def six_thruster_unit(R: float = 0.25, L: float = 0.3, thrust: float = 0.5,
         Distance of each mounting plane from the centre of mass [m].
     thrust : float or array_like (6,)
         Steady thrust of each engine at ``pressure`` [N] (0.5 N at
-        9 kgf/cm² in the seed).
+        9 kgf/cm² in [4]).
     pressure : float
         Nominal inlet pressure [Pa].
     thrust_offset : float or array_like (6,)

@@ -70,7 +70,7 @@ def _table(title: str, rows, note: str) -> Table:
 
 
 def mpc_hold_table(ctx: StudyContext) -> Table:
-    """MPC hold under the seed's disturbance, with and without thrusters."""
+    """MPC hold under the paper's disturbance, with and without thrusters."""
     import numpy as np
 
     from allocation import WheelArray

@@ -2,7 +2,7 @@
 
 One closed-loop ODE holds the spacecraft in the orbit frame (`environment`)
 with three coils running "-Bdot" (eq. 1.7) plus an optional constant
-dipole, three orthogonal wheel pairs running the seed's law (eq. 1.8) or a
+dipole, three orthogonal wheel pairs running the paper's law (eq. 1.8) or a
 constant spin-up torque, and failures of coils and wheel pairs. It is a
 CasADi expression integrated by CVODES.
 

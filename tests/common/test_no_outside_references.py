@@ -15,6 +15,9 @@ OUTSIDE = re.compile("|".join([
     r"\b" + "SP" + r"EC\b",
     "[Ss]eeds? " + r"0\d\d",
     "seed_" + r"0\d\d",
+    "seed-" + r"0\d\d",
+    r"\bthe " + "seed" + r"\b",
+    "seed" + r"'s\b",
 ]))
 
 

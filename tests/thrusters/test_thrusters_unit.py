@@ -106,7 +106,7 @@ def test_casadi_general_function_equals_numpy_with_offset_com():
     np.testing.assert_allclose(np.array(F), unit.force_matrix(), atol=1e-12)
     np.testing.assert_allclose(np.array(M), unit.torque_matrix(), atol=1e-12)
     # with the centre of mass off the axis, a group firing equally leaves
-    # a torque (the seed's misalignment disturbance)
+    # a torque ([4]'s misalignment disturbance)
     assert np.linalg.norm(np.array(M) @ [1, 1, 1, 0, 0, 0]) > 1e-3
 
 
