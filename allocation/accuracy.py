@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError, RankError, ShapeError
 from adcs_common.validation import as_finite_array, as_finite_scalar
@@ -232,8 +233,8 @@ class ErrorSummary:
                    float(np.max(x)))
 
 
-@dataclass(frozen=True, eq=False)
-class AccuracyResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class AccuracyResult(ResultMixin):
     """Monte Carlo of the torque accuracy of the pyramid (theory §1.3).
 
     Attributes

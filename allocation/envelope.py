@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError, RankError, ShapeError
 from adcs_common.validation import as_finite_array, check_instance
@@ -123,8 +124,8 @@ def _zonotope_vertices(G: np.ndarray, normals: np.ndarray) -> np.ndarray:
     return pts[np.sort(hull.vertices)]
 
 
-@dataclass(frozen=True, eq=False)
-class Envelope:
+@dataclass(frozen=True, eq=False, repr=False)
+class Envelope(ResultMixin):
     r"""Attainable momentum or torque set of a wheel array: a zonotope.
 
     The set :math:`S = \{A\,\mathrm{diag}(c)\,x : |x_i| \le 1\}` of

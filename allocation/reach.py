@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
+from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import AdcsError, InvalidValueError, ShapeError
 from adcs_common.validation import as_finite_scalar, as_vector
@@ -240,8 +241,8 @@ def _extent(array: WheelArray, law: Any, u: np.ndarray, tol: float,
     return _generic_extent(array, law, u, np.atleast_1d(r_set), tol, rtol)
 
 
-@dataclass(frozen=True, eq=False)
-class ReachResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class ReachResult(ResultMixin):
     r"""Fraction of the attainable torque set a law reaches.
 
     The attainable set is the zonotope :math:`A\cdot[-m_{\max},

@@ -6,6 +6,7 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
+from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError, RankError
 from adcs_common.validation import (
@@ -35,8 +36,8 @@ def _cached(unit: ThrusterSet) -> dict:
     return entry
 
 
-@dataclass(frozen=True, eq=False)
-class LawResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class LawResult(ResultMixin):
     """One cycle of a closed-form duty-cycle law.
 
     Attributes

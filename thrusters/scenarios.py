@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.quaternion import (
@@ -90,8 +91,8 @@ class _Body:
         self.q = q / np.linalg.norm(q)
 
 
-@dataclass(frozen=True, eq=False)
-class ScenarioResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class ScenarioResult(ResultMixin):
     """Time histories and per-cycle records of a pulse-cycle run.
 
     Attributes

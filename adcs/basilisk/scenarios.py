@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.quaternion import quat_from_axis_angle
@@ -20,8 +21,8 @@ from .convert import gs_matrix, mrp_angle, quaternion_to_mrp
 ALLOCATORS = ("rwMotorTorque", "QPAllocator")
 
 
-@dataclass(frozen=True, eq=False)
-class LoopRun:
+@dataclass(frozen=True, eq=False, repr=False)
+class LoopRun(ResultMixin):
     """One closed loop in Basilisk, sampled at the control period.
 
     Attributes

@@ -6,10 +6,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from adcs_common.results import ResultMixin
 
 
-@dataclass(frozen=True, eq=False)
-class WheelAllocation:
+@dataclass(frozen=True, eq=False, repr=False)
+class WheelAllocation(ResultMixin):
     """Outcome of one wheel allocation (`QPAllocator.allocate`).
 
     Every answer is checked (bounds, A m = target) before it is returned;

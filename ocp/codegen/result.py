@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 import casadi as ca
 import numpy as np
+from adcs_common.results import ResultMixin
 
 
 #: Base name of the generated source and header.
@@ -16,8 +17,8 @@ SOURCE = "adcs_codegen"
 OPT_FLAGS = ("-O3",)
 
 
-@dataclass(frozen=True, eq=False)
-class ExportResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class ExportResult(ResultMixin):
     """What `export_c` wrote (and built).
 
     Attributes

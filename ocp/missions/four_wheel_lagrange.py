@@ -40,6 +40,7 @@ from typing import Callable
 
 import casadi as ca
 import numpy as np
+from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import (
@@ -204,8 +205,8 @@ def _step_disturbance(axis: int, amplitude: float
     return tau
 
 
-@dataclass(frozen=True, eq=False)
-class FourWheelRun:
+@dataclass(frozen=True, eq=False, repr=False)
+class FourWheelRun(ResultMixin):
     """Trajectories of a [3] simulation.
 
     Attributes

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
+from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError, ShapeError
 from adcs_common.validation import (
@@ -259,8 +260,8 @@ def closed_loop_ode(orbit: CircularOrbit, inertia) -> ca.Function:
     return ca.Function("chibis_ode", [x, p], [x_dot], ["x", "p"], ["xdot"])
 
 
-@dataclass(frozen=True, eq=False)
-class ChibisRun:
+@dataclass(frozen=True, eq=False, repr=False)
+class ChibisRun(ResultMixin):
     """A simulated trajectory.
 
     Attributes

@@ -24,6 +24,7 @@ from typing import Sequence
 
 import casadi as ca
 import numpy as np
+from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import (
@@ -276,8 +277,8 @@ def orbit_wheel_law_expr(inertia, w0: float, A, w, H, k_omega, k_a):
             - ca.cross(w, J @ w) - J @ ca.cross(w_orb, w_rel))
 
 
-@dataclass(frozen=True, eq=False)
-class BdotRun:
+@dataclass(frozen=True, eq=False, repr=False)
+class BdotRun(ResultMixin):
     """Closed-loop −Bdot detumbling trajectory.
 
     Attributes

@@ -6,14 +6,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from adcs_common.results import ResultMixin
 
 from adcs_common.quaternion import quat_error_angle
 
 __all__ = ["SlewTrajectory"]
 
 
-@dataclass(frozen=True, eq=False)
-class SlewTrajectory:
+@dataclass(frozen=True, eq=False, repr=False)
+class SlewTrajectory(ResultMixin):
     """A rest-to-rest slew on a time grid, with ZOH controls.
 
     Attributes

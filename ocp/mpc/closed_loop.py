@@ -6,6 +6,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
 import numpy as np
+from adcs_common.results import ResultMixin
 from adcs_common.exceptions import (
     InvalidValueError,
 )
@@ -27,8 +28,8 @@ __all__ = [
 
 
 # ---------------------------------------------------------------- closed loop
-@dataclass(frozen=True, eq=False)
-class ClosedLoopResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class ClosedLoopResult(ResultMixin):
     """Metrics of a simulated slew-and-hold (or of an open-loop NLP).
 
     Attributes

@@ -7,6 +7,7 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
+from adcs_common.results import ResultMixin
 from adcs_common.exceptions import (
     InfeasibleError,
     InvalidValueError,
@@ -89,8 +90,8 @@ class MPCWeights:
                 f"attitude weight must be positive, got {self.attitude}")
 
 
-@dataclass(frozen=True, eq=False)
-class MPCStep:
+@dataclass(frozen=True, eq=False, repr=False)
+class MPCStep(ResultMixin):
     """The outcome of one MPC step.
 
     Attributes

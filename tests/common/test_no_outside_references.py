@@ -24,7 +24,10 @@ OUTSIDE = re.compile("|".join([
 def text_files():
     for path in ROOT.rglob("*"):
         parts = set(path.relative_to(ROOT).parts)
-        if parts & SKIP or any(p.endswith(".egg-info") for p in parts):
+        # virtual environments (.venv-ci, venv, ...), caches, build output
+        if parts & SKIP or any(p.endswith(".egg-info") or p.startswith(".")
+                               or "venv" in p or p == "site-packages"
+                               for p in parts):
             continue
         if path.is_file() and path.suffix in SUFFIXES:
             yield path

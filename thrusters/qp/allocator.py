@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from adcs_common.results import ResultMixin
 from scipy.optimize import linprog
 
 from adcs_common.exceptions import InvalidValueError, ShapeError
@@ -35,8 +36,8 @@ EXACT_SOLVER = "daqp"
 SLACK_TOL = 1e-7
 
 
-@dataclass(frozen=True, eq=False)
-class DutyAllocation:
+@dataclass(frozen=True, eq=False, repr=False)
+class DutyAllocation(ResultMixin):
     """One cycle of the duty-cycle QP (`DutyCycleAllocator.solve`).
 
     Attributes
