@@ -21,7 +21,7 @@ from .accuracy import (
 )
 from .arrays import WheelArray, pyramid_axes
 from .electrical import WheelMotor
-from .envelope import Envelope, Facets, envelope
+from .envelope import Envelope, Facets, envelope, envelope_frame
 from .exceptions import (
     AdcsError,
     InfeasibleError,
@@ -59,6 +59,7 @@ from .reach import (
     ReachResult,
     fibonacci_directions,
     format_reach_table,
+    reach_frame,
     law_extent,
     reach_table,
     torque_reach,
@@ -99,6 +100,7 @@ __all__ = [
     "compare_law_axes",
     "conic_allocator_function",
     "envelope",
+    "envelope_frame",
     "fibonacci_directions",
     "format_reach_table",
     "gain_error_uniform",
@@ -117,6 +119,7 @@ __all__ = [
     "pyramid_axes_function",
     "pyramid_failure_gains",
     "pyramid_min_norm_function",
+    "reach_frame",
     "reach_table",
     "sign_matrix_function",
     "sign_matrix_gains",

@@ -318,3 +318,35 @@ def envelope(array: WheelArray, kind: str = "momentum") -> Envelope:
         axis_max=axis_max, capacity_sum=cap_sum,
         utilisation=inscribed / cap_sum, volume=float(vol),
         failed=tuple(array.failed))
+
+
+def envelope_frame(array: WheelArray, kind: str = "momentum",
+                   failures: bool = True):
+    """Envelope figures, nominal and per single failure, as a DataFrame.
+
+    One row per case (``failed``: "none" or the wheel named 1..N):
+    inscribed radius, axis maxima and support along x, y, z, utilisation
+    and facet count [N·m·s or N·m, as ``kind``]. Cases whose working
+    wheels no longer span 3-D are left out.
+    """
+    import pandas as pd
+
+    cases = [("none", array)]
+    if failures:
+        cases += [(str(k + 1), array.with_failed(k))
+                  for k in range(array.n_wheels) if array.active[k]]
+    rows = []
+    for name, arr in cases:
+        if arr.rank < 3:
+            continue
+        env = envelope(arr, kind)
+        sup = env.support(np.eye(3))
+        rows.append({"failed": name,
+                     "inscribed_radius": env.inscribed_radius,
+                     "axis_max_x": env.axis_max[0],
+                     "axis_max_y": env.axis_max[1],
+                     "axis_max_z": env.axis_max[2],
+                     "support_x": sup[0], "support_y": sup[1],
+                     "support_z": sup[2], "utilisation": env.utilisation,
+                     "facets": env.n_facets})
+    return pd.DataFrame(rows)

@@ -528,3 +528,24 @@ def format_reach_table(rows: Sequence[ReachResult]) -> str:
             f" % | {100 * r.min_direction_fraction:.1f} % | ({u}) | "
             f"{100 * r.volume_fraction:.1f} % ({r.volume_method}) |")
     return "\n".join(lines)
+
+
+def reach_frame(rows: Sequence[ReachResult]):
+    """`reach_table` rows as a `pandas.DataFrame` (fractions in [0, 1]).
+
+    Columns: law, failed (wheels named 1..N), mean and worst-direction
+    fraction, the worst direction (x, y, z), volume fraction and how it
+    was computed, number of directions.
+    """
+    import pandas as pd
+
+    return pd.DataFrame([{
+        "law": r.law,
+        "failed": ", ".join(str(i + 1) for i in r.failed) or "none",
+        "mean_direction_fraction": r.mean_direction_fraction,
+        "min_direction_fraction": r.min_direction_fraction,
+        "worst_x": r.worst_direction[0], "worst_y": r.worst_direction[1],
+        "worst_z": r.worst_direction[2],
+        "volume_fraction": r.volume_fraction,
+        "volume_method": r.volume_method,
+        "n_directions": r.n_directions} for r in rows])

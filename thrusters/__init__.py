@@ -40,6 +40,7 @@ from .symbolic import force_torque_function, six_unit_function
 from .tables import (
     burn_table,
     format_table,
+    table_frame,
     plot_scenario,
     reorientation_table,
 )
@@ -78,6 +79,7 @@ __all__ = [
     "certified_duty_function",
     "force_torque_function",
     "format_table",
+    "table_frame",
     "pair_forces",
     "plot_scenario",
     "reorientation_law",

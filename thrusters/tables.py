@@ -185,3 +185,12 @@ def plot_scenario(result: ScenarioResult, path) -> None:
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+def table_frame(rows: list[tuple]):
+    """Rows (quantity, paper, ours, diff) as a `pandas.DataFrame`."""
+    import pandas as pd
+
+    return pd.DataFrame(
+        [{"quantity": q, "paper": np.nan if p is None else p, "ours": o,
+          "difference": np.nan if d is None else d} for q, p, o, d in rows])

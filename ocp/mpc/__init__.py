@@ -3,6 +3,7 @@
 from .closed_loop import (
     ClosedLoopResult,
     closed_loop_table,
+    closed_loop_frame,
     compare_slew,
     simulate_mpc,
 )
@@ -22,6 +23,7 @@ __all__ = [
     "QP_SOLVERS",
     "available_mpc_solvers",
     "closed_loop_table",
+    "closed_loop_frame",
     "compare_slew",
     "simulate_mpc",
 ]

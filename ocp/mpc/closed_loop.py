@@ -316,3 +316,18 @@ def closed_loop_table(results) -> str:
             f"{np.rad2deg(r.final_error):.2e} | "
             f"{np.rad2deg(r.hold_error):.2e} | {st} |")
     return "\n".join(lines)
+
+
+def closed_loop_frame(results):
+    """`ClosedLoopResult` metrics as a `pandas.DataFrame` (SI, radians)."""
+    import pandas as pd
+
+    return pd.DataFrame([{
+        "controller": r.name, "settle_time": r.settle_time,
+        "energy": r.energy, "peak_torque": r.peak_torque,
+        "peak_momentum": r.peak_momentum,
+        "torque_violation": r.torque_violation,
+        "momentum_violation": r.momentum_violation,
+        "final_error": r.final_error, "hold_error": r.hold_error,
+        "step_time_median": r.step_time_median,
+        "step_time_max": r.step_time_max} for r in results])

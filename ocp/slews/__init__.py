@@ -5,6 +5,7 @@ from .compare import (
     SlewComparisonRow,
     compare_slews,
     comparison_table,
+    comparison_frame,
     four_wheel_slew_spacecraft,
     meteor_m_spacecraft,
 )
@@ -28,6 +29,7 @@ __all__ = [
     "clear_solver_cache",
     "compare_slews",
     "comparison_table",
+    "comparison_frame",
     "four_wheel_slew_spacecraft",
     "meteor_m_spacecraft",
     "min_energy_slew",

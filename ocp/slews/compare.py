@@ -186,3 +186,12 @@ def comparison_table(rows: list[SlewComparisonRow]) -> str:
         f"{r.peak_wheel_momentum:.3f} | {'yes' if r.success else 'no'} |"
         for r in rows]
     return head + "\n".join(lines) + "\n"
+
+
+def comparison_frame(rows: list[SlewComparisonRow]):
+    """Comparison rows as a `pandas.DataFrame` (one row per method)."""
+    import dataclasses
+
+    import pandas as pd
+
+    return pd.DataFrame([dataclasses.asdict(r) for r in rows])

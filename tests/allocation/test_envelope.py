@@ -279,3 +279,17 @@ def test_utilisation_of_arrays_with_more_wheels_stays_below_0_47():
     assert max(util) <= 0.47
     assert util[0] == pytest.approx(0.4588, abs=5e-5)
     assert util[2] == pytest.approx(4.0 / 9.0, abs=1e-12)   # six on cone
+
+
+def test_envelope_frame_holds_theory_1_2_nominal_and_failed(pyramid):
+    from allocation import envelope_frame
+
+    frame = envelope_frame(pyramid)
+    assert list(frame["failed"]) == ["none", "1", "2", "3", "4"]
+    nominal = frame.iloc[0]
+    assert nominal["inscribed_radius"] == pytest.approx(1.6303, abs=1e-4)
+    assert nominal["axis_max_z"] == pytest.approx(2.2943, abs=1e-4)
+    assert nominal["utilisation"] == pytest.approx(0.4076, abs=1e-4)
+    one = frame.iloc[1]
+    assert one["inscribed_radius"] == pytest.approx(0.8151, abs=1e-4)
+    assert one["support_z"] == pytest.approx(1.7207, abs=1e-4)

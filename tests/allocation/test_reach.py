@@ -278,3 +278,16 @@ def test_default_direction_counts_for_linear_and_other_laws(nominal):
     other = torque_reach(nominal, lambda M: law.gains @ M, refine=False)
     assert other.n_directions == 500
     assert other.mean_direction_fraction == pytest.approx(0.867, abs=0.003)
+
+
+def test_reach_frame_one_row_per_law_and_case():
+    from allocation import WheelArray, reach_frame, reach_table
+
+    rows = reach_table(WheelArray.pyramid(), n_directions=200)
+    frame = reach_frame(rows)
+    assert len(frame) == len(rows)
+    nominal = frame[(frame["failed"] == "none")
+                    & frame["law"].str.startswith("minimum")].iloc[0]
+    assert nominal["min_direction_fraction"] == pytest.approx(2 / 3,
+                                                              abs=1e-6)
+    assert set(frame["failed"]) == {"none", "1", "2", "3", "4"}

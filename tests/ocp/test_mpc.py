@@ -105,6 +105,11 @@ def test_compare_slew_table(model):
     table = closed_loop_table(res)
     assert table.count("\n") == len(res) + 1
     assert "quaternion feedback" in table
+    from ocp.mpc import closed_loop_frame
+
+    frame = closed_loop_frame(res)
+    assert list(frame["controller"]) == [r.name for r in res]
+    assert frame["settle_time"].iloc[0] == res[0].settle_time
 
 
 def test_unknown_solver_raises(model):

@@ -46,6 +46,11 @@ def test_comparison_table_is_markdown(meteor_rows):
     assert lines[0].startswith("| case | angle")
     assert len(lines) == 2 + 4
     assert "| Meteor-M | 90 | eigenaxis | 211.24 |" in text
+    from ocp.slews import comparison_frame
+
+    frame = comparison_frame(meteor_rows[0])
+    eig = frame[frame["method"] == "eigenaxis"].iloc[0]
+    assert eig["T"] == pytest.approx(211.24, abs=5e-3)
 
 
 def test_four_wheel_spacecraft_for_slews_uses_17m71_limits():

@@ -233,3 +233,13 @@ def test_main_answers_user_mistakes_in_one_line(capsys):
     assert run.returncode == 0
     assert run.stdout.startswith("usage: python -m thrusters")
     assert "closed-form laws" in run.stdout and "DIR" in run.stdout
+
+
+def test_tables_as_data_frames(burn):
+    from thrusters import table_frame
+
+    frame = table_frame(burn_table(burn))
+    assert list(frame.columns) == ["quantity", "paper", "ours",
+                                   "difference"]
+    dv = frame.set_index("quantity").loc["dV [m/s]"]
+    assert dv["paper"] == 4.65 and abs(dv["ours"] - 4.65) < 0.025
