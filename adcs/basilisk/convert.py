@@ -37,3 +37,24 @@ def gs_matrix(array: WheelArray) -> list[float]:
 def body_torque(array: WheelArray, motor_torques) -> np.ndarray:
     """Torque [N·m] the body receives from the wheels' motor torques."""
     return -np.asarray(array.axes) @ np.asarray(motor_torques, float)
+
+
+def hub_inertia(inertia, array: WheelArray, Js) -> np.ndarray:
+    """Basilisk's ``IHubPntBc_B`` [kg·m²] for the toolbox's inertia ``J``.
+
+    The toolbox's ``J`` leaves the rotors' spin-axis inertia out (their
+    momentum is in ``H_w``); Basilisk's balanced-wheel model wants the hub
+    inertia with it in: ``J + Σ J_s,i g_i g_iᵀ``. With this hub and the
+    rotor momenta ``H_w,i = J_s,i (Ω_i + g_iᵀ ω)`` both models integrate
+    the same motion (tests: to 1e-8 over 10 s).
+    """
+    G = np.asarray(array.axes, float)
+    js = np.broadcast_to(np.asarray(Js, float), (G.shape[1],))
+    return np.asarray(inertia, float) + (G * js) @ G.T
+
+
+def rotor_momenta(array: WheelArray, Js, wheel_speeds, omega) -> np.ndarray:
+    """``H_w`` [N·m·s] from Basilisk's relative wheel speeds Ω [rad/s]."""
+    G = np.asarray(array.axes, float)
+    js = np.broadcast_to(np.asarray(Js, float), (G.shape[1],))
+    return js * (np.asarray(wheel_speeds, float) + G.T @ np.asarray(omega))

@@ -116,3 +116,65 @@ class WheelQPAllocatorModule(sysModel.SysModel):
         out = messaging.ArrayMotorTorqueMsgPayload()
         out.motorTorque = _padded(self.last.torques)
         self.rwMotorTorqueOutMsg.write(out, CurrentSimNanos, self.moduleID)
+
+
+class AttitudeMPCModule(sysModel.SysModel):
+    """`ocp.mpc.AttitudeMPC` as a Basilisk module: wheel torques directly.
+
+    Reads ``attNavInMsg`` (``NavAttMsg``: MRP σ_BN, ω_BN_B) and
+    ``rwSpeedsInMsg`` (relative wheel speeds Ω), forms the toolbox's state
+    ``(q, ω, H_w)`` with ``H_w = J_s (Ω + Gᵀω)`` (`convert.rotor_momenta`),
+    steps the MPC towards ``qf`` and writes ``rwMotorTorqueOutMsg``
+    (``ArrayMotorTorqueMsg``). The MPC's warm start carries from step to
+    step; ``Reset`` clears it.
+
+    Parameters
+    ----------
+    mpc : ocp.mpc.AttitudeMPC
+        The controller (its model's wheels in Basilisk's order).
+    qf : array_like (4,)
+        Target quaternion (scalar-first).
+    Js : float or array_like (N,)
+        Rotor spin inertias [kg·m²].
+
+    Attributes
+    ----------
+    steps : list of MPCStep
+        Every step's result (status, cost, solve time).
+    """
+
+    def __init__(self, mpc: Any, qf, Js) -> None:
+        super().__init__()
+        from adcs_common.quaternion import as_unit_quaternion
+
+        self.mpc = mpc
+        self.qf = as_unit_quaternion(qf, "qf")
+        self.Js = Js
+        self.attNavInMsg = messaging.NavAttMsgReader()
+        self.rwSpeedsInMsg = messaging.RWSpeedMsgReader()
+        self.rwMotorTorqueOutMsg = messaging.ArrayMotorTorqueMsg()
+        self.steps: list = []
+
+    def Reset(self, CurrentSimNanos: int) -> None:  # noqa: N802, N803
+        """Basilisk's reset: forget the MPC's warm start."""
+        self.mpc.reset()
+        self.steps = []
+
+    def UpdateState(self, CurrentSimNanos: int) -> None:  # noqa: N802,N803
+        """Step the MPC from the navigation state; write wheel torques."""
+        from .convert import mrp_to_quaternion, rotor_momenta
+
+        wheels = self.mpc.wheels
+        n = wheels.n_wheels
+        nav = self.attNavInMsg()
+        w = np.array(_entries(nav.omega_BN_B, 3, ctypes.c_double), float)
+        sigma = np.array(_entries(nav.sigma_BN, 3, ctypes.c_double), float)
+        speeds = _entries(self.rwSpeedsInMsg().wheelSpeeds, n,
+                          ctypes.c_double)
+        x = np.r_[mrp_to_quaternion(sigma), w,
+                  rotor_momenta(wheels, self.Js, speeds, w)]
+        step = self.mpc.step(x, self.qf)
+        self.steps.append(step)
+        out = messaging.ArrayMotorTorqueMsgPayload()
+        out.motorTorque = _padded(step.u[:n])
+        self.rwMotorTorqueOutMsg.write(out, CurrentSimNanos, self.moduleID)

@@ -14,7 +14,7 @@ from adcs_common.validation import as_angle, as_finite_scalar
 from ocp.spacecraft import load_spacecraft
 
 from . import require_basilisk
-from .convert import gs_matrix, mrp_angle, quaternion_to_mrp
+from .convert import gs_matrix, hub_inertia, mrp_angle, quaternion_to_mrp
 
 #: The two allocations a scenario runs: Basilisk's minimum-norm
 #: ``rwMotorTorque`` (clipped per wheel by the wheel effector) and ours.
@@ -91,7 +91,8 @@ class LoopRun(ResultMixin):
         }
 
 
-def _spacecraft_task(sim: Any, sc_def: Any, Js: float, dt_dyn: float):
+def spacecraft_task(sim: Any, inertia, wheels: Any, Js: float,
+                    dt_dyn: float):
     """Build the hub, the wheel effector and simple navigation."""
     from Basilisk.simulation import (reactionWheelStateEffector, simpleNav,
                                      spacecraft)
@@ -107,15 +108,15 @@ def _spacecraft_task(sim: Any, sc_def: Any, Js: float, dt_dyn: float):
     sc.ModelTag = "spacecraft"
     sc.hub.mHub = 1000.0
     sc.hub.IHubPntBc_B = np2EigenMatrix3d(
-        np.asarray(sc_def.inertia, float).ravel().tolist())
-    wheels = sc_def.wheels
+        hub_inertia(inertia, wheels, Js).ravel().tolist())
     factory = simIncludeRW.rwFactory()
     rpm = 60.0 / (2.0 * np.pi)
     for i in range(wheels.n_wheels):
-        factory.create("custom", [float(v) for v in wheels.axes[:, i]],
-                       Js=Js, u_max=float(wheels.m_max[i]),
-                       useMaxTorque=True, Omega=0.0,
-                       Omega_max=float(wheels.h_max[i] / Js * rpm))
+        rw = factory.create(
+            "custom", [float(v) for v in wheels.axes[:, i]], Js=Js,
+            u_max=float(wheels.m_max[i]), useMaxTorque=True, Omega=0.0,
+            Omega_max=float(wheels.h_max[i] / Js * rpm))
+        rw.Jt = rw.Jg = rw.mass = 0.0      # a spin-axis rotor only
     rw = reactionWheelStateEffector.ReactionWheelStateEffector()
     rw.ModelTag = "wheels"
     factory.addToSpacecraft("wheels", rw, sc)
@@ -218,7 +219,8 @@ def run_loop(allocator: str, spacecraft: Any = "meteor-m", *,
     sigma_target = quaternion_to_mrp(quat_from_axis_angle(axis, angle))
     sim = SimulationBaseClass.SimBaseClass()
     keep: list = []
-    sc, rw, nav = _spacecraft_task(sim, sc_def, Js, dt_dynamics)
+    sc, rw, nav = spacecraft_task(sim, sc_def.inertia, sc_def.wheels, Js,
+                                  dt_dynamics)
     err, ctrl, alloc = _fsw_task(sim, sc_def, nav, rw, allocator,
                                  sigma_target, gains, Js, dt, keep)
     n = sc_def.wheels.n_wheels
