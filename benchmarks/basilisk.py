@@ -32,6 +32,12 @@ def main() -> None:
     print("\nMPC slew (150° about (1, -2, 3), 60 s) in Basilisk and ours:")
     for key, value in mpc_slew(t_final=60.0).summary().items():
         print(f"  {key}: {value:.3g}")
+    from adcs.basilisk.thruster_scenario import compare_reorientation
+
+    print("\n[4]'s unit, 30° reorientation, 120 s:")
+    for name, r in compare_reorientation().items():
+        print(f"  {name}: " + ", ".join(
+            f"{k} {v:.3g}" for k, v in r.summary().items()))
 
 
 if __name__ == "__main__":

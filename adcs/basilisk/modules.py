@@ -178,3 +178,56 @@ class AttitudeMPCModule(sysModel.SysModel):
         out = messaging.ArrayMotorTorqueMsgPayload()
         out.motorTorque = _padded(step.u[:n])
         self.rwMotorTorqueOutMsg.write(out, CurrentSimNanos, self.moduleID)
+
+
+class ThrusterDutyModule(sysModel.SysModel):
+    """`thrusters.DutyCycleAllocator` as a Basilisk module (on-times).
+
+    Reads ``cmdTorqueInMsg`` (``CmdTorqueBodyMsg``: the torque ``L_r``
+    the body should receive), solves the duty-cycle QP for the torques
+    about the unit's two torque axes (X and Z of [4]'s unit) with zero net
+    thrust, and writes ``onTimeOutMsg`` (``THRArrayOnTimeCmdMsg``): duty
+    times the cycle [s]. Where the demand exceeds the unit (weighted
+    tracking) the QP returns the nearest torque it can make within duties
+    in [0, 1]; no impulse is dropped or carried.
+
+    Parameters
+    ----------
+    allocator : thrusters.DutyCycleAllocator
+        Built for the unit and the cycle T_T (the module's period).
+
+    Attributes
+    ----------
+    last : DutyAllocation or None
+        The last cycle's result.
+    """
+
+    def __init__(self, allocator: Any) -> None:
+        super().__init__()
+        from thrusters import DutyCycleAllocator
+
+        if not isinstance(allocator, DutyCycleAllocator):
+            raise InvalidValueError(
+                "allocator must be a thrusters.DutyCycleAllocator, got "
+                f"{type(allocator).__name__}")
+        self.allocator = allocator
+        self.cmdTorqueInMsg = messaging.CmdTorqueBodyMsgReader()
+        self.onTimeOutMsg = messaging.THRArrayOnTimeCmdMsg()
+        self.last = None
+
+    def Reset(self, CurrentSimNanos: int) -> None:  # noqa: N802, N803
+        """Basilisk's reset: nothing is carried between runs."""
+        self.last = None
+
+    def UpdateState(self, CurrentSimNanos: int) -> None:  # noqa: N802,N803
+        """Allocate this cycle's torque; write the valve on-times."""
+        from thrusters.laws import TORQUE_AXES
+
+        L = np.array(_entries(self.cmdTorqueInMsg().torqueRequestBody, 3,
+                              ctypes.c_double), float)
+        self.last = self.allocator.solve(0.0, L[list(TORQUE_AXES)])
+        out = messaging.THRArrayOnTimeCmdMsgPayload()
+        duty = self.last.duty if self.last.success else np.zeros(
+            self.allocator.unit.n)
+        out.OnTimeRequest = _padded(duty * self.allocator.cycle)
+        self.onTimeOutMsg.write(out, CurrentSimNanos, self.moduleID)
