@@ -11,8 +11,11 @@ runs only where it is importable (a clear message otherwise):
   largest difference from `QPAllocator` on 300 demands with a bound
   active.
 
-do-mpc and acados (the MPC) and the duty-cycle QP through cvxpygen are
-not covered by this script yet; it says so when run.
+* cvxpygen: the duty-cycle QP of `thrusters.build_qp` (hard tracking,
+  T_T = 2 s) the same way, against the exported ``duty_qp``.
+
+do-mpc and acados (the MPC) are not covered by this script yet; it says
+so when run.
 """
 
 from __future__ import annotations
@@ -27,22 +30,21 @@ import numpy as np
 from allocation import QPAllocator, WheelArray
 
 
-def _ours_c(arr: WheelArray) -> float:
-    """Median [µs] of the exported ``wheel_qp`` in its C driver."""
+def _ours_c(arr: WheelArray) -> dict:
+    """Driver medians [µs] of the exported ``wheel_qp`` and ``duty_qp``."""
     from ocp import export_c, run_driver
+    from thrusters import six_thruster_unit
 
     with tempfile.TemporaryDirectory() as out:
-        res = export_c(out, wheels=arr, mpc_variants=(), build=True,
-                       repeats=20000)
-        return run_driver(res)["wheel_qp"]["median_us"]
+        res = export_c(out, wheels=arr, thrusters=six_thruster_unit(),
+                       mpc_variants=(), build=True, repeats=20000)
+        t = run_driver(res)
+        return {k: t[k]["median_us"] for k in ("wheel_qp", "duty_qp")}
 
 
 def cvxpygen_wheel_qp(arr: WheelArray, n: int = 300) -> list[tuple]:
     """Rows (label, C solve median [µs], max |Δm| [N·m]) of cvxpygen."""
-    import sys
-
     import cvxpy as cp
-    from cvxpygen import cpg
 
     A = np.asarray(arr.axes)
     m_max = float(arr.m_max.max())
@@ -50,18 +52,7 @@ def cvxpygen_wheel_qp(arr: WheelArray, n: int = 300) -> list[tuple]:
     t = cp.Parameter(3, name="t")
     prob = cp.Problem(cp.Minimize(cp.sum_squares(m)),
                       [A @ m == t, cp.abs(m) <= m_max])
-    import os
-
-    code = tempfile.mkdtemp(prefix="adcs_cpg_")
-    here = os.getcwd()
-    os.chdir(code)           # cvxpygen names its module after code_dir
-    try:
-        cpg.generate_code(prob, code_dir="wheel_cpg", solver="OSQP",
-                          wrapper=True)
-    finally:
-        os.chdir(here)
-    sys.path.insert(0, code)
-    from wheel_cpg.cpg_solver import cpg_solve
+    code, cpg_solve = _generate(prob, "wheel_cpg")
 
     prob.register_solve("CPG", cpg_solve)
     ref = QPAllocator(arr)
@@ -85,21 +76,111 @@ def cvxpygen_wheel_qp(arr: WheelArray, n: int = 300) -> list[tuple]:
     return rows
 
 
+def _generate(prob, name: str) -> tuple[str, object]:
+    """Generate OSQP C for ``prob`` with cvxpygen; its solve function."""
+    import importlib
+    import os
+    import sys
+
+    from cvxpygen import cpg
+
+    code = tempfile.mkdtemp(prefix="adcs_cpg_")
+    here = os.getcwd()
+    os.chdir(code)           # cvxpygen names its module after code_dir
+    try:
+        cpg.generate_code(prob, code_dir=name, solver="OSQP", wrapper=True)
+    finally:
+        os.chdir(here)
+    sys.path.insert(0, code)
+    return code, importlib.import_module(f"{name}.cpg_solver").cpg_solve
+
+
+def cvxpygen_duty_qp(n: int = 200) -> list[tuple]:
+    """Rows (label, C solve median [µs], max |Δduty|) of cvxpygen.
+
+    The canonical duty-cycle QP of `thrusters.build_qp` (hard tracking,
+    momentum box, T_T = 2 s) with ``q``, ``l``, ``u`` as parameters.
+    """
+    import cvxpy as cp
+
+    from thrusters import DutyCycleAllocator, six_thruster_unit
+    from thrusters.qp.problem import INF
+
+    alloc = DutyCycleAllocator(six_thruster_unit(), 2.0, 0.012)
+    qp = alloc.qp
+    x = cp.Variable(qp.nx, name="x")
+    q = cp.Parameter(qp.nx, name="q")
+    lo = cp.Parameter(qp.A.shape[0], name="lo")
+    hi = cp.Parameter(qp.A.shape[0], name="hi")
+    ne = qp.n_eq
+    up = np.flatnonzero(qp.upper_rows[ne:]) + ne
+    dn = np.flatnonzero(qp.lower_rows[ne:]) + ne
+    cons = [qp.A[:ne] @ x == lo[:ne], qp.A[up] @ x <= hi[up],
+            qp.A[dn] @ x >= lo[dn], x >= qp.lb, x <= qp.ub]
+    prob = cp.Problem(cp.Minimize(0.5 * cp.quad_form(x, cp.psd_wrap(qp.P))
+                                  + q @ x), cons)
+    code, solve = _generate(prob, "duty_cpg")
+    prob.register_solve("CPG", solve)
+    rng = np.random.default_rng(1)
+    rows = []
+    for eps in (None, 1e-6, 1e-9):
+        kw = {} if eps is None else {"eps_abs": eps, "eps_rel": eps,
+                                     "max_iter": 100000}
+        times, err, done = [], 0.0, 0
+        while done < n:
+            th = alloc.theta(rng.choice([0.0, rng.uniform(0, 0.7)]),
+                             rng.uniform(-0.004, 0.004, 2),
+                             (rng.uniform(-0.01, 0.01), 0.0,
+                              rng.uniform(-0.01, 0.01)))
+            ref = alloc.solve_theta(th)
+            if not ref.success:
+                continue
+            qv, lv, uv = qp.vectors(th)
+            q.value = qv
+            lo.value = np.where(lv <= -INF / 2, 0.0, lv)
+            hi.value = np.where(uv >= INF / 2, 0.0, uv)
+            prob.solve(method="CPG", **kw)
+            times.append(prob.solver_stats.solve_time)
+            err = max(err, float(np.abs(x.value[:-1] - ref.duty).max()))
+            done += 1
+        label = "default" if eps is None else f"eps {eps:g}"
+        rows.append((f"cvxpygen OSQP C ({label})",
+                     1e6 * statistics.median(times), err))
+    shutil.rmtree(code, ignore_errors=True)
+    return rows
+
+
+def _in_subprocess(fn, *args):
+    """Run ``fn(*args)`` in a fresh (spawned) process; its result."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as ex:
+        return ex.submit(fn, *args).result()
+
+
 def main() -> None:
     """Print the table."""
     arr = WheelArray.pyramid(h_max=4.0, m_max=0.2)
     if importlib.util.find_spec("cvxpygen") is None:
         print("cvxpygen: not installed (pip install cvxpygen): skipped")
         return
-    rows = cvxpygen_wheel_qp(arr)
+    # each generated module registers the same pybind11 types: one
+    # process per problem
+    wheel = _in_subprocess(cvxpygen_wheel_qp, arr)
+    duty = _in_subprocess(cvxpygen_duty_qp)
     ours = _ours_c(arr)
-    print("| wheel QP (pyramid, bound active) | C median [µs] | "
-          "max |Δm| vs QPAllocator [N·m] | ratio to ours |")
-    print("|---|---:|---:|---:|")
-    print(f"| ours: exported wheel_qp (closed form) | {ours:.3g} | "
-          "≤ 1e-10 (tests) | 1 |")
-    for label, us, err in rows:
-        print(f"| {label} | {us:.3g} | {err:.1e} | {us / ours:.0f} |")
+    for title, key, unit, rows in (
+            ("wheel QP (pyramid, bound active)", "wheel_qp", "N·m", wheel),
+            ("duty QP (six-thruster unit)", "duty_qp", "duty", duty)):
+        print(f"\n| {title} | C median [µs] | max |Δ| vs the toolbox "
+              f"[{unit}] | ratio to ours |")
+        print("|---|---:|---:|---:|")
+        print(f"| ours: exported {key} | {ours[key]:.3g} | ≤ 1e-10 "
+              "(tests) | 1 |")
+        for label, us, err in rows:
+            print(f"| {label} | {us:.3g} | {err:.1e} | "
+                  f"{us / ours[key]:.0f} |")
     for peer in ("do_mpc", "acados_template"):
         state = ("installed" if importlib.util.find_spec(peer)
                  else "not installed")
