@@ -9,8 +9,11 @@ takes numpy arrays or CasADi symbols and returns the same kind.
 
 from __future__ import annotations
 
+from typing import Any
+
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_angle, as_finite_array
@@ -37,7 +40,7 @@ def vcat(lib, items):
     return ca.vertcat(*items) if lib is ca else np.array(items)
 
 
-def quat_mul(p, q):
+def quat_mul(p: ArrayLike, q: ArrayLike) -> Any:
     """Hamilton product ``p ⊗ q`` of scalar-first quaternions (numpy/CasADi).
 
     .. math::
@@ -55,13 +58,13 @@ def quat_mul(p, q):
     ])
 
 
-def quat_conj(q):
+def quat_conj(q: ArrayLike) -> Any:
     """Conjugate ``(w, -x, -y, -z)`` (the inverse of a unit quaternion)."""
     lib = array_lib(q)
     return vcat(lib, [q[0], -q[1], -q[2], -q[3]])
 
 
-def quat_rate(q, w):
+def quat_rate(q: ArrayLike, w: ArrayLike) -> Any:
     """Quaternion kinematics :math:`\\dot q = \\tfrac12 q \\otimes (0, ω)`.
 
     Parameters
@@ -76,7 +79,7 @@ def quat_rate(q, w):
     return 0.5 * quat_mul(q, omega)
 
 
-def quat_to_dcm(q):
+def quat_to_dcm(q: ArrayLike) -> Any:
     """Rotation matrix :math:`R(q)` with :math:`v_{ref} = R v_{body}`."""
     lib = array_lib(q)
     w, x, y, z = q[0], q[1], q[2], q[3]
@@ -90,7 +93,7 @@ def quat_to_dcm(q):
     return np.array(rows, dtype=float)
 
 
-def quat_from_axis_angle(axis, angle: float) -> np.ndarray:
+def quat_from_axis_angle(axis: ArrayLike, angle: float) -> np.ndarray:
     """Return the quaternion of a rotation by ``angle`` [rad] about ``axis``.
 
     Raises
@@ -107,7 +110,7 @@ def quat_from_axis_angle(axis, angle: float) -> np.ndarray:
     return np.concatenate([[np.cos(half)], np.sin(half) * a / n])
 
 
-def rotation_between(q0, qf) -> tuple[np.ndarray, float]:
+def rotation_between(q0: ArrayLike, qf: ArrayLike) -> tuple[np.ndarray, float]:
     """Eigenaxis (body frame) and angle of the rotation from ``q0`` to ``qf``.
 
     The shortest of the two equivalent rotations is returned, angle in
@@ -130,7 +133,7 @@ def rotation_between(q0, qf) -> tuple[np.ndarray, float]:
     return dq[1:] / s, float(angle)
 
 
-def quat_error_angle(q, qf) -> np.ndarray:
+def quat_error_angle(q: ArrayLike, qf: ArrayLike) -> np.ndarray:
     """Angle [rad] between attitudes ``q`` (…, 4) and ``qf`` (4,)."""
     q = np.asarray(q, dtype=float)
     dot = np.abs(q @ np.asarray(qf, dtype=float))

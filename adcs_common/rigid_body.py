@@ -16,6 +16,7 @@ from __future__ import annotations
 from typing import Callable, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .exceptions import InvalidValueError, ShapeError
 from .validation import as_finite_array
@@ -64,7 +65,7 @@ def rk4_step(f: Callable[..., Sequence[np.ndarray]],
             for y, a, b, c, d in zip(state, k1, k2, k3, k4)]
 
 
-def check_inertia(inertia, name: str = "inertia") -> np.ndarray:
+def check_inertia(inertia: ArrayLike, name: str = "inertia") -> np.ndarray:
     """Return ``inertia`` as a symmetric positive-definite (3, 3) array.
 
     A length-3 vector is read as the principal moments [kg·m²]. Every

@@ -5,11 +5,12 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .exceptions import InvalidValueError, ShapeError
 
 
-def as_finite_array(value, name: str,
+def as_finite_array(value: ArrayLike, name: str,
                     shape: Sequence[int | None] | None = None
                     ) -> np.ndarray:
     """Return ``value`` as a float array, checking shape and finiteness.
@@ -52,7 +53,7 @@ def as_finite_array(value, name: str,
     return arr
 
 
-def as_vector(value, n: int | None, name: str) -> np.ndarray:
+def as_vector(value: ArrayLike, n: int | None, name: str) -> np.ndarray:
     """Return ``value`` as a finite 1-D float vector of length ``n``.
 
     A scalar is broadcast to length ``n`` when ``n`` is given.
@@ -62,19 +63,19 @@ def as_vector(value, n: int | None, name: str) -> np.ndarray:
     return as_finite_array(value, name, (n,))
 
 
-def as_finite_scalar(value, name: str) -> float:
+def as_finite_scalar(value: ArrayLike, name: str) -> float:
     """Return ``value`` as a finite float."""
     arr = as_finite_array(value, name, ())
     return float(arr)
 
 
-def check_positive(arr, name: str) -> None:
+def check_positive(arr: ArrayLike, name: str) -> None:
     """Raise `InvalidValueError` unless every entry is > 0."""
     if np.any(np.asarray(arr) <= 0):
         raise InvalidValueError(f"{name} must be positive, got {arr!r}")
 
 
-def check_nonnegative(arr, name: str) -> None:
+def check_nonnegative(arr: ArrayLike, name: str) -> None:
     """Raise `InvalidValueError` unless every entry is >= 0."""
     if np.any(np.asarray(arr) < 0):
         raise InvalidValueError(

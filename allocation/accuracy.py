@@ -6,17 +6,14 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from adcs_common.results import ResultMixin
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError, RankError, ShapeError
+from adcs_common.results import ResultMixin
 from adcs_common.validation import as_finite_array, as_finite_scalar
 
-from .arrays import (
-    PYRAMID_SIGN_Y,
-    PYRAMID_SIGN_Z,
-    WheelArray,
-    perpendicular_frames,
-)
+from .arrays import PYRAMID_SIGN_Y, PYRAMID_SIGN_Z, WheelArray
+from .arrays import perpendicular_frames
 
 __all__ = [
     "AccuracyResult",
@@ -40,7 +37,7 @@ _LAW_AXES = ("nominal", "measured")
 
 
 # ------------------------------------------------------------ axes
-def actual_axes(delta_i, gamma_i) -> np.ndarray:
+def actual_axes(delta_i: ArrayLike, gamma_i: ArrayLike) -> np.ndarray:
     r"""Actual spin axes of the pyramid for per-wheel angles, vectorised.
 
     [1], accuracy section ("actual matrix of direction cosines"),
@@ -73,7 +70,8 @@ def actual_axes(delta_i, gamma_i) -> np.ndarray:
                      PYRAMID_SIGN_Z * np.cos(d)], axis=-2)
 
 
-def paper_actual_axes_as_printed(delta_i, gamma_i) -> np.ndarray:
+def paper_actual_axes_as_printed(delta_i: ArrayLike,
+                                 gamma_i: ArrayLike) -> np.ndarray:
     """Return the paper's printed "actual" A: row 2 all positive (ERRATUM).
 
     Kept only to show the misprint (docs/errata.md): at zero error it is
@@ -185,7 +183,7 @@ class TorqueError:
     angle: np.ndarray
 
 
-def torque_error(demand, actual) -> TorqueError:
+def torque_error(demand: ArrayLike, actual: ArrayLike) -> TorqueError:
     """Compare demanded and realised torques, vectorised.
 
     Parameters
@@ -318,7 +316,8 @@ def _demands(demand, n: int, rng: np.random.Generator) -> np.ndarray:
 def monte_carlo_accuracy(*, d_delta_tol: float, d_gamma_tol: float,
                          scale_tol: float, delta: float = _DELTA,
                          gamma: float = _GAMMA, n_samples: int = 100_000,
-                         distribution: str = "uniform", demand=None,
+                         distribution: str = "uniform",
+                         demand: ArrayLike | None = None,
                          law_axes: str = "nominal",
                          measure_delta_tol: float | None = None,
                          measure_gamma_tol: float | None = None,
@@ -481,7 +480,8 @@ def _simulate(*, nominal: np.ndarray, perturbed, mount_tol: dict,
         angle_stats=ErrorSummary.of(te.angle))
 
 
-def tilted_axes(axes, tilt_a, tilt_b) -> np.ndarray:
+def tilted_axes(axes: ArrayLike, tilt_a: ArrayLike,
+                tilt_b: ArrayLike) -> np.ndarray:
     """Axes tilted by two small angles each, vectorised over samples.
 
     The same construction as `WheelArray.with_mounting_errors`: axis
@@ -518,7 +518,8 @@ def tilted_axes(axes, tilt_a, tilt_b) -> np.ndarray:
 
 def monte_carlo_accuracy_array(array: WheelArray, *, tilt_tol: float,
                                scale_tol: float, n_samples: int = 100_000,
-                               distribution: str = "uniform", demand=None,
+                               distribution: str = "uniform",
+                               demand: ArrayLike | None = None,
                                law_axes: str = "nominal",
                                measure_tol: float | None = None,
                                seed: int = 0) -> AccuracyResult:

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError, RankError, ShapeError
 from adcs_common.validation import (
@@ -32,7 +33,7 @@ def _readonly(arr: np.ndarray) -> np.ndarray:
     return arr
 
 
-def pyramid_axes(delta, gamma) -> np.ndarray:
+def pyramid_axes(delta: ArrayLike, gamma: ArrayLike) -> np.ndarray:
     r"""Spin axes of the four-wheel pyramid, [1] eq. (6).
 
     .. math::
@@ -175,7 +176,7 @@ class WheelArray:
                 f"(failed wheels {[i + 1 for i in self.failed]}); no law "
                 "can produce an arbitrary torque", rank=r, required=3)
 
-    def body_torque(self, m) -> np.ndarray:
+    def body_torque(self, m: ArrayLike) -> np.ndarray:
         r"""Torque the array actually produces for commanded ``m``.
 
         Parameters
@@ -202,16 +203,17 @@ class WheelArray:
                         and not isinstance(i, str) else [i])
         return replace(self, failed=tuple(self.failed) + tuple(flat))
 
-    def with_scale_errors(self, errors) -> "WheelArray":
+    def with_scale_errors(self, errors: ArrayLike) -> "WheelArray":
         """Return a copy whose actual torques are ``m_i (1 + errors_i)``."""
         errors = as_vector(errors, self.n_wheels, "errors")
         return replace(self, scale=1.0 + errors)
 
-    def with_axes(self, axes) -> "WheelArray":
+    def with_axes(self, axes: Any) -> "WheelArray":
         """Return a copy with other spin axes (same limits and failures)."""
         return replace(self, axes=axes)
 
-    def with_mounting_errors(self, tilt_a, tilt_b) -> "WheelArray":
+    def with_mounting_errors(self, tilt_a: ArrayLike,
+                             tilt_b: ArrayLike) -> "WheelArray":
         """Return a copy with every axis tilted by two small angles.
 
         Axis ``h_i`` is rotated by ``tilt_a[i]`` towards ``e1_i`` and then

@@ -26,6 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InfeasibleError, InvalidValueError
 from adcs_common.validation import (
@@ -81,21 +82,21 @@ class WheelMotor:
         """Speed at which the back-EMF reaches the bus voltage [rad/s]."""
         return self.bus_voltage / self.back_emf
 
-    def speed(self, momentum) -> np.ndarray:
+    def speed(self, momentum: ArrayLike) -> np.ndarray:
         """Wheel speed Ω [rad/s] from wheel momentum H [N·m·s]."""
         return as_finite_array(momentum, "momentum") / self.rotor_inertia
 
-    def current(self, torque) -> np.ndarray:
+    def current(self, torque: ArrayLike) -> np.ndarray:
         """Motor current i = m / k_t [A]."""
         return as_finite_array(torque, "torque") / self.torque_constant
 
-    def available_torque(self, speed) -> np.ndarray:
+    def available_torque(self, speed: ArrayLike) -> np.ndarray:
         """Torque the drive can deliver at speed Ω [N·m] (accelerating)."""
         speed = as_finite_array(speed, "speed")
         return self.torque_constant * (
             self.bus_voltage - self.back_emf * np.abs(speed)) / self.resistance
 
-    def current_weights(self, speed) -> np.ndarray:
+    def current_weights(self, speed: ArrayLike) -> np.ndarray:
         """Weights ``V_i = 1 / m_avail(Ω_i)²`` [1/(N·m)²] for the weighted law.
 
         Raises
@@ -115,7 +116,8 @@ class WheelMotor:
         """R / k_t² [W/(N·m)²]: winding loss per squared torque."""
         return self.resistance / self.torque_constant**2
 
-    def electrical_power(self, torque, speed) -> np.ndarray:
+    def electrical_power(self, torque: ArrayLike,
+                         speed: ArrayLike) -> np.ndarray:
         """Electrical power drawn [W], ``R (m/k_t)² + max(mΩ, η mΩ)``."""
         m = as_finite_array(torque, "torque")
         w = as_finite_array(speed, "speed")

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError, RankError, ShapeError
@@ -14,6 +15,10 @@ from adcs_common.validation import as_finite_array, check_instance
 
 from .arrays import WheelArray
 from .zonotope import radial_extent, zonotope_facets
+
+if TYPE_CHECKING:
+    import pandas as pd
+
 
 __all__ = ["Envelope", "Facets", "envelope", "unit_directions"]
 
@@ -198,7 +203,7 @@ class Envelope(ResultMixin):
         """Number of vertices V (14 for the pyramid, 8 for a box)."""
         return int(self.vertices.shape[0])
 
-    def support(self, direction) -> float | np.ndarray:
+    def support(self, direction: ArrayLike) -> float | np.ndarray:
         r"""Extent of the set along direction(s): the support function.
 
         .. math:: h_S(u) = \max_{x \in S} u \cdot x
@@ -219,7 +224,7 @@ class Envelope(ResultMixin):
         h = np.sum(np.abs(self.generators.T @ u), axis=0)
         return float(h) if u.ndim == 1 else h
 
-    def radial_extent(self, direction) -> float | np.ndarray:
+    def radial_extent(self, direction: ArrayLike) -> float | np.ndarray:
         """Largest ``t`` with ``t·u`` in the set (the ray's exit point).
 
         Parameters
@@ -237,7 +242,8 @@ class Envelope(ResultMixin):
         r = radial_extent(self.facets.normals, self.facets.offsets, u)
         return float(r) if u.ndim == 1 else r
 
-    def contains(self, point, tol: float = 1e-9) -> bool | np.ndarray:
+    def contains(self, point: ArrayLike,
+                 tol: float = 1e-9) -> bool | np.ndarray:
         """Whether point(s) (3,) or (3, K) lie in the set (within tol)."""
         p = np.asarray(point, dtype=float)
         if p.ndim not in (1, 2) or p.shape[0] != 3:
@@ -321,7 +327,7 @@ def envelope(array: WheelArray, kind: str = "momentum") -> Envelope:
 
 
 def envelope_frame(array: WheelArray, kind: str = "momentum",
-                   failures: bool = True):
+                   failures: bool = True) -> pd.DataFrame:
     """Envelope figures, nominal and per single failure, as a DataFrame.
 
     One row per case (``failed``: "none" or the wheel named 1..N):

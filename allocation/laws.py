@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError, ShapeError
 from adcs_common.validation import (
@@ -66,7 +67,7 @@ class LinearLaw:
     gains: np.ndarray
     name: str = "linear"
 
-    def allocate(self, torque) -> np.ndarray:
+    def allocate(self, torque: ArrayLike) -> np.ndarray:
         """Wheel torques for body demand(s).
 
         Parameters
@@ -185,7 +186,7 @@ def pyramid_failure_gains(failed: int, delta: float,
     return PAPER_FAILURE_LAWS[failed] / pyramid_scale(delta, gamma)
 
 
-def weighted_gains(array: WheelArray, weights) -> np.ndarray:
+def weighted_gains(array: WheelArray, weights: ArrayLike) -> np.ndarray:
     r"""Weighted minimum-norm gains ([1], criterion of ref. [10]).
 
     .. math::
@@ -208,13 +209,13 @@ def weighted_gains(array: WheelArray, weights) -> np.ndarray:
     return _pinv_with_failures(array, w)
 
 
-def weighted_law(array: WheelArray, weights) -> LinearLaw:
+def weighted_law(array: WheelArray, weights: ArrayLike) -> LinearLaw:
     """Return the weighted law of ``array`` as a `LinearLaw`."""
     check_instance(array, WheelArray, "array")
     return LinearLaw(weighted_gains(array, weights), "weighted")
 
 
-def allocate_min_norm(array: WheelArray, torque) -> np.ndarray:
+def allocate_min_norm(array: WheelArray, torque: ArrayLike) -> np.ndarray:
     """Minimum-norm wheel torques (N,) or (N, K) for demand(s) (3,)/(3, K).
 
     Convenience for ``min_norm_law(array).allocate(torque)``.

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence, TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import AdcsError, InvalidValueError, ShapeError
@@ -14,6 +15,10 @@ from adcs_common.validation import as_finite_scalar, as_vector
 from .arrays import WheelArray
 from .envelope import envelope, unit_directions
 from .laws import LinearLaw, min_norm_law, weighted_law
+
+if TYPE_CHECKING:
+    import pandas as pd
+
 
 __all__ = [
     "ReachResult",
@@ -168,7 +173,7 @@ def _batch_extent(array: WheelArray, law: Any, u: np.ndarray,
     return lo
 
 
-def law_extent(array: WheelArray, law: Any, direction, *,
+def law_extent(array: WheelArray, law: Any, direction: ArrayLike, *,
                tol: float = 1e-6, rtol: float = 1e-4) -> np.ndarray:
     r"""Largest torque a law produces along direction(s) within limits.
 
@@ -530,7 +535,7 @@ def format_reach_table(rows: Sequence[ReachResult]) -> str:
     return "\n".join(lines)
 
 
-def reach_frame(rows: Sequence[ReachResult]):
+def reach_frame(rows: Sequence[ReachResult]) -> pd.DataFrame:
     """`reach_table` rows as a `pandas.DataFrame` (fractions in [0, 1]).
 
     Columns: law, failed (wheels named 1..N), mean and worst-direction

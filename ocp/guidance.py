@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import linprog
 
 from adcs_common.exceptions import InfeasibleError, InvalidValueError
@@ -130,7 +131,8 @@ class EigenaxisSlew:
         """Largest eigenaxis rate ω_p [rad/s]."""
         return self.alpha * self.t_accel
 
-    def profile(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def profile(self, t: ArrayLike) -> tuple[np.ndarray, np.ndarray,
+                np.ndarray]:
         """Angle θ [rad], rate θ̇ [rad/s], acceleration θ̈ [rad/s²] at ``t``.
 
         θ̈ is taken from the right at the switch times (ZOH convention).
@@ -193,8 +195,10 @@ class EigenaxisSlew:
                     "t_accel": ta, "t_coast": tc})
 
 
-def eigenaxis_slew(inertia, q0, qf, *, wheels: WheelArray | None = None,
-                   torque_max=None, rate_max: float | None = None
+def eigenaxis_slew(inertia: ArrayLike, q0: ArrayLike, qf: ArrayLike, *,
+                   wheels: WheelArray | None = None,
+                   torque_max: ArrayLike | None = None,
+                   rate_max: float | None = None
                    ) -> EigenaxisSlew:
     """Rest-to-rest bang–coast–bang eigenaxis slew under actuator limits.
 
@@ -333,9 +337,11 @@ def _feedback_step(model: SpacecraftModel, qf: np.ndarray, kp: np.ndarray,
                        ["x", "tau"], ["xf", "u"])
 
 
-def quaternion_feedback_slew(inertia, q0, qf, *,
+def quaternion_feedback_slew(inertia: ArrayLike, q0: ArrayLike, qf: ArrayLike,
+                             *,
                              wheels: WheelArray | None = None,
-                             torque_max=None, natural_frequency: float,
+                             torque_max: ArrayLike | None = None,
+                             natural_frequency: float,
                              damping: float = 0.9, t_final: float,
                              dt: float = 0.1, settle_angle: float = 1e-3,
                              options: dict | None = None) -> SlewTrajectory:

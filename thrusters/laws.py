@@ -6,6 +6,7 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError, RankError
@@ -123,7 +124,7 @@ def _mode(P_T: float) -> str:
                                      "reorientation")
 
 
-def unloading_law(unit: ThrusterSet, P_T: float, H, T_T: float,
+def unloading_law(unit: ThrusterSet, P_T: float, H: ArrayLike, T_T: float,
                   K_unl: float = 1.0) -> LawResult:
     """Duties for a translation with wheel unloading, [4] eq. (2).
 
@@ -199,7 +200,7 @@ def unloading_law(unit: ThrusterSet, P_T: float, H, T_T: float,
     return _finish(unit, k_raw, demand, _mode(P_T), "unloading (eq. 2)")
 
 
-def pair_forces(unit: ThrusterSet, P_T: float, M) -> np.ndarray:
+def pair_forces(unit: ThrusterSet, P_T: float, M: ArrayLike) -> np.ndarray:
     """Signed mean pair forces F_1..F_3 of eq. (8) [N].
 
     .. math::
@@ -231,7 +232,8 @@ def pair_forces(unit: ThrusterSet, P_T: float, M) -> np.ndarray:
     return Ci @ np.array([P_T, Mv[0], Mv[1]])
 
 
-def reorientation_law(unit: ThrusterSet, P_T: float, M) -> LawResult:
+def reorientation_law(unit: ThrusterSet, P_T: float,
+                      M: ArrayLike) -> LawResult:
     """Reorientation and hold, [4] eqs. (8)-(9) (reconstructed).
 
     Solves eq. (8) for the signed pair forces (`pair_forces`), then

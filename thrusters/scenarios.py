@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -275,7 +277,7 @@ def _check_allocation(allocation):
 
 def burn_scenario(allocation: str = "law", solver: str = "daqp",
                   K_unl: float = 1.0, unit: ThrusterSet | None = None,
-                  disturbance=BURN_DISTURBANCE, dt: float = 0.1,
+                  disturbance: Any = BURN_DISTURBANCE, dt: float = 0.1,
                   settle: float = 60.0, calibrate: bool = True,
                   pressure_drop: float = 0.0) -> ScenarioResult:
     """Simulate the translation burn of Table 2 with wheel unloading.
@@ -387,7 +389,7 @@ def reorientation_scenario(allocation: str = "law", solver: str = "daqp",
                            dt: float = 0.1, t_end: float = 600.0,
                            omega_n: float = 0.15,
                            valve_jitter: float = 0.002,
-                           disturbance=(0.0, 0.0, 0.0),
+                           disturbance: Any = (0.0, 0.0, 0.0),
                            seed: int = 0) -> ScenarioResult:
     """Hold, 170° slew about X, hold (Table 5): thrusters at T_T = 2 s.
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any, TYPE_CHECKING
+
 import numpy as np
 from .scenarios import (
     MASS,
@@ -12,6 +14,10 @@ from .scenarios import (
     TABLE5_ENGINES,
     TABLE5_GROUPS,
 )
+
+if TYPE_CHECKING:
+    import pandas as pd
+
 
 
 # ----------------------------------------------------------------------
@@ -138,7 +144,7 @@ def format_table(rows: list[tuple], title: str = "") -> str:
 
 # ----------------------------------------------------------------------
 # plots
-def plot_scenario(result: ScenarioResult, path) -> None:
+def plot_scenario(result: ScenarioResult, path: Any) -> None:
     """Thrust, wheel momentum, valve on-times, Δv and attitude to ``path``.
 
     Parameters
@@ -187,7 +193,7 @@ def plot_scenario(result: ScenarioResult, path) -> None:
     plt.close(fig)
 
 
-def table_frame(rows: list[tuple]):
+def table_frame(rows: list[tuple]) -> pd.DataFrame:
     """Rows (quantity, paper, ours, diff) as a `pandas.DataFrame`."""
     import pandas as pd
 

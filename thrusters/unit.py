@@ -6,6 +6,7 @@ from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError, ShapeError
 from adcs_common.validation import (
@@ -235,7 +236,7 @@ class ThrusterSet:
         """Return the same set at another inlet pressure [Pa]."""
         return replace(self, pressure=pressure)
 
-    def with_correction(self, correction) -> "ThrusterSet":
+    def with_correction(self, correction: ArrayLike) -> "ThrusterSet":
         """Return the set with other correction coefficients K_p (n,) [1]."""
         return replace(self, correction=correction)
 
@@ -250,7 +251,8 @@ class ThrusterSet:
         return T
 
     # ------------------------------------------------------------------
-    def pulse_impulse(self, on_time, steady_thrust=None) -> np.ndarray:
+    def pulse_impulse(self, on_time: ArrayLike,
+                      steady_thrust: ArrayLike | None = None) -> np.ndarray:
         """Impulse of one pulse under the first-order transient model [N·s].
 
         .. math::
@@ -282,8 +284,9 @@ class ThrusterSet:
         rise = 1.0 - np.exp(-D / self.rise_time)
         return P * (D + (self.tail_time - self.rise_time) * rise)
 
-    def cumulative_impulse(self, t: float, on_time,
-                           steady_thrust=None) -> np.ndarray:
+    def cumulative_impulse(self, t: float, on_time: ArrayLike,
+                           steady_thrust: ArrayLike | None = None
+                           ) -> np.ndarray:
         """Impulse delivered from the cycle start up to time ``t`` [N·s].
 
         Closed-form integral of `thrust_profile` (same first-order model
@@ -316,7 +319,7 @@ class ThrusterSet:
                 else 0.0 * level)
         return P * np.where(D > 0, rising + np.where(t > c, tail, 0.0), 0.0)
 
-    def mean_thrust(self, duty, cycle: float) -> np.ndarray:
+    def mean_thrust(self, duty: ArrayLike, cycle: float) -> np.ndarray:
         """Return the true mean thrust of each engine over a cycle, (n,) [N].
 
         ``pulse_impulse(duty * cycle) / cycle``; compare with the linear
@@ -327,7 +330,7 @@ class ThrusterSet:
         return self.pulse_impulse(k * T) / T
 
     def correction_coefficient(self, cycle: float,
-                               duty=1.0) -> np.ndarray:
+                               duty: ArrayLike = 1.0) -> np.ndarray:
         """Correction coefficients :math:`K_{pi}` for pulses of ``duty``.
 
         .. math:: K_{pi} = I(k T_T) / (P_{Di}\\, k T_T)
@@ -356,12 +359,12 @@ class ThrusterSet:
                 f"{self.min_on_time} s")
         return self.pulse_impulse(k * T) / (self.steady_thrust * k * T)
 
-    def calibrated(self, cycle: float, duty=1.0) -> "ThrusterSet":
+    def calibrated(self, cycle: float, duty: ArrayLike = 1.0) -> "ThrusterSet":
         """Return the set with K_p from `correction_coefficient` (firing)."""
         return self.with_correction(self.correction_coefficient(cycle, duty))
 
-    def thrust_profile(self, times, on_time,
-                       steady_thrust=None) -> np.ndarray:
+    def thrust_profile(self, times: ArrayLike, on_time: ArrayLike,
+                       steady_thrust: ArrayLike | None = None) -> np.ndarray:
         """Instantaneous thrust of each engine during a pulse, (n, m) [N].
 
         Parameters
@@ -392,9 +395,9 @@ class ThrusterSet:
 
 def six_thruster_unit(R: float = 0.25, L: float = 0.3, thrust: float = 0.5,
                       pressure: float = 9.0 * KGF_PER_CM2,
-                      thrust_offset=0.0,
+                      thrust_offset: ArrayLike = 0.0,
                       center_of_mass: Sequence[float] = (0.0, 0.0, 0.0),
-                      correction=1.0, **kwargs) -> ThrusterSet:
+                      correction: ArrayLike = 1.0, **kwargs) -> ThrusterSet:
     """Build the six-thruster unit of [4] (engines ordered D1..D6).
 
     Two groups of three engines on a circle of radius ``R`` in planes

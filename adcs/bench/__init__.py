@@ -24,7 +24,9 @@ slow one is cut short and marked "too slow" rather than waited for.
 
 from __future__ import annotations
 
-from typing import Sequence
+import os
+
+from typing import Any, Sequence
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.paths import output_folder
@@ -62,11 +64,12 @@ __all__ = [
 ]
 
 
-def run_bench(out_dir=None, *, problems: Sequence[str] = PROBLEMS,
+def run_bench(out_dir: str | os.PathLike[str] | None = None, *,
+              problems: Sequence[str] = PROBLEMS,
               backends: Sequence[str] | None = None,
               repetitions: int | None = None, quick: bool = False,
               progress: bool = True, seed: int = 0,
-              spacecraft=None, budget: float | None = None
+              spacecraft: Any | None = None, budget: float | None = None
               ) -> list[BenchRow]:
     """Run the benchmark, print the table, write JSON and PNG.
 

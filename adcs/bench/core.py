@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import (
     AdcsError,
@@ -119,7 +120,9 @@ class BenchRow:
         return 0 < self.n < self.requested
 
 
-def kkt_residual(P, q, C, cl, cu, x, active_tol: float = 1e-7) -> float:
+def kkt_residual(P: ArrayLike, q: ArrayLike, C: ArrayLike, cl: ArrayLike,
+                 cu: ArrayLike, x: ArrayLike,
+                 active_tol: float = 1e-7) -> float:
     """KKT residual of ``x`` for ``min ½xᵀPx + qᵀx, cl <= C x <= cu``.
 
     The largest of the primal violation and the stationarity residual

@@ -5,11 +5,15 @@ from __future__ import annotations
 import json
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Sequence, TYPE_CHECKING
 
 import numpy as np
 
 from .core import PROBLEMS, TOL, BenchRow
+
+if TYPE_CHECKING:
+    import pandas as pd
+
 
 
 def format_table(rows: Sequence[BenchRow]) -> str:
@@ -25,7 +29,7 @@ def format_table(rows: Sequence[BenchRow]) -> str:
     return "\n".join(lines)
 
 
-def to_frame(rows: Sequence[BenchRow]):
+def to_frame(rows: Sequence[BenchRow]) -> pd.DataFrame:
     """Rows as a `pandas.DataFrame` (one row per problem and backend)."""
     import pandas as pd
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -28,7 +28,8 @@ BUDGET = 8.0
 # -------------------------------------------------------------------- wheels
 def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
                  seed: int = 0, progress: Progress | None = None,
-                 spacecraft=None, budget: float = BUDGET) -> list[BenchRow]:
+                 spacecraft: Any | None = None,
+                 budget: float = BUDGET) -> list[BenchRow]:
     """Time the bounded wheel-allocation QP across backends.
 
     The spacecraft's wheel array (default: the pyramid δ = 55°, γ = 45°,
@@ -87,7 +88,7 @@ def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
 # ----------------------------------------------------------------- thrusters
 def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
                     seed: int = 0, progress: Progress | None = None,
-                    spacecraft=None, budget: float = BUDGET
+                    spacecraft: Any | None = None, budget: float = BUDGET
                     ) -> list[BenchRow]:
     """Time the thruster duty-cycle QP across backends.
 
@@ -171,7 +172,8 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
 # ---------------------------------------------------------------------- slew
 def bench_slew(backends: Sequence[str] | None = None, reps: int = 5,
                progress: Progress | None = None, quick: bool = False,
-               spacecraft=None, budget: float = BUDGET) -> list[BenchRow]:
+               spacecraft: Any | None = None,
+               budget: float = BUDGET) -> list[BenchRow]:
     """Time the MPC slew NLP (horizon 20, 90° from rest), cold-started.
 
     On the spacecraft's inertia and wheels (default: the ``demo`` craft).

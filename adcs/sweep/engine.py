@@ -21,12 +21,16 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, TYPE_CHECKING
 
 import numpy as np
 
 from adcs_common.exceptions import AdcsError, InvalidValueError
 from adcs_common.paths import output_folder
+
+if TYPE_CHECKING:
+    import xarray as xr
+
 
 __all__ = ["SweepError", "connect", "local_cluster", "run_chunk",
            "run_sweep"]
@@ -48,7 +52,7 @@ def _distributed():
     return distributed
 
 
-def local_cluster(workers: int | None = None, host: str = LOOPBACK):
+def local_cluster(workers: int | None = None, host: str = LOOPBACK) -> Any:
     """Start a `distributed.LocalCluster` of worker processes here.
 
     One thread per worker process; scheduler and dashboard listen on
@@ -67,7 +71,7 @@ def local_cluster(workers: int | None = None, host: str = LOOPBACK):
 
 def connect(scheduler: str | None = None, *, workers: int | None = None,
             tls_ca: str | None = None, tls_cert: str | None = None,
-            tls_key: str | None = None):
+            tls_key: str | None = None) -> tuple[Any, Any]:
     """``(client, cluster)``: a new local cluster, or an existing scheduler.
 
     Parameters
@@ -126,7 +130,7 @@ def _key(study: Callable, chunk: list[dict]) -> str:
 def run_sweep(study: Callable[..., dict], params: list[dict], *,
               client: Any = None, chunk_size: int | None = None,
               out: str | Path | None = None, retries: int = 2,
-              progress: bool = True):
+              progress: bool = True) -> xr.Dataset:
     """Run ``study`` on every parameter row; return an `xarray.Dataset`.
 
     Parameters

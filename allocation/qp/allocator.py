@@ -6,6 +6,7 @@ import time
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError, SolverError
 from adcs_common.threads import new_lock, synchronized
@@ -128,9 +129,10 @@ class QPAllocator:
         Relative tolerance of the checks applied to every solver answer.
     """
 
-    def __init__(self, array: WheelArray, weights=None,
+    def __init__(self, array: WheelArray, weights: ArrayLike | None = None,
                  solver: str = EXACT_SOLVER,
-                 *, saturation: str = "scale", momentum_target=None,
+                 *, saturation: str = "scale",
+                 momentum_target: ArrayLike | None = None,
                  momentum_gain: float = 0.1, momentum_weight: float = 1.0,
                  motor: WheelMotor | None = None, power_weight: float = 1.0,
                  solver_options: dict[str, Any] | None = None,
@@ -315,7 +317,8 @@ class QPAllocator:
 
     # ---------------------------------------------------------------- API
     @synchronized
-    def allocate_fast(self, torque, wheel_momentum=None,
+    def allocate_fast(self, torque: ArrayLike,
+                      wheel_momentum: ArrayLike | None = None,
                       dt: float | None = None, *,
                       out: np.ndarray | None = None) -> np.ndarray:
         """Motor torques of one demand, fast path (same law as `allocate`).
@@ -396,7 +399,8 @@ class QPAllocator:
         return fast
 
     @synchronized
-    def allocate(self, torque, wheel_momentum=None,
+    def allocate(self, torque: ArrayLike,
+                 wheel_momentum: ArrayLike | None = None,
                  dt: float | None = None) -> WheelAllocation:
         """Allocate one demanded array torque.
 
@@ -483,7 +487,8 @@ class QPAllocator:
             extras={**res.extras, **extras})
 
     @synchronized
-    def allocate_batch(self, torques, wheel_momentum=None,
+    def allocate_batch(self, torques: ArrayLike,
+                       wheel_momentum: ArrayLike | None = None,
                        dt: float | None = None) -> BatchAllocation:
         """Allocate K demands at once (the same law as `allocate`).
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError, SolverNotFound
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
@@ -66,7 +67,8 @@ def _null_direction(array: WheelArray) -> np.ndarray:
     return out
 
 
-def conic_allocator_function(array: WheelArray, weights=None, *,
+def conic_allocator_function(array: WheelArray,
+                             weights: ArrayLike | None = None, *,
                              dt: float | None = None, plugin: str = "daqp",
                              name: str = "wheel_qp",
                              plugin_options: dict | None = None,

@@ -41,10 +41,15 @@ Exported functions (names are the C symbols):
 
 from __future__ import annotations
 
+import os
+
+from typing import Any
+
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.codegen import CompileError, CompilerNotFound
 from adcs_common.exceptions import InvalidValueError
@@ -129,7 +134,7 @@ def c_flags(plugin: str) -> tuple[list[str], list[str]]:
     return inc, [f for f in flags if not f.startswith("-I")]
 
 
-def duty_qp_function(unit, cycle: float, h_max: float, *,
+def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
                      plugin: str | None = None,
                      **qp_options) -> ca.Function:
     """Build the thruster duty-cycle QP as one certified casadi Function.
@@ -169,11 +174,11 @@ def duty_qp_function(unit, cycle: float, h_max: float, *,
         _resolve_wheel_qp_plugin(plugin, "plugin"))
 
 
-def default_functions(*, wheels: WheelArray, inertia=None,
-                      thrusters=None, cycle: float = 2.0,
+def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
+                      thrusters: ArrayLike | None = None, cycle: float = 2.0,
                       thruster_h_max: float = 0.012, dt: float = 0.5,
                       horizon: int = 20,
-                      mpc_variants=("mpc_step", "mpc_rti_step"),
+                      mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step"),
                       wheel_qp_plugin: str | None = "qrqp",
                       wheel_qp_fast_path: bool = True,
                       duty_qp_plugin: str | None = "qrqp"
@@ -280,12 +285,13 @@ def _renamed(f: ca.Function, name: str) -> ca.Function:
     return ca.Function(name, args, f.call(args), f.name_in(), f.name_out())
 
 
-def export_c(out_dir, spacecraft=None, *,
-             wheels: WheelArray | None = None, thrusters=None,
-             inertia=None, cycle: float = 2.0,
+def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
+             wheels: WheelArray | None = None,
+             thrusters: ArrayLike | None = None,
+             inertia: ArrayLike | None = None, cycle: float = 2.0,
              thruster_h_max: float = 0.012, dt: float = 0.5,
              horizon: int = 20,
-             mpc_variants=("mpc_step", "mpc_rti_step"),
+             mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step"),
              wheel_qp_plugin: str | None = None,
              wheel_qp_fast_path: bool = True,
              duty_qp_plugin: str | None = None,

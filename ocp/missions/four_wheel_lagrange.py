@@ -36,10 +36,11 @@ paper's run).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError
@@ -108,7 +109,7 @@ class FourWheelCraft:
         """Newton–Euler inertia J (3, 3) [kg·m²] (rotor spin excluded)."""
         return self.newton_euler.inertia
 
-    def to_newton_euler(self, x) -> np.ndarray:
+    def to_newton_euler(self, x: ArrayLike) -> np.ndarray:
         """Map a Lagrange state (q, q̇) (14,) to ``(quat, ω, H_w)`` (11,)."""
         x = as_vector(x, 14, "x")
         ang, rates = x[:3], x[7:10]
@@ -121,10 +122,12 @@ def _skew_sq(r: np.ndarray) -> np.ndarray:
     return float(r @ r) * np.eye(3) - np.outer(r, r)
 
 
-def four_wheel_craft(*, body_inertia=FOUR_WHEEL_INERTIA,
+def four_wheel_craft(*, body_inertia: ArrayLike = FOUR_WHEEL_INERTIA,
                        wheels: WheelArray | None = None,
-                       spin_inertia=None, transverse_inertia=None,
-                       mass=3.0, offsets=None) -> FourWheelCraft:
+                       spin_inertia: ArrayLike | None = None,
+                       transverse_inertia: ArrayLike | None = None,
+                       mass: ArrayLike = 3.0,
+                       offsets: ArrayLike | None = None) -> FourWheelCraft:
     """Build the [3] spacecraft (Lagrange and Newton–Euler models).
 
     Parameters
@@ -239,7 +242,7 @@ class FourWheelRun(ResultMixin):
     wheel_torque: np.ndarray
     extras: dict = field(default_factory=dict)
 
-    def plot(self, axes=None):
+    def plot(self, axes: Any | None = None) -> Any:
         """Angles [deg], body rates, wheel speeds (the paper's figs. 6-8).
 
         Returns
@@ -271,7 +274,8 @@ def four_wheel_run(spacecraft: FourWheelCraft | None = None, *,
                 disturbance: Callable[[float], np.ndarray] | None = None,
                 disturbance_axis: int = 0, amplitude: float = 1e-2,
                 controller: str = "none", natural_frequency: float = 0.05,
-                damping: float = 0.9, x0=None, reltol: float = 0.01,
+                damping: float = 0.9, x0: ArrayLike | None = None,
+                reltol: float = 0.01,
                 abstol: float = 1e-6) -> FourWheelRun:
     """Reproduce the [3] run: response to disturbance torques.
 

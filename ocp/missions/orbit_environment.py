@@ -20,10 +20,11 @@ frame is :math:`ω_{rel} = ω - R(q)^T ω_0 e_2`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Any, Sequence
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import InvalidValueError
@@ -66,7 +67,8 @@ def orbit_rate(radius: float, mu: float = EARTH_MU) -> float:
     return float(np.sqrt(mu / r ** 3))
 
 
-def gravity_gradient_torque(inertia, e3_body, w0: float):
+def gravity_gradient_torque(inertia: ArrayLike, e3_body: ArrayLike,
+                            w0: float) -> Any:
     """Gravity-gradient torque :math:`3ω_0^2 E_3 \\times J E_3` [N·m].
 
     Works on numpy arrays and CasADi symbols.
@@ -90,8 +92,8 @@ def gravity_gradient_torque(inertia, e3_body, w0: float):
                                                        (3, 3)) @ e3)
 
 
-def dipole_field_orbit(u, inclination: float, radius: float,
-                       dipole: float = EARTH_DIPOLE):
+def dipole_field_orbit(u: ArrayLike, inclination: float, radius: float,
+                       dipole: float = EARTH_DIPOLE) -> Any:
     """Direct-dipole field in orbit axes [T] ([2], theory §3).
 
     Parameters
@@ -152,7 +154,7 @@ class OrbitModel:
     field_body: ca.Function
     wheel_dynamics: ca.Function
 
-    def relative_rate(self, x) -> np.ndarray:
+    def relative_rate(self, x: ArrayLike) -> np.ndarray:
         """Rate relative to the orbit frame, (3,) or (K, 3) [rad/s]."""
         x = np.atleast_2d(np.asarray(x, dtype=float))
         out = np.array([xi[4:7] - quat_to_dcm(xi[:4]).T @ [0, self.w0, 0]
@@ -160,7 +162,7 @@ class OrbitModel:
         return out[0] if out.shape[0] == 1 else out
 
 
-def orbit_model(inertia, *, radius: float = 6_850e3,
+def orbit_model(inertia: ArrayLike, *, radius: float = 6_850e3,
                 inclination: float = np.deg2rad(51.7), u0: float = 0.0,
                 dipole: float = EARTH_DIPOLE) -> OrbitModel:
     """Build the orbit model of [2] (Chibis-M orbit by default).
@@ -303,7 +305,7 @@ class BdotRun(ResultMixin):
         """Absolute body rates (K + 1, 3) [rad/s]."""
         return self.x[:, 4:7]
 
-    def plot(self, axes=None):
+    def plot(self, axes: Any | None = None) -> Any:
         """Plot body rates and coil dipoles; return the figure."""
         import matplotlib.pyplot as plt
 
@@ -331,8 +333,8 @@ def bdot_dipole(Bdot, gain, dipole_max, coils):
     return coils * ca.fmin(ca.fmax(-gain * Bdot, -dipole_max), dipole_max)
 
 
-def bdot_detumble(model: OrbitModel, x0, *, t_final: float,
-                  gain: float, dipole_max=3.2, dt: float = 1.0,
+def bdot_detumble(model: OrbitModel, x0: ArrayLike, *, t_final: float,
+                  gain: float, dipole_max: ArrayLike = 3.2, dt: float = 1.0,
                   failed_coils: Sequence[int] = ()) -> BdotRun:
     """Simulate the −Bdot damping law in closed loop (CVODES, ZOH).
 
@@ -402,7 +404,7 @@ def bdot_detumble(model: OrbitModel, x0, *, t_final: float,
                            "failed_coils": tuple(failed_coils), "dt": dt})
 
 
-def simulate_wheel_law(model: OrbitModel, law: ca.Function, x0, *,
+def simulate_wheel_law(model: OrbitModel, law: ca.Function, x0: ArrayLike, *,
                        t_final: float, dt: float = 1.0) -> tuple[
                            np.ndarray, np.ndarray]:
     """Integrate the orbit model with wheels under ``law`` (CVODES).

@@ -9,8 +9,11 @@ Quaternion conventions are those of `adcs_common.quaternion`.
 
 from __future__ import annotations
 
+from typing import Any
+
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_finite_array
@@ -29,7 +32,7 @@ __all__ = [
 EK_SINGULAR_TOL = 1e-6
 
 
-def dcm_body_from_ref_ek(angles):
+def dcm_body_from_ref_ek(angles: ArrayLike) -> Any:
     """:math:`C_{body\\leftarrow ref} = R_1(γ) R_2(ψ) R_3(ϑ)` ([3]).
 
     Parameters
@@ -52,7 +55,7 @@ def dcm_body_from_ref_ek(angles):
     return np.array(rows, dtype=float)
 
 
-def body_rates_from_angle_rates(angles, rates):
+def body_rates_from_angle_rates(angles: ArrayLike, rates: ArrayLike) -> Any:
     """Body rates from angle rates, [3] eq. (1).
 
     .. math::
@@ -75,7 +78,7 @@ def body_rates_from_angle_rates(angles, rates):
     ])
 
 
-def ek_angle_rates(angles, w):
+def ek_angle_rates(angles: ArrayLike, w: ArrayLike) -> Any:
     """Angle rates from body rates: the inverse of [3] eq. (1).
 
     .. math::
@@ -109,7 +112,7 @@ def ek_angle_rates_function() -> ca.Function:
                        ["angles", "w"], ["rates"])
 
 
-def quat_from_ek(angles) -> np.ndarray:
+def quat_from_ek(angles: ArrayLike) -> np.ndarray:
     """Quaternion (body to reference) of Euler–Krylov angles (γ, ψ, ϑ)."""
     g, p, t = as_finite_array(angles, "angles", (3,))
     qz = np.array([np.cos(t / 2), 0.0, 0.0, np.sin(t / 2)])
@@ -118,7 +121,7 @@ def quat_from_ek(angles) -> np.ndarray:
     return quat_mul(quat_mul(qz, qy), qx)
 
 
-def ek_from_quat(q) -> np.ndarray:
+def ek_from_quat(q: ArrayLike) -> np.ndarray:
     """Euler–Krylov angles (γ, ψ, ϑ) [rad] of a quaternion.
 
     ψ is returned in ``[-π/2, π/2]``; at the singularity the split between

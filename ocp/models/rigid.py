@@ -26,9 +26,12 @@ motion; the pulses themselves are in `thrusters.scenarios`.
 
 from __future__ import annotations
 
+from typing import Any
+
 from dataclasses import dataclass
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError, SolverError
 from adcs_common.validation import as_finite_array, as_vector, check_positive
@@ -56,8 +59,10 @@ def effective_torque_matrix(wheels: WheelArray) -> tuple[np.ndarray,
     return np.array(wheels.axes), wheels.scale * wheels.active
 
 
-def dynamics_numpy(inertia, x, u, tau_ext=None, axes=None,
-                   torque_factor=None, thruster_torque=None) -> np.ndarray:
+def dynamics_numpy(inertia: ArrayLike, x: ArrayLike, u: ArrayLike,
+                   tau_ext: ArrayLike | None = None, axes: Any | None = None,
+                   torque_factor: ArrayLike | None = None,
+                   thruster_torque: ArrayLike | None = None) -> np.ndarray:
     """Numpy reference of `SpacecraftModel.dynamics` (independent code).
 
     Parameters
@@ -165,7 +170,7 @@ class SpacecraftModel:
             hi.append(np.ones(self.n_thrusters))
         return np.concatenate(lo), np.concatenate(hi)
 
-    def body_control_torque(self, u) -> np.ndarray:
+    def body_control_torque(self, u: ArrayLike) -> np.ndarray:
         """Control torque on the body [N·m], (3,) or (3, K).
 
         ``-A diag(s) m`` for wheels (the reaction of the rotors), ``u`` for
@@ -183,7 +188,8 @@ class SpacecraftModel:
             out = out + self.thrusters.torque_matrix() @ u[self.nu - nt:]
         return out
 
-    def state(self, q, w=None, h=None) -> np.ndarray:
+    def state(self, q: ArrayLike, w: ArrayLike | None = None,
+              h: ArrayLike | None = None) -> np.ndarray:
         """Assemble a state vector from its parts (zeros by default)."""
         q = as_vector(q, 4, "q")
         w = np.zeros(3) if w is None else as_vector(w, 3, "w")
@@ -267,7 +273,8 @@ class SpacecraftModel:
         opts.update(options or {})
         return ca.integrator("sim", method, dae, 0.0, dt, opts)
 
-    def simulate(self, x0, t, u, tau=None, method: str = "cvodes",
+    def simulate(self, x0: ArrayLike, t: ArrayLike, u: ArrayLike,
+                 tau: ArrayLike | None = None, method: str = "cvodes",
                  options: dict | None = None) -> np.ndarray:
         """Integrate from ``x0`` over the grid ``t`` with ZOH controls.
 
@@ -319,8 +326,8 @@ class SpacecraftModel:
         return X
 
 
-def rigid_spacecraft(inertia, wheels: WheelArray | None = None, *,
-                     torque_max=None,
+def rigid_spacecraft(inertia: ArrayLike, wheels: WheelArray | None = None, *,
+                     torque_max: ArrayLike | None = None,
                      thrusters: ThrusterSet | None = None
                      ) -> SpacecraftModel:
     """Rigid spacecraft with a wheel array, a torque box or thrusters.
@@ -408,7 +415,7 @@ def rigid_spacecraft(inertia, wheels: WheelArray | None = None, *,
                            dynamics=f, thrusters=thrusters)
 
 
-def euler_krylov_model(inertia, wheels: WheelArray | None = None
+def euler_krylov_model(inertia: ArrayLike, wheels: WheelArray | None = None
                        ) -> ca.Function:
     """Dynamics in Euler–Krylov angles, for comparison with [3].
 

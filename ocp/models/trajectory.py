@@ -107,7 +107,7 @@ class SlewTrajectory(ResultMixin):
         return quat_error_angle(self.q, self.qf)
 
     # ---------------------------------------------------------------- plots
-    def plot(self, axes=None):
+    def plot(self, axes: Any | None = None) -> Any:
         """Plot error angle, body rates, torques and wheel momenta.
 
         Parameters

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, TYPE_CHECKING
 import numpy as np
+from numpy.typing import ArrayLike
 from adcs_common.results import ResultMixin
 from adcs_common.exceptions import (
     InvalidValueError,
@@ -18,6 +19,10 @@ from adcs_common.validation import (
 from ocp.models.rigid import SpacecraftModel
 from ocp.models.trajectory import SlewTrajectory
 from .controller import AttitudeMPC, MPCWeights
+
+if TYPE_CHECKING:
+    import pandas as pd
+
 
 __all__ = [
     "ClosedLoopResult",
@@ -111,8 +116,10 @@ def _result_from_trajectory(name: str, traj: SlewTrajectory, wheels,
         step_time_max=float(np.max(st)), extras=dict(extras or {}))
 
 
-def simulate_mpc(mpc: AttitudeMPC, q0, qf, *, t_final: float, w0=None,
-                 h0=None, disturbance: Callable[[float], Any] | Any = None,
+def simulate_mpc(mpc: AttitudeMPC, q0: ArrayLike, qf: ArrayLike, *,
+                 t_final: float, w0: ArrayLike | None = None,
+                 h0: ArrayLike | None = None,
+                 disturbance: Callable[[float], Any] | Any = None,
                  estimate_disturbance: bool = False,
                  settle_angle: float = np.deg2rad(0.1), hold: float = 0.0,
                  progress: Callable[[int, int], None] | None = None
@@ -214,14 +221,15 @@ def simulate_mpc(mpc: AttitudeMPC, q0, qf, *, t_final: float, w0=None,
         loop)
 
 
-def compare_slew(model: SpacecraftModel, q0, qf, *, t_final: float,
-                 solvers=("sqpmethod", "sqpmethod-rti", "ipopt"),
+def compare_slew(model: SpacecraftModel, q0: ArrayLike, qf: ArrayLike, *,
+                 t_final: float,
+                 solvers: Any = ("sqpmethod", "sqpmethod-rti", "ipopt"),
                  horizon: int = 20, dt: float = 0.5,
                  weights: MPCWeights | None = None,
                  natural_frequency: float | None = None,
                  damping: float = 0.9, time_optimal: bool = True,
                  settle_angle: float = np.deg2rad(0.1), hold: float = 0.0,
-                 disturbance=None) -> list[ClosedLoopResult]:
+                 disturbance: Any | None = None) -> list[ClosedLoopResult]:
     """Slew and hold by MPC, quaternion feedback and the time-optimal NLP.
 
     Parameters
@@ -294,7 +302,7 @@ def compare_slew(model: SpacecraftModel, q0, qf, *, t_final: float,
     return results
 
 
-def closed_loop_table(results) -> str:
+def closed_loop_table(results: Any) -> str:
     """Markdown table of `ClosedLoopResult` metrics.
 
     Columns: settle time [s], energy [N²·m²·s], peak |m| [N·m], peak |H|
@@ -318,7 +326,7 @@ def closed_loop_table(results) -> str:
     return "\n".join(lines)
 
 
-def closed_loop_frame(results):
+def closed_loop_frame(results: Any) -> pd.DataFrame:
     """`ClosedLoopResult` metrics as a `pandas.DataFrame` (SI, radians)."""
     import pandas as pd
 

@@ -42,6 +42,7 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import (
     ThreadOwnershipError,
@@ -449,7 +450,7 @@ class AttitudeMPC:
         return opts
 
     # ------------------------------------------------------------ calls
-    def initial_guess(self, x) -> np.ndarray:
+    def initial_guess(self, x: ArrayLike) -> np.ndarray:
         """Decision vector holding state ``x`` with zero torques (nz,)."""
         x = as_vector(x, self.model.nx, "x")
         z = np.zeros(self.nz)
@@ -471,7 +472,8 @@ class AttitudeMPC:
         self._lam_g = np.zeros(self.ng)
 
     @synchronized
-    def step(self, x, qf, tau=None, *, check: bool = True) -> MPCStep:
+    def step(self, x: ArrayLike, qf: ArrayLike, tau: ArrayLike | None = None,
+             *, check: bool = True) -> MPCStep:
         """One MPC step from state ``x`` towards attitude ``qf``.
 
         Raises `ThreadOwnershipError` when another thread stepped this

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_finite_array
@@ -17,6 +20,10 @@ from ocp.models.rigid import check_inertia
 from ocp.missions.four_wheel_lagrange import four_wheel_craft
 from ocp.slews.nlp import min_energy_slew, time_optimal_slew
 from ocp.models.trajectory import SlewTrajectory
+
+if TYPE_CHECKING:
+    import pandas as pd
+
 
 __all__ = [
     "METEOR_M_INERTIA",
@@ -104,8 +111,9 @@ class SlewComparisonRow:
                    float(traj.solve_time))
 
 
-def compare_slews(inertia, wheels: WheelArray, axis, angles_deg, *,
-                  case: str = "", q0=None, N: int = 60,
+def compare_slews(inertia: ArrayLike, wheels: WheelArray, axis: ArrayLike,
+                  angles_deg: ArrayLike, *,
+                  case: str = "", q0: ArrayLike | None = None, N: int = 60,
                   feedback_frequency: float | None = None,
                   settle_angle: float = np.deg2rad(0.1),
                   ) -> tuple[list[SlewComparisonRow],
@@ -188,7 +196,7 @@ def comparison_table(rows: list[SlewComparisonRow]) -> str:
     return head + "\n".join(lines) + "\n"
 
 
-def comparison_frame(rows: list[SlewComparisonRow]):
+def comparison_frame(rows: list[SlewComparisonRow]) -> pd.DataFrame:
     """Comparison rows as a `pandas.DataFrame` (one row per method)."""
     import dataclasses
 

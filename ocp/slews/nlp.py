@@ -22,6 +22,8 @@ stage-wise layout with the final time as a state of every stage.
 
 from __future__ import annotations
 
+from numpy.typing import ArrayLike
+
 
 
 from adcs_common.exceptions import (
@@ -66,18 +68,19 @@ def _guarded(s, **kwargs) -> SlewTrajectory:
             "the time scale", solver=kwargs.get("solver")) from None
 
 
-def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
+def time_optimal_slew(inertia: ArrayLike, q0: ArrayLike, qf: ArrayLike, *,
+                      torque_max: ArrayLike | None = None,
                       wheels: WheelArray | None = None, N: int = 100,
                       transcription: str = "multiple_shooting",
                       solver: str = "ipopt", expand: bool = True,
-                      substeps: int = 1, h0=None,
+                      substeps: int = 1, h0: ArrayLike | None = None,
                       rate_max: float | None = None,
                       initial_guess: str | None = None,
                       perturbation: float = 0.3, seed: int = 0,
                       solver_options: dict | None = None,
                       verify: bool = True,
                       jit: bool | dict = False,
-                      keep_out=None) -> SlewTrajectory:
+                      keep_out: ArrayLike | None = None) -> SlewTrajectory:
     """Minimum-time rest-to-rest slew from ``q0`` to ``qf`` (free T).
 
     .. math::
@@ -201,16 +204,17 @@ def time_optimal_slew(inertia, q0, qf, *, torque_max=None,
                     solver_options=solver_options, verify=verify, jit=jit)
 
 
-def min_energy_slew(inertia, q0, qf, *, T: float, torque_max=None,
+def min_energy_slew(inertia: ArrayLike, q0: ArrayLike, qf: ArrayLike, *,
+                    T: float, torque_max: ArrayLike | None = None,
                     wheels: WheelArray | None = None, N: int = 100,
                     transcription: str = "multiple_shooting",
                     solver: str = "ipopt", expand: bool = True,
-                    substeps: int = 1, h0=None,
+                    substeps: int = 1, h0: ArrayLike | None = None,
                     rate_max: float | None = None,
                     solver_options: dict | None = None,
                     verify: bool = True,
                     jit: bool | dict = False,
-                    keep_out=None) -> SlewTrajectory:
+                    keep_out: ArrayLike | None = None) -> SlewTrajectory:
     """Minimum-energy rest-to-rest slew in a fixed time ``T``.
 
     .. math::

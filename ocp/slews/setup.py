@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import numpy as np
+from numpy.typing import ArrayLike
 from adcs_common.exceptions import (
     InvalidValueError,
 )
@@ -64,7 +65,7 @@ class KeepOut:
                 f"half_angle must lie in (0, π) rad, got {a}")
         object.__setattr__(self, "half_angle", a)
 
-    def margin(self, q) -> np.ndarray:
+    def margin(self, q: ArrayLike) -> np.ndarray:
         """Angle of the boresight from the direction minus the half-angle.
 
         ``q`` (4,) or (K, 4) scalar-first; returns radians, (K,) or a

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from adcs_common.results import ResultMixin
 from scipy.optimize import linprog
 
@@ -239,8 +240,9 @@ class DutyCycleAllocator:
 
     # ------------------------------------------------------------------
     @synchronized
-    def theta(self, P_T, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
-              tau_dist=(0.0, 0.0, 0.0)) -> np.ndarray:
+    def theta(self, P_T: ArrayLike, M: ArrayLike = (0.0, 0.0),
+              H: ArrayLike = (0.0, 0.0, 0.0),
+              tau_dist: ArrayLike = (0.0, 0.0, 0.0)) -> np.ndarray:
         """Parameter vector (P_T, M_X, M_Z, H, tau_dist), validated.
 
         Raises
@@ -299,8 +301,9 @@ class DutyCycleAllocator:
         return self._pressure
 
     @synchronized
-    def solve(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
-              tau_dist=(0.0, 0.0, 0.0)) -> DutyAllocation:
+    def solve(self, P_T: float, M: ArrayLike = (0.0, 0.0),
+              H: ArrayLike = (0.0, 0.0, 0.0),
+              tau_dist: ArrayLike = (0.0, 0.0, 0.0)) -> DutyAllocation:
         """Allocate one cycle (at the pressure of `set_pressure`).
 
         Parameters
@@ -387,7 +390,7 @@ class DutyCycleAllocator:
         return self._exact
 
     def casadi_function(self, plugin: str = "qrqp",
-                        options: dict | None = None):
+                        options: dict | None = None) -> Any:
         """Return this QP as a casadi Function for code generation.
 
         Returns
@@ -405,8 +408,9 @@ class DutyCycleAllocator:
         return conic_function(self.qp, plugin, options)
 
     @synchronized
-    def duty(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
-             tau_dist=(0.0, 0.0, 0.0)) -> np.ndarray:
+    def duty(self, P_T: float, M: ArrayLike = (0.0, 0.0),
+             H: ArrayLike = (0.0, 0.0, 0.0),
+             tau_dist: ArrayLike = (0.0, 0.0, 0.0)) -> np.ndarray:
         """Duty fractions only (raises unless found; see `duty_fast`)."""
         res = self.solve(P_T, M, H, tau_dist)
         if not res.success:
@@ -417,8 +421,10 @@ class DutyCycleAllocator:
         return res.duty
 
     @synchronized
-    def duty_fast(self, P_T: float, M=(0.0, 0.0), H=(0.0, 0.0, 0.0),
-                  tau_dist=(0.0, 0.0, 0.0), out: np.ndarray | None = None
+    def duty_fast(self, P_T: float, M: ArrayLike = (0.0, 0.0),
+                  H: ArrayLike = (0.0, 0.0, 0.0),
+                  tau_dist: ArrayLike = (0.0, 0.0, 0.0),
+                  out: np.ndarray | None = None
                   ) -> np.ndarray:
         """Duty fractions of one cycle, fast path (same answer as `duty`).
 
@@ -557,7 +563,7 @@ class MinOnTimeCarry:
         """Minimum pulse as a duty fraction, ``min_on_time / T_T``."""
         return self.unit.min_on_time / self.cycle
 
-    def apply(self, duty) -> np.ndarray:
+    def apply(self, duty: ArrayLike) -> np.ndarray:
         """Commanded duties for demanded ``duty`` (n,), updating the carry.
 
         Raises

@@ -85,7 +85,8 @@ class DutyCycleQP:
         object.__setattr__(self, "_cuts", (self.nx,
                                            self.nx + self.A.shape[0]))
 
-    def vectors(self, theta: np.ndarray):
+    def vectors(self, theta: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q, l, u)`` at parameters ``theta`` (9,)."""
         v = self._v0 + self._V @ theta
         a, b = self._cuts
