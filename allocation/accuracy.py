@@ -258,7 +258,8 @@ class AccuracyResult(ResultMixin):
     demands : numpy.ndarray, shape (S, 3)
         Demanded torques M (unit vectors when drawn at random) [N·m].
     relative_error, magnitude_error, angle : numpy.ndarray, shape (S,)
-        |ΔM|/|M| [1], (|M1|−|M|)/|M| [1], Δα [rad]; see `TorqueError`.
+        ``|ΔM|/|M|`` [1], ``(|M1|−|M|)/|M|`` [1], Δα [rad]; see
+        `TorqueError`.
     relative_error_stats, magnitude_error_stats, angle_stats : ErrorSummary
         Mean, p95, max (of ``|magnitude_error|`` for the magnitude).
     """
@@ -359,7 +360,7 @@ def monte_carlo_accuracy(*, d_delta_tol: float, d_gamma_tol: float,
         Uniform on ±tol, or normal with 3σ = tol.
     demand : array_like, shape (3,) or (3, S), optional
         Demanded torque(s) M [N·m]; default one random unit direction per
-        sample (the errors are relative, so |M| does not matter).
+        sample (the errors are relative, so ``|M|`` does not matter).
     law_axes : {"nominal", "measured"}
         Axes used in the law.
     measure_delta_tol, measure_gamma_tol : float, optional

@@ -84,7 +84,7 @@ class WheelArray:
     failed : tuple of int
         0-based indices of failed wheels (their torque is held at zero).
     names : tuple of str
-        Wheel names for reports (default ``"RW1"``..``"RWN"``).
+        Wheel names for reports (default ``"RW1"`` to ``"RWN"``).
     scale : numpy.ndarray, shape (N,)
         Actual / commanded torque of each wheel, ``1 + Δ_i`` (scale-factor
         errors, [1]); ones when ideal.

@@ -291,7 +291,7 @@ def burn_scenario(allocation: str = "law", solver: str = "daqp",
     (0.0012 N·m, `BURN_DISTURBANCE`). Each cycle, the wheel momentum H at
     the cycle start sets the unloading torque ``-K_unl H / T_T``:
     ``allocation="law"`` uses `unloading_law`; ``"qp"`` the weighted
-    `DutyCycleAllocator` with the bound |H| <= 0.012 N·m·s, a disturbance
+    `DutyCycleAllocator` with the bound ``|H|`` <= 0.012 N·m·s, a disturbance
     estimate from the last cycles' momentum change, and that estimate
     cancelled in the torque demand (feed-forward). The
     allocator's K_p comes from the transient model at the nominal duty

@@ -34,7 +34,7 @@ def burn_table(result: ScenarioResult) -> list[tuple]:
     error about body X (for small errors these are the deviations of the
     thrust vector's yaw and pitch angles); statistics over the burn.
     Thrust deviation: per-cycle true mean thrust (transients included)
-    minus P_T. Δv error: |Δv| at the end minus P_T T_imp / m0. Wheel
+    minus P_T. Δv error: ``|Δv|`` at the end minus P_T T_imp / m0. Wheel
     momentum: at cycle starts (where the laws act), and its peak within
     the cycles, over the whole burn and after the first 8 cycles.
     """
@@ -86,7 +86,7 @@ def reorientation_table(result: ScenarioResult) -> list[tuple]:
     over the initial mass; group thrust: per-cycle mean thrust of the
     group; per engine: valve openings N_K, total, max and mean open time
     [ms] (commanded). Then: hold error (max over 0-70 s and 240-600 s),
-    propellant, max valve open time, residual |Δv|, peak |H_Y|.
+    propellant, max valve open time, residual ``|Δv|``, peak ``|H_Y|``.
     """
     rows = []
     gt = result.group_thrust

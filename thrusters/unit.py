@@ -100,7 +100,7 @@ class ThrusterSet:
         Opposed engine pairs on one line of action (opposite directions);
         firing both equally gives no force and no torque.
     names : tuple of str
-        Engine names for reports (default ``"D1"``..``"Dn"``).
+        Engine names for reports (default ``"D1"`` to ``"Dn"``).
     """
 
     positions: np.ndarray

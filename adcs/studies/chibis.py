@@ -31,7 +31,7 @@ SETTLED = np.deg2rad(1.0)
 
 
 def _settle_time(t: np.ndarray, rate: np.ndarray) -> float:
-    """First time after which |rate| stays below 1°/s [s] (NaN: never)."""
+    """First time after which ``|rate|`` stays below 1°/s [s] (NaN: never)."""
     above = np.flatnonzero(np.abs(rate) >= SETTLED)
     if above.size == 0:
         return 0.0

@@ -115,7 +115,7 @@ def slew_table(sc: Spacecraft, quick: bool) -> tuple[Table, list[str]]:
 
 
 def thruster_table(sc: Spacecraft) -> Table:
-    """Run the duty-cycle QP on a few demands (2 s cycle, |H| ≤ 0.012)."""
+    """Run the duty-cycle QP on a few demands (2 s cycle, ``|H|`` ≤ 0.012)."""
     from thrusters import DutyCycleAllocator
 
     alloc = DutyCycleAllocator(sc.thrusters, 2.0, 0.012)

@@ -386,7 +386,7 @@ def planar_boom_rotates(inertia, orbit: CircularOrbit, dipole: float, *,
         k B_0 (\cos\alpha\cos u + 2\sin\alpha\sin u)
 
     integrated from ``alpha0`` [rad] and pitch rate ``rate0`` [rad/s]
-    relative to the orbit frame; True when |α| passes 90° (rotation), False
+    relative to the orbit frame; True when ``|α|`` passes 90° (rotation), False
     when it oscillates about the vertical for ``n_orbits``.
     """
     from scipy.integrate import solve_ivp

@@ -86,13 +86,13 @@ class SlewTrajectory(ResultMixin):
 
     @property
     def peak_wheel_torque(self) -> float:
-        """Largest |m_i| [N·m] (largest body-axis torque if no wheels)."""
+        """Largest ``|m_i|`` [N·m] (largest body-axis torque if no wheels)."""
         u = self.torque if self.wheel_torque is None else self.wheel_torque
         return float(np.max(np.abs(u)))
 
     @property
     def peak_wheel_momentum(self) -> float:
-        """Largest |H_i| [N·m·s] (NaN if no wheels)."""
+        """Largest ``|H_i|`` [N·m·s] (NaN if no wheels)."""
         if self.wheel_momentum is None:
             return float("nan")
         return float(np.max(np.abs(self.wheel_momentum)))

@@ -51,13 +51,13 @@ class ClosedLoopResult(ResultMixin):
     energy : float
         :math:`\\sum_i\\int m_i^2 dt` [N²·m²·s].
     peak_torque : float
-        Largest |m_i| [N·m].
+        Largest ``|m_i|`` [N·m].
     peak_momentum : float
-        Largest |H_i| [N·m·s].
+        Largest ``|H_i|`` [N·m·s].
     torque_violation : float
-        Largest excess of |m_i| over ``m_max_i`` [N·m] (0: none).
+        Largest excess of ``|m_i|`` over ``m_max_i`` [N·m] (0: none).
     momentum_violation : float
-        Largest excess of |H_i| over ``h_max_i`` [N·m·s] (0: none).
+        Largest excess of ``|H_i|`` over ``h_max_i`` [N·m·s] (0: none).
     final_error : float
         Error angle at the end [rad].
     hold_error : float
@@ -305,9 +305,9 @@ def compare_slew(model: SpacecraftModel, q0: ArrayLike, qf: ArrayLike, *,
 def closed_loop_table(results: Any) -> str:
     """Markdown table of `ClosedLoopResult` metrics.
 
-    Columns: settle time [s], energy [N²·m²·s], peak |m| [N·m], peak |H|
-    [N·m·s], torque and momentum violations, final and hold errors [deg],
-    median / max step time [ms].
+    Columns: settle time [s], energy [N²·m²·s], peak ``|m|`` [N·m], peak
+    ``|H|`` [N·m·s], torque and momentum violations, final and hold errors
+    [deg], median / max step time [ms].
     """
     head = ("| controller | settle [s] | energy [N²m²s] | peak abs(m) [Nm] "
             "| peak abs(H) [Nms] | m viol. | H viol. | final err [deg] | "

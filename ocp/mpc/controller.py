@@ -123,7 +123,7 @@ class AttitudeMPC:
     weights : MPCWeights, optional
         Cost weights.
     rate_max : float, optional
-        Bound on each body-rate component |ω_j| [rad/s].
+        Bound on each body-rate component ``|ω_j|`` [rad/s].
     max_iter : int
         Iteration limit of the NLP solver (ignored with ``rti``).
     expand : bool
@@ -201,8 +201,8 @@ class AttitudeMPC:
         self.fallback_max_iter = int(max_iter)
         self.expand = bool(expand)
         #: Levenberg–Marquardt term added to the Gauss–Newton Hessian: the
-        #: GN Hessian is singular (no cost on |q| or on x_0), and qrqp then
-        #: declares convergence on points violating the QP's constraints.
+        #: GN Hessian is singular (no cost on ``|q|`` or on x_0), and qrqp
+        #: then declares convergence on points violating the QP constraints.
         self.regularization = 1e-4
         t0 = time.perf_counter()
         self._build(dict(solver_options or {}))

@@ -82,9 +82,9 @@ class SlewComparisonRow:
     energy : float
         :math:`\\sum_i \\int m_i^2 dt` [N²·m²·s].
     peak_wheel_torque : float
-        max |m_i| [N·m].
+        max ``|m_i|`` [N·m].
     peak_wheel_momentum : float
-        max |H_i| [N·m·s].
+        max ``|H_i|`` [N·m·s].
     success : bool
         Solver converged / law settled.
     solve_time : float

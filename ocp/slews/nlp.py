@@ -121,7 +121,7 @@ def time_optimal_slew(inertia: ArrayLike, q0: ArrayLike, qf: ArrayLike, *,
     h0 : array_like (N_w,), optional
         Initial wheel momenta [N·m·s] (default zero); final ones are free.
     rate_max : float, optional
-        Bound on |ω| [rad/s].
+        Bound on each body-rate component ``|ω_j|`` [rad/s].
     initial_guess : {None, "coarse", "perturbed_eigenaxis", "eigenaxis"}
         None (default): ``"coarse"`` with IPOPT, ``"perturbed_eigenaxis"``
         with the other solvers (fatrop's coarse solve of the

@@ -1,0 +1,26 @@
+"""The documentation site builds without a warning (Sphinx, -W)."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("sphinx", reason='the docs extra: pip install -e '
+                    '".[docs]"')
+pytest.importorskip("myst_parser", reason="the docs extra")
+
+DOCS = Path(__file__).resolve().parents[2] / "docs"
+
+
+@pytest.mark.slow
+def test_docs_build_without_warnings(tmp_path):
+    run = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-b", "html",
+         "-q", str(DOCS), str(tmp_path / "html")],
+        capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    api = (tmp_path / "html" / "api.html").read_text()
+    for name in ("QPAllocator", "DutyCycleAllocator", "AttitudeMPC",
+                 "export_c", "run_bench"):
+        assert name in api
