@@ -11,6 +11,9 @@ library's SHA-256 before it is loaded.
 
 from __future__ import annotations
 
+import contextlib
+import threading
+
 import hashlib
 import os
 import shutil
@@ -203,3 +206,30 @@ def cached_library(folder, stem: str,
         if os.path.exists(tmp):
             os.remove(tmp)
     return lib
+
+
+@contextlib.contextmanager
+def compile_progress(desc: str):
+    """Show ``desc`` and the elapsed time while a compile runs.
+
+    A tqdm line on a terminal only (not in logs or pipes), refreshed
+    twice a second from a helper thread while the compiler blocks.
+    """
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=None, desc=desc, disable=None,
+               bar_format="{desc} [{elapsed}]")
+    done = threading.Event()
+
+    def tick() -> None:
+        while not done.wait(0.5):
+            bar.refresh()
+
+    thread = threading.Thread(target=tick, daemon=True)
+    thread.start()
+    try:
+        yield bar
+    finally:
+        done.set()
+        thread.join()
+        bar.close()

@@ -18,6 +18,7 @@ from adcs_common.codegen import (
     compile_c,
     generate_c,
     solver_dependencies,
+    compile_progress,
 )
 from adcs_common.exceptions import (
     InvalidValueError,
@@ -202,12 +203,15 @@ def compiled_nlpsol(plugin: str, nlp: dict, opts: dict,
         flags = list(jit["flags"])
         key = hashlib.sha256(src.read_bytes() + " ".join(
             [jit["compiler"], *flags, ca.__version__]).encode()).hexdigest()
+        def build(out):
+            with compile_progress("compiling the slew NLP to C (once per "
+                                  "problem shape)"):
+                return compile_c([src], out, cc=jit["compiler"],
+                                 opt=flags[0] if flags else "-O1",
+                                 flags=flags[1:])
+
         try:
-            lib = cached_library(
-                jit["cache_dir"], f"slew_{key[:20]}",
-                lambda out: compile_c([src], out, cc=jit["compiler"],
-                                      opt=flags[0] if flags else "-O1",
-                                      flags=flags[1:]))
+            lib = cached_library(jit["cache_dir"], f"slew_{key[:20]}", build)
         except CompileError as exc:
             raise SolverError(f"compiling the slew NLP failed: {exc}",
                               solver=plugin) from None

@@ -90,3 +90,13 @@ def test_compiler_errors_are_the_toolboxs_own(tmp_path):
         compile_c([bad], tmp_path / "bad.so")
     with pytest.raises(CompilerNotFound, match="no-such-cc"):
         find_compiler("no-such-cc")
+
+
+def test_compile_progress_wraps_a_blocking_build():
+    import time
+
+    from adcs_common.codegen import compile_progress
+
+    with compile_progress("compiling") as bar:
+        time.sleep(0.6)          # the helper thread refreshes meanwhile
+    assert bar.disable or bar.n == 0
