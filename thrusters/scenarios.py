@@ -279,14 +279,17 @@ def burn_scenario(allocation: str = "law", solver: str = "daqp",
                   K_unl: float = 1.0, unit: ThrusterSet | None = None,
                   disturbance: Any = BURN_DISTURBANCE, dt: float = 0.1,
                   settle: float = 60.0, calibrate: bool = True,
-                  pressure_drop: float = 0.0) -> ScenarioResult:
+                  pressure_drop: float = 0.0, wheel_bandwidth: float = 0.3,
+                  wheel_torque_max: float = 0.02) -> ScenarioResult:
     """Simulate the translation burn of Table 2 with wheel unloading.
 
     Unloading by eq. 2 or by the QP.
 
     The spacecraft (54 kg, J = diag(3.0, 2.5, 3.5) kg·m²) fires group 1
     for T_imp = 340 s in T_T = 10 s cycles at P_T = 0.739 N; three
-    reaction wheels hold the attitude (PD, ω_n = 0.3 rad/s, 0.02 N·m) and
+    reaction wheels hold the attitude (PD, ω_n = ``wheel_bandwidth``
+    [rad/s], damping 0.9, torque up to ``wheel_torque_max`` [N·m]; [4]
+    gives neither its attitude controller nor its gains) and
     absorb the thruster torque transients and the disturbance torque
     (0.0012 N·m, `BURN_DISTURBANCE`). Each cycle, the wheel momentum H at
     the cycle start sets the unloading torque ``-K_unl H / T_T``:
@@ -359,7 +362,8 @@ def burn_scenario(allocation: str = "law", solver: str = "daqp",
     return _simulate(
         "burn", cal, T, n_cycles, TABLE2["T_imp"] + settle, dt, allocate,
         lambda t: zero, lambda t: np.zeros(3), (True, True, True),
-        (INERTIA.diagonal() * 0.09, INERTIA.diagonal() * 0.54, 0.02),
+        (INERTIA.diagonal() * wheel_bandwidth ** 2,
+         INERTIA.diagonal() * 1.8 * wheel_bandwidth, wheel_torque_max),
         disturbance_fn, MASS, INERTIA, MinOnTimeCarry(cal, T),
         pressure_fn=pressure if drop else None)
 
