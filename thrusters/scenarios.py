@@ -394,8 +394,13 @@ def reorientation_scenario(allocation: str = "law", solver: str = "daqp",
                            omega_n: float = 0.15,
                            valve_jitter: float = 0.002,
                            disturbance: Any = (0.0, 0.0, 0.0),
-                           seed: int = 0) -> ScenarioResult:
+                           seed: int = 0, inertia: Any = None
+                           ) -> ScenarioResult:
     """Hold, 170° slew about X, hold (Table 5): thrusters at T_T = 2 s.
+
+    ``inertia`` (3, 3) [kg·m²] replaces the assumed diag(3.0, 2.5, 3.5)
+    ([4] gives none); a product of inertia J_xz couples the X slew into Y
+    through ``ω × Jω``, where only the wheel acts.
 
     0-70 s hold, 70-240 s cycloidal slew of 170° about body X, hold to
     600 s. Every cycle a PID attitude controller with feed-forward
@@ -422,7 +427,8 @@ def reorientation_scenario(allocation: str = "law", solver: str = "daqp",
     base = unit if unit is not None else six_thruster_unit()
     # K_p at the typical hold pulse (40 ms in a 2 s cycle)
     cal = base.calibrated(T, 0.02)
-    J = INERTIA
+    J = INERTIA if inertia is None else as_finite_array(
+        inertia, "inertia", (3, 3))
     # PID with the closed-loop poles at -omega_n (triple) per axis
     Kp = 3 * J.diagonal() * omega_n ** 2
     Kd = 3 * J.diagonal() * omega_n

@@ -264,3 +264,19 @@ def test_burn_attitude_errors_are_set_by_the_unknown_wheel_controller(burn):
         assert stiff[k][2] <= stiff[k][1], k        # ours <= [4]'s
         assert stiff[k][2] < soft[k][2]
     assert abs(stiff["dV [m/s]"][2] - 4.65) < 0.025
+
+
+def test_y_momentum_peak_of_table_5_needs_a_product_of_inertia():
+    """[4] gives no inertia; its 0.03 N·m·s Y peak is J_xz ≈ 0.39 kg·m².
+
+    A principal-axis X slew leaves Y untouched (peak ~2e-5 N·m·s with
+    our diagonal J); the product of inertia J_xz couples it through
+    ``ω × Jω`` (Y torque −J_xz ω_x²), which only the Y wheel can absorb.
+    """
+    J = np.diag([3.0, 2.5, 3.5])
+    J[0, 2] = J[2, 0] = 0.39
+    rows = rows_by_name(reorientation_table(reorientation_scenario(
+        inertia=J)))
+    peak = rows["peak |H_Y| [N·m·s]"]
+    assert peak[2] == pytest.approx(peak[1], rel=0.1)          # 0.03
+    assert rows["hold error max [deg] (bound)"][2] <= 0.4
