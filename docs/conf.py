@@ -1,13 +1,35 @@
-"""Sphinx configuration: the API reference from the docstrings."""
+"""Sphinx configuration: the pages, the notebooks and the API reference."""
+
+import os
+import shutil
+from pathlib import Path
 
 from adcs.provenance import version as _version
+
+os.environ.setdefault("ADCS_NOTEBOOK_SMALL", "1")
+# the kernels draw inline so that the pages carry the figures (CI exports
+# MPLBACKEND=Agg, which would draw nothing)
+os.environ["MPLBACKEND"] = "module://matplotlib_inline.backend_inline"
+# the notebooks live at the top of the repository: copy them in
+_here = Path(__file__).resolve().parent
+shutil.copytree(_here.parent / "notebooks", _here / "notebooks",
+                dirs_exist_ok=True,
+                ignore=shutil.ignore_patterns(".ipynb_checkpoints"))
 
 project = "adcs-toolbox"
 author = "The adcs-toolbox developers"
 release = _version()
-extensions = ["sphinx.ext.autodoc", "sphinx.ext.napoleon", "myst_parser"]
-source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
-exclude_patterns = ["_build"]
+extensions = ["sphinx.ext.autodoc", "sphinx.ext.napoleon", "myst_nb"]
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb",
+                 ".ipynb": "myst-nb"}
+# the notebooks are executed by the build (small settings, as in the
+# tests), so the site shows their plots; the repository keeps them
+# without outputs
+nb_execution_mode = "force"
+nb_execution_timeout = 600
+nb_execution_raise_on_error = True
+nb_output_stderr = "remove"
+exclude_patterns = ["_build", "notebooks/.ipynb_checkpoints"]
 napoleon_numpy_docstring = True
 napoleon_google_docstring = False
 napoleon_use_rtype = False
