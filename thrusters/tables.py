@@ -169,10 +169,15 @@ def plot_scenario(result: ScenarioResult, path: Any) -> None:
         ax[1].plot(result.t, result.wheel_momentum[:, j], label=f"H_{lab}")
     ax[1].set_ylabel("wheel momentum [N·m·s]")
     ax[1].legend()
-    for i, name in enumerate(result.unit.names):
-        ax[2].step(tc, 1e3 * result.on_time[:, i], where="post", label=name)
-    ax[2].set_ylabel("valve open [ms]")
-    ax[2].legend(ncol=3)
+    # one row per engine, a bar per opening (engines sharing a position,
+    # e.g. D1 and D4, no longer hide each other's traces)
+    for i in range(result.unit.n):
+        bars = [(t, on) for t, on in zip(tc, result.on_time[:, i]) if on > 0]
+        ax[2].broken_barh(bars, (i - 0.4, 0.8), color=f"C{i % 10}")
+    ax[2].set_yticks(range(result.unit.n), result.unit.names)
+    ax[2].set_ylim(-0.7, result.unit.n - 0.3)
+    ax[2].invert_yaxis()
+    ax[2].set_ylabel("valve open (bar = on-time)")
     ax[3].plot(result.t, np.linalg.norm(result.velocity, axis=1))
     ax[3].set_ylabel("|Δv| [m/s]")
     if result.name == "burn":
