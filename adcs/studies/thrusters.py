@@ -32,7 +32,7 @@ REASONS = {
     "max |H_X|, |H_Z| during": "the law acts at cycle starts, where the "
                                "bound holds (row above); within a 10 s "
                                "cycle the 0.0012 N·m disturbance alone "
-                               "adds up to 0.012 N·m·s",
+                               "adds up to 0.012 N·m·s (tests)",
     "same, steady state": "as above: within the cycles",
     "group": "[4]'s slew profile and controller are not given; ours "
              "(cycloidal slew, PD) fires about 10x less",
