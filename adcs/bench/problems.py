@@ -69,19 +69,35 @@ def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
             raise AdcsError(f"wheels: reference {ref_name} failed its KKT "
                             "check")
         refs.append(m)
+    return _backend_rows(
+        "wheels", names,
+        lambda base, opts: QPAllocator(arr, solver=base,
+                                       solver_options=opts),
+        lambda alloc: (lambda M: alloc.allocate(M).torques),
+        demands, refs, cert, bar, budget)
+
+
+def _backend_rows(problem: str, names: list[str], build: Any,
+                  solver_of: Any, cases: list, refs: list, certify: Any,
+                  bar: Progress, budget: float) -> list[BenchRow]:
+    """Time every backend of ``names`` on ``cases`` (one row each).
+
+    ``build(base, options)`` makes the allocator (a backend it cannot
+    make is reported as not available and skipped); ``solver_of(alloc)``
+    returns the function `timed_row` times.
+    """
+    bar.add(len(names) * len(cases))
     rows = []
-    bar.add(len(names) * reps)
     for name in names:
         base, opts = _split(name)
         try:
-            alloc = QPAllocator(arr, solver=base, solver_options=opts)
+            alloc = build(base, opts)
         except (AdcsError, TypeError, ValueError) as exc:
-            bar.say(f"[wheels] {name}: not available ({exc})")
-            bar.skip(reps)
+            bar.say(f"[{problem}] {name}: not available ({exc})")
+            bar.skip(len(cases))
             continue
-        rows.append(timed_row(
-            "wheels", name, demands, refs,
-            lambda M: alloc.allocate(M).torques, cert, bar, budget))
+        rows.append(timed_row(problem, name, cases, refs, solver_of(alloc),
+                              certify, bar, budget))
     return rows
 
 
@@ -150,23 +166,14 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
                             "KKT check")
         thetas.append(th)
         refs.append(point(r))
-    rows = []
-    bar.add(len(names) * reps)
-    for name in names:
-        base, opts = _split(name)
-        try:
-            alloc = DutyCycleAllocator(unit, 2.0, h_max, solver=base,
-                                       solver_options=opts, **kw)
-        except (AdcsError, TypeError, ValueError) as exc:
-            bar.say(f"[thrusters] {name}: not available ({exc})")
-            bar.skip(reps)
-            continue
-        rows.append(timed_row(
-            "thrusters", name, thetas, refs,
-            lambda th: duty_point(alloc.solve_theta(th)),
-            lambda th, x: kkt_residual(qp.P, data(th)[0], C, data(th)[1],
-                                       data(th)[2], x), bar, budget))
-    return rows
+    return _backend_rows(
+        "thrusters", names,
+        lambda base, opts: DutyCycleAllocator(
+            unit, 2.0, h_max, solver=base, solver_options=opts, **kw),
+        lambda alloc: (lambda th: duty_point(alloc.solve_theta(th))),
+        thetas, refs,
+        lambda th, x: kkt_residual(qp.P, data(th)[0], C, data(th)[1],
+                                   data(th)[2], x), bar, budget)
 
 
 # ---------------------------------------------------------------------- slew

@@ -24,11 +24,15 @@ ARRAY = load_spacecraft("meteor-m").wheels
 DEMANDS = np.random.default_rng(8).normal(scale=0.15, size=(6, 3))
 
 
-def one_step(module_of, L, avail=None):
-    """Run one 0.5 s step of a module on the torque request ``L``."""
+def one_step(module_of, L, avail=None, period=0.5,
+             output=("rwMotorTorqueOutMsg", "motorTorque", 4)):
+    """Run one step of a module on the torque request ``L``.
+
+    ``output``: the module's output message, its field, entries kept.
+    """
     sim = SimulationBaseClass.SimBaseClass()
     sim.CreateNewProcess("p").addTask(sim.CreateNewTask(
-        "t", macros.sec2nano(0.5)))
+        "t", macros.sec2nano(period)))
     cmd = messaging.CmdTorqueBodyMsgPayload()
     cmd.torqueRequestBody = [float(v) for v in L]
     cmd_msg = messaging.CmdTorqueBodyMsg().write(cmd)
@@ -40,12 +44,13 @@ def one_step(module_of, L, avail=None):
         keep.append(messaging.RWAvailabilityMsg().write(a))
         mod.rwAvailInMsg.subscribeTo(keep[-1])
     sim.AddModelToTask("t", mod)
-    rec = mod.rwMotorTorqueOutMsg.recorder()
+    msg, field, n = output
+    rec = getattr(mod, msg).recorder()
     sim.AddModelToTask("t", rec)
     sim.InitializeSimulation()
-    sim.ConfigureStopTime(macros.sec2nano(0.5))
+    sim.ConfigureStopTime(macros.sec2nano(period))
     sim.ExecuteSimulation()
-    return np.asarray(rec.motorTorque)[-1][:ARRAY.n_wheels]
+    return np.asarray(getattr(rec, field))[-1][:n]
 
 
 def basilisk_min_norm(cmd_msg):
@@ -213,26 +218,18 @@ def test_thruster_duty_module_equals_the_allocator():
 
     direct = DutyCycleAllocator(six_thruster_unit(), 2.0, 1e3,
                                 tracking="weighted")
-    for L in [np.array([0.02, 0.0, -0.01]), np.array([0.3, 0.1, 0.2])]:
-        sim = SimulationBaseClass.SimBaseClass()
-        sim.CreateNewProcess("p").addTask(sim.CreateNewTask(
-            "t", macros.sec2nano(2.0)))
-        cmd = messaging.CmdTorqueBodyMsgPayload()
-        cmd.torqueRequestBody = [float(v) for v in L]
-        cmd_msg = messaging.CmdTorqueBodyMsg().write(cmd)
+    def duty_module(cmd_msg):
         mod = ThrusterDutyModule(DutyCycleAllocator(
             six_thruster_unit(), 2.0, 1e3, tracking="weighted"))
         mod.ModelTag = "duty"
         mod.cmdTorqueInMsg.subscribeTo(cmd_msg)
-        rec = mod.onTimeOutMsg.recorder()
-        sim.AddModelToTask("t", mod)
-        sim.AddModelToTask("t", rec)
-        sim.InitializeSimulation()
-        sim.ConfigureStopTime(macros.sec2nano(2.0))
-        sim.ExecuteSimulation()
+        return mod, []
+
+    for L in [np.array([0.02, 0.0, -0.01]), np.array([0.3, 0.1, 0.2])]:
+        on = one_step(duty_module, L, period=2.0,
+                      output=("onTimeOutMsg", "OnTimeRequest", 6))
         ref = direct.solve(0.0, L[[0, 2]])
-        np.testing.assert_allclose(np.asarray(rec.OnTimeRequest)[-1][:6],
-                                   2.0 * ref.duty, atol=1e-12, rtol=0)
+        np.testing.assert_allclose(on, 2.0 * ref.duty, atol=1e-12, rtol=0)
 
 
 def test_reorientation_with_the_unit_ours_leaves_less_delta_v():
