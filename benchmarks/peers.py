@@ -19,7 +19,10 @@ runs only where it is importable (a clear message otherwise):
   the benchmark's closed loop beside the toolbox's MPCs, each command
   compared with the toolbox's IPOPT MPC from the same state.
 
-acados is not covered by this script yet; it says so when run.
+* acados (``pip install comma-deps-acados``, which ships
+  ``acados_template``, HPIPM and BLASFEO): the same problem as an
+  acados OCP (`acados_closed_loop`: explicit RK4, nonlinear least
+  squares, the same bounds), SQP_RTI and SQP, in the same closed loop.
 """
 
 from __future__ import annotations
@@ -35,15 +38,26 @@ from allocation import QPAllocator, WheelArray
 
 
 def _ours_c(arr: WheelArray) -> dict:
-    """Driver medians [µs] of the exported ``wheel_qp`` and ``duty_qp``."""
+    """Driver medians [µs] of the exported ``wheel_qp`` and ``duty_qp``.
+
+    And the driver's closed loop of ``mpc_rti_step`` (the MPC problem's
+    pyramid; generated RK4 as plant): a row for the MPC table.
+    """
     from ocp import export_c, run_driver
     from thrusters import six_thruster_unit
 
     with tempfile.TemporaryDirectory() as out:
-        res = export_c(out, wheels=arr, thrusters=six_thruster_unit(),
-                       mpc_variants=(), build=True, repeats=20000)
+        res = export_c(out, wheels=WheelArray.pyramid(h_max=0.2, m_max=0.05),
+                       thrusters=six_thruster_unit(),
+                       mpc_variants=("mpc_rti_step",), build=True,
+                       repeats=20000)
         t = run_driver(res)
-        return {k: t[k]["median_us"] for k in ("wheel_qp", "duty_qp")}
+        loop = t["closed_loop:mpc_rti_step"]
+        return {"wheel_qp": t["wheel_qp"]["median_us"],
+                "duty_qp": t["duty_qp"]["median_us"],
+                "mpc": ("ours: exported C mpc_rti_step (driver's loop)",
+                        1e-3 * loop["median_us"], 1e-3 * loop["max_us"],
+                        float("nan"), loop["final_error_deg"])}
 
 
 def cvxpygen_wheel_qp(arr: WheelArray, n: int = 300) -> list[tuple]:
@@ -253,6 +267,98 @@ def mpc_closed_loops(steps: int = 80) -> list[tuple]:
     return rows
 
 
+def acados_closed_loop(rti: bool = True, steps: int = 80) -> tuple:
+    """Row of acados (HPIPM, Gauss–Newton) on the toolbox's MPC problem.
+
+    The same dynamics (explicit RK4, one step per interval), the same
+    least-squares costs and weights, the same bounds; SQP_RTI or SQP to
+    1e-8. Needs an acados with ``acados_template`` (here the
+    ``comma-deps-acados`` wheel, whose libraries are loaded first).
+    """
+    import ctypes
+    import os
+    import time
+
+    import acados
+    import casadi as ca
+
+    lib = acados.LIB_DIR
+    for name in ("libblasfeo.so", "libhpipm.so", "libqpOASES_e.so.3.1"):
+        if os.path.exists(os.path.join(lib, name)):
+            ctypes.CDLL(os.path.join(lib, name), mode=ctypes.RTLD_GLOBAL)
+    os.environ.setdefault("ACADOS_SOURCE_DIR", acados.DIR)
+    os.environ.setdefault("ACADOS_PYTHON_INTERFACE_PATH",
+                          acados.TEMPLATE_DIR)
+    os.environ.setdefault("TERA_PATH", acados.TERA_PATH)
+    from acados.acados_template import (AcadosModel, AcadosOcp,
+                                        AcadosOcpSolver)
+
+    from adcs_common.quaternion import quat_conj, quat_mul
+    from ocp.mpc import AttitudeMPC, MPCWeights
+
+    model, qf = _mpc_problem()
+    w, wh, N, dt = MPCWeights(), model.wheels, 20, 0.5
+    x = ca.SX.sym("x", model.nx)
+    u = ca.SX.sym("u", model.nu)
+    am = AcadosModel()
+    am.name, am.x, am.u = "adcs_mpc", x, u
+    am.xdot = ca.SX.sym("xdot", model.nx)
+    am.f_expl_expr = model.dynamics(x, u, ca.DM.zeros(3))
+    am.f_impl_expr = am.xdot - am.f_expl_expr
+    qe = quat_mul(quat_conj(qf), x[:4])
+    mm, hm = np.asarray(wh.m_max), np.asarray(wh.h_max)
+    am.cost_y_expr = ca.vertcat(
+        np.sqrt(w.torque) * u / ca.DM(mm),
+        np.sqrt(w.momentum) * x[7:] / ca.DM(hm),
+        np.sqrt(w.attitude) * qe[1:], np.sqrt(w.rate) * x[4:7])
+    am.cost_y_expr_e = ca.vertcat(np.sqrt(w.terminal * w.attitude) * qe[1:],
+                                  np.sqrt(w.terminal * w.rate) * x[4:7])
+    o = AcadosOcp()
+    o.model = am
+    o.dims.N = N
+    o.cost.cost_type = o.cost.cost_type_e = "NONLINEAR_LS"
+    o.cost.W = np.eye(am.cost_y_expr.shape[0])
+    o.cost.W_e = np.eye(am.cost_y_expr_e.shape[0])
+    o.cost.yref = np.zeros(am.cost_y_expr.shape[0])
+    o.cost.yref_e = np.zeros(am.cost_y_expr_e.shape[0])
+    o.constraints.lbu, o.constraints.ubu = -mm, mm
+    o.constraints.idxbu = np.arange(model.nu)
+    o.constraints.lbx, o.constraints.ubx = -hm, hm
+    o.constraints.idxbx = np.arange(7, model.nx)
+    o.constraints.x0 = model.state([1.0, 0.0, 0.0, 0.0])
+    opts = o.solver_options
+    opts.tf = N * dt
+    opts.qp_solver = "PARTIAL_CONDENSING_HPIPM"
+    opts.hessian_approx = "GAUSS_NEWTON"
+    opts.integrator_type = "ERK"
+    opts.sim_method_num_stages, opts.sim_method_num_steps = 4, 1
+    opts.nlp_solver_type = "SQP_RTI" if rti else "SQP"
+    if not rti:
+        opts.nlp_solver_max_iter, opts.tol = 50, 1e-8
+    tag = "rti" if rti else "sqp"
+    o.code_export_directory = tempfile.mkdtemp(prefix=f"adcs_acados_{tag}_")
+    solver = AcadosOcpSolver(o, json_file=os.path.join(
+        o.code_export_directory, "ocp.json"), verbose=False)
+    F = model.integrator(dt)
+    ref = AttitudeMPC(model, solver="ipopt")
+    xk = model.state([1.0, 0.0, 0.0, 0.0])
+    times, du = [], 0.0
+    for _ in range(steps):
+        solver.set(0, "lbx", xk)
+        solver.set(0, "ubx", xk)
+        t0 = time.perf_counter()
+        solver.solve()
+        times.append(time.perf_counter() - t0)
+        u0 = solver.get(0, "u")
+        du = max(du, float(np.abs(u0 - ref.step(xk, qf).u).max()))
+        xk = np.asarray(F(x0=xk, p=np.r_[u0, 0, 0, 0])["xf"]).ravel()
+    e = quat_mul(quat_conj(qf), xk[:4])
+    final = np.degrees(2 * np.arctan2(np.linalg.norm(e[1:]), abs(e[0])))
+    label = "acados SQP_RTI (HPIPM)" if rti else "acados SQP (HPIPM)"
+    return (label, 1e3 * statistics.median(times), 1e3 * max(times), du,
+            final)
+
+
 def _in_subprocess(fn, *args):
     """Run ``fn(*args)`` in a fresh (spawned) process; its result."""
     import multiprocessing as mp
@@ -287,14 +393,18 @@ def main() -> None:
     print("\n| MPC closed loop (horizon 20, 90° slew) | median [ms] | worst "
           "[ms] | max |Δu| vs ours [N·m] | final error [deg] |")
     print("|---|---:|---:|---:|---:|")
-    for label, med, worst, du, final in mpc_closed_loops():
+    rows = mpc_closed_loops() + [ours["mpc"]]
+    if importlib.util.find_spec("acados") is not None:
+        rows += [_in_subprocess(acados_closed_loop, True),
+                 _in_subprocess(acados_closed_loop, False)]
+    else:
+        print("acados: not installed (pip install comma-deps-acados): "
+              "skipped")
+    for label, med, worst, du, final in rows:
         print(f"| {label} | {med:.3g} | {worst:.3g} | {du:.1e} | "
               f"{final:.1e} |")
     if importlib.util.find_spec("do_mpc") is None:
         print("do-mpc: not installed (pip install do-mpc): skipped")
-    print("acados: " + ("installed, " if importlib.util.find_spec(
-        "acados_template") else "not installed; ") + "not covered by this "
-          "script yet")
 
 
 if __name__ == "__main__":
