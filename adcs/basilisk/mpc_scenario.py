@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -68,10 +69,10 @@ class MPCComparison(ResultMixin):
         }
 
 
-def mpc_slew(*, wheels: WheelArray | None = None, inertia=None,
-             angle: float = np.deg2rad(150.0), axis=(1.0, -2.0, 3.0),
-             t_final: float = 60.0, dt: float = 0.5,
-             dt_dynamics: float = 0.1, Js: float = 1e-3,
+def mpc_slew(*, spacecraft: Any = None, wheels: WheelArray | None = None,
+             inertia: Any = None, angle: float = np.deg2rad(150.0),
+             axis: Any = (1.0, -2.0, 3.0), t_final: float = 60.0,
+             dt: float = 0.5, dt_dynamics: float = 0.1, Js: float = 1e-3,
              rti: bool = True) -> MPCComparison:
     """Run the report's MPC slew (150° about (1, −2, 3)) in both.
 
@@ -79,7 +80,10 @@ def mpc_slew(*, wheels: WheelArray | None = None, inertia=None,
     effector and simpleNav, integrated by RK4 at ``dt_dynamics`` [s], with
     `AttitudeMPCModule` writing the wheel torques every ``dt`` [s]. Ours:
     `ocp.mpc.simulate_mpc` (CVODES). The two MPCs are built alike and
-    start from rest. At ``dt_dynamics = 0.1`` s the two runs agree to
+    start from rest. ``spacecraft`` (a `Spacecraft`, a catalogue name or
+    a TOML file) gives the wheels and the inertia; otherwise ``wheels``
+    and ``inertia`` (default: the report's small craft). At
+    ``dt_dynamics = 0.1`` s the two runs agree to
     about 1e-6° and 2e-8 N·m; at 0.05 s a single RTI step takes its
     full-SQP fallback in one run and not the other (the fallback is a
     switch), and the runs differ by 1e-3° and 5e-3 N·m at most, with the
@@ -98,6 +102,11 @@ def mpc_slew(*, wheels: WheelArray | None = None, inertia=None,
     from .modules import AttitudeMPCModule
     from .scenarios import spacecraft_task
 
+    if spacecraft is not None:
+        from ocp.spacecraft import load_spacecraft
+
+        sc = load_spacecraft(spacecraft)
+        wheels, inertia = sc.wheels, sc.inertia
     wheels = wheels or WheelArray.pyramid(h_max=0.2, m_max=0.05)
     J = np.diag([3.0, 2.5, 3.5]) if inertia is None else np.asarray(inertia)
     model = rigid_spacecraft(J, wheels)

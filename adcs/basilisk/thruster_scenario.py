@@ -110,8 +110,9 @@ def _chain(chain: str, unit: Any, ctrl: Any, factory: Any, keep: list,
         return [duty], out
 
 
-def reorientation(chain: str, *, angle: float = np.deg2rad(30.0),
-                  axis=(1.0, 0.0, 0.3), t_final: float = 120.0,
+def reorientation(chain: str, *, spacecraft: Any = None,
+                  angle: float = np.deg2rad(30.0),
+                  axis: Any = (1.0, 0.0, 0.3), t_final: float = 120.0,
                   cycle: float = 2.0, gains: tuple[float, float] = (
                       0.3, 1.5), dt_dynamics: float = 0.02) -> ThrusterRun:
     """Reorient [4]'s 54 kg craft by its six-thruster unit in Basilisk.
@@ -121,7 +122,9 @@ def reorientation(chain: str, *, angle: float = np.deg2rad(30.0),
     on-times: Basilisk's ``thrForceMapping`` (X and Z controlled: the unit
     has no Y torque) and ``thrFiringRemainder``, or the toolbox's
     duty-cycle QP (`ThrusterDutyModule`: zero net thrust, duties in
-    [0, 1]). J = diag(3.0, 2.5, 3.5) kg·m² as the toolbox assumes for [4].
+    [0, 1]). J = diag(3.0, 2.5, 3.5) kg·m² as the toolbox assumes for [4],
+    or the inertia and thruster set of ``spacecraft`` (a `Spacecraft`, a
+    catalogue name or a TOML file with a ``[thrusters]`` table).
 
     Returns
     -------
@@ -131,7 +134,8 @@ def reorientation(chain: str, *, angle: float = np.deg2rad(30.0),
     from Basilisk.architecture import messaging
     from Basilisk.fswAlgorithms import (attTrackingError, inertial3D,
                                         mrpFeedback)
-    from Basilisk.simulation import simpleNav, spacecraft
+    from Basilisk.simulation import simpleNav
+    from Basilisk.simulation import spacecraft as bsk_spacecraft
     from Basilisk.utilities import SimulationBaseClass, macros
     from Basilisk.utilities.simHelpers import np2EigenMatrix3d
 
@@ -142,13 +146,20 @@ def reorientation(chain: str, *, angle: float = np.deg2rad(30.0),
             f"chain must be one of {THRUSTER_CHAINS}, got {chain!r}")
     angle = as_angle(angle, "angle")
     t_final = as_finite_scalar(t_final, "t_final")
-    unit = six_thruster_unit()
-    J = np.diag([3.0, 2.5, 3.5])
+    unit, J = six_thruster_unit(), np.diag([3.0, 2.5, 3.5])
+    if spacecraft is not None:
+        from ocp.spacecraft import load_spacecraft
+
+        craft = load_spacecraft(spacecraft)
+        if craft.thrusters is None:
+            raise InvalidValueError(
+                f"spacecraft {craft.name!r} has no thrusters")
+        unit, J = craft.thrusters, np.asarray(craft.inertia, float)
     sim = SimulationBaseClass.SimBaseClass()
     keep: list = []
     dyn = sim.CreateNewProcess("dynamics", 2)
     dyn.addTask(sim.CreateNewTask("dyn", macros.sec2nano(dt_dynamics)))
-    sc = spacecraft.Spacecraft()
+    sc = bsk_spacecraft.Spacecraft()
     sc.ModelTag = "spacecraft"
     sc.hub.mHub = 54.0
     sc.hub.IHubPntBc_B = np2EigenMatrix3d(J.ravel().tolist())

@@ -244,3 +244,22 @@ def test_reorientation_with_the_unit_ours_leaves_less_delta_v():
     assert ours.summary()["residual |Δv| [m/s]"] < \
         fsw.summary()["residual |Δv| [m/s]"]
     assert ours.on_time.sum() < fsw.on_time.sum()
+
+
+def test_scenarios_take_the_users_spacecraft(tmp_path):
+    """A TOML file of one's own reaches the Basilisk scenarios."""
+    from adcs.basilisk.mpc_scenario import mpc_slew
+    from adcs.basilisk.thruster_scenario import reorientation
+    from adcs_common.exceptions import InvalidValueError
+    from ocp.spacecraft import load_spacecraft
+
+    path = tmp_path / "sat.toml"
+    path.write_text(load_spacecraft("demo").to_toml())
+    s = mpc_slew(spacecraft=path, angle=np.deg2rad(20.0),
+                 t_final=10.0).summary()
+    assert s["torque bound excess, Basilisk [N·m]"] <= 1e-12
+    run = reorientation("DutyCycleAllocator", spacecraft=path,
+                        t_final=10.0)
+    assert np.all(run.on_time >= 0.0)
+    with pytest.raises(InvalidValueError, match="no thrusters"):
+        reorientation("DutyCycleAllocator", spacecraft="meteor-m")
