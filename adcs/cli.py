@@ -113,7 +113,8 @@ def _print_driver(times: dict) -> None:
             failed.append(name)
         if "final_error_deg" in t:
             print(f"{'':30s} closed loop ends {t['final_error_deg']:.2e}° "
-                  "from the target")
+                  "from the target; worst step after the cold first: "
+                  f"{t.get('max_warm_us', float('nan')):.1f} µs")
     print("driver checks: " + ("every call returned 0" if not failed else
                                "nonzero return from " + ", ".join(failed)))
 

@@ -72,10 +72,11 @@ def run_driver(res: ExportResult, timeout: float = 300.0
     dict
         C name -> ``{"first_us": ..., "median_us": ..., "max_us": ...,
         "calls": ..., "flag": ...}`` (the first, cold call; the median and
-        worst of all calls; ``flag`` 0 when every call returned 0); for
-        ``closed_loop:<name>``, the per-step times of the closed loop
-        the driver runs with the generated RK4 as plant, and its final
-        error angle ``final_error_deg``).
+        worst of all calls; ``flag`` 0 when every call returned 0). For
+        ``closed_loop:<name>``: the per-step times of the closed loop the
+        driver runs with the generated RK4 as plant, ``max_warm_us`` (the
+        worst step after the cold first one) and the final error angle
+        ``final_error_deg``.
     """
     if res.executable is None:
         raise InvalidValueError(
@@ -88,7 +89,7 @@ def run_driver(res: ExportResult, timeout: float = 300.0
     out: dict[str, dict[str, float]] = {}
     pat = re.compile(r"^TIME (\S+)(?: first_us=(\S+))? median_us=(\S+) "
                      r"max_us=(\S+) calls=(\d+)(?: flag=(\d+))?"
-                     r"(?: final_error_deg=(\S+))?")
+                     r"(?: final_error_deg=(\S+))?(?: max_warm_us=(\S+))?")
     for line in proc.stdout.splitlines():
         m = pat.match(line)
         if m:
@@ -100,6 +101,8 @@ def run_driver(res: ExportResult, timeout: float = 300.0
                 rec["flag"] = int(m[6])
             if m[7] is not None:
                 rec["final_error_deg"] = float(m[7])
+            if m[8] is not None:
+                rec["max_warm_us"] = float(m[8])
             out[m[1]] = rec
     out["_stdout"] = {"text": proc.stdout}  # type: ignore[dict-item]
     return out
