@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
 from ocp.slews.compare import (
+    SlewComparisonRow,
     compare_slews,
     meteor_m_spacecraft,
     four_wheel_slew_spacecraft,
@@ -114,7 +113,7 @@ def slew_case(case: str, angle_deg: float, N: int) -> dict:
 def slew_rows(ctx: StudyContext, angles, N: int) -> dict[str, list]:
     """Sweep `slew_case` over ``angles`` on ``ctx.client``.
 
-    Returns, per case, its rows (angle, method, fields...).
+    Returns, per case, its `SlewComparisonRow` rows.
     """
     ds = ctx.sweep(slew_case, [{"case": c, "angle_deg": a, "N": N}
                                for c in CASES for a in angles])
@@ -123,23 +122,12 @@ def slew_rows(ctx: StudyContext, angles, N: int) -> dict[str, list]:
         case = str(ds["case"].values[i])
         for m in METHODS:
             if f"{m}_T" in ds:
-                results[case].append(SlewRow(
-                    float(ds["angle_deg"].values[i]), m,
-                    *(float(ds[f"{m}_{f}"].values[i]) for f in FIELDS)))
+                vals = {f: float(ds[f"{m}_{f}"].values[i]) for f in FIELDS}
+                vals["success"] = bool(vals["success"])
+                results[case].append(SlewComparisonRow(
+                    case=case, angle_deg=float(ds["angle_deg"].values[i]),
+                    method=m, **vals))
     return results
-
-
-class SlewRow(NamedTuple):
-    """One method at one angle (the fields of `SlewComparisonRow`)."""
-
-    angle_deg: float
-    method: str
-    T: float
-    energy: float
-    peak_wheel_torque: float
-    peak_wheel_momentum: float
-    success: float
-    solve_time: float
 
 
 def run(ctx: StudyContext) -> Section:
