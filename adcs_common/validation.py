@@ -126,6 +126,24 @@ def check_instance(value, cls: type, name: str) -> None:
             f"{name} must be a {cls.__name__}, got {type(value).__name__}")
 
 
+def check_items(values, cls: type, name: str) -> list:
+    """Return ``values`` as a list, each a ``cls`` (else `InvalidValueError`).
+
+    For the functions that tabulate result objects.
+    """
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__iter__"):
+        raise InvalidValueError(
+            f"{name} must be a sequence of {cls.__name__}, got "
+            f"{type(values).__name__}")
+    items = list(values)
+    for i, v in enumerate(items):
+        if not isinstance(v, cls):
+            raise InvalidValueError(
+                f"{name}[{i}] must be a {cls.__name__}, got "
+                f"{type(v).__name__}")
+    return items
+
+
 def as_angle(value, name: str, limit: float = 2.0 * np.pi) -> float:
     """Return ``value`` as a finite angle [rad] with ``|value| <= limit``.
 

@@ -337,6 +337,7 @@ def envelope_frame(array: WheelArray, kind: str = "momentum",
     """
     import pandas as pd
 
+    check_instance(array, WheelArray, "array")
     cases = [("none", array)]
     if failures:
         cases += [(str(k + 1), array.with_failed(k))

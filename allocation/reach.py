@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike
 from adcs_common.results import ResultMixin
 
 from adcs_common.exceptions import AdcsError, InvalidValueError, ShapeError
-from adcs_common.validation import as_finite_scalar, as_vector
+from adcs_common.validation import as_finite_scalar, as_vector, check_items
 
 from .arrays import WheelArray
 from .envelope import envelope, unit_directions
@@ -544,6 +544,7 @@ def reach_frame(rows: Sequence[ReachResult]) -> pd.DataFrame:
     """
     import pandas as pd
 
+    rows = check_items(rows, ReachResult, "rows")
     return pd.DataFrame([{
         "law": r.law,
         "failed": ", ".join(str(i + 1) for i in r.failed) or "none",

@@ -202,6 +202,14 @@ def table_frame(rows: list[tuple]) -> pd.DataFrame:
     """Rows (quantity, paper, ours, diff) as a `pandas.DataFrame`."""
     import pandas as pd
 
+    from adcs_common.exceptions import InvalidValueError
+
+    rows = list(rows) if isinstance(rows, (list, tuple)) else None
+    if rows is None or not all(isinstance(r, tuple) and len(r) == 4
+                               for r in rows):
+        raise InvalidValueError(
+            "rows must be a list of (quantity, paper, ours, diff) tuples, "
+            "as burn_table / reorientation_table return")
     return pd.DataFrame(
         [{"quantity": q, "paper": np.nan if p is None else p, "ours": o,
           "difference": np.nan if d is None else d} for q, p, o, d in rows])

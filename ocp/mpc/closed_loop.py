@@ -15,6 +15,7 @@ from adcs_common.validation import (
     as_finite_scalar,
     as_vector,
     check_positive,
+    check_items,
 )
 from ocp.models.rigid import SpacecraftModel
 from ocp.models.trajectory import SlewTrajectory
@@ -330,6 +331,7 @@ def closed_loop_frame(results: Any) -> pd.DataFrame:
     """`ClosedLoopResult` metrics as a `pandas.DataFrame` (SI, radians)."""
     import pandas as pd
 
+    results = check_items(results, ClosedLoopResult, "results")
     return pd.DataFrame([{
         "controller": r.name, "settle_time": r.settle_time,
         "energy": r.energy, "peak_torque": r.peak_torque,

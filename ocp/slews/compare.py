@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError
-from adcs_common.validation import as_finite_array
+from adcs_common.validation import as_finite_array, check_items
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 from allocation import WheelArray
 
@@ -202,4 +202,5 @@ def comparison_frame(rows: list[SlewComparisonRow]) -> pd.DataFrame:
 
     import pandas as pd
 
+    rows = check_items(rows, SlewComparisonRow, "rows")
     return pd.DataFrame([dataclasses.asdict(r) for r in rows])
