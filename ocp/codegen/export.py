@@ -64,6 +64,7 @@ from .build import build_exported, run_driver
 from .driver import _MAKEFILE, _driver_source, _readme
 from .patches import (
     patch_daqp_failure,
+    patch_daqp_warm_start,
     patch_minmax,
     patch_unused_parameters,
 )
@@ -250,19 +251,25 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
     if mpc_variants:
         qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
         x0 = model.state([1.0, 0.0, 0.0, 0.0])
-        for name, rti in (("mpc_step", False), ("mpc_rti_step", True)):
+        # the condensed QP links DAQP where the casadi wheel ships it
+        condensed_plugin = "daqp" if daqp_available() else "qrqp"
+        for name in MPC_VARIANTS:
             if name not in mpc_variants:
                 continue
-            ctl = AttitudeMPC(model, horizon=horizon, dt=dt, rti=rti,
-                              expand=False)
+            rti = "rti" in name
+            kw = ({"solver": "condensed", "qp_solver": condensed_plugin}
+                  if "cond" in name else {"expand": False})
+            ctl = AttitudeMPC(model, horizon=horizon, dt=dt, rti=rti, **kw)
             fns[name] = _renamed(ctl.step_function, name)
             samples[name] = [x0, qf, np.zeros(3), ctl.initial_guess(x0),
                              np.zeros(ctl.nz), np.zeros(ctl.ng)]
     return fns, samples, model
 
 
-#: MPC steps `export_c` can write.
-MPC_VARIANTS = ("mpc_step", "mpc_rti_step")
+#: MPC steps `export_c` can write: sqpmethod + qrqp to convergence and
+#: its RTI, the condensed SQP to convergence and its RTI.
+MPC_VARIANTS = ("mpc_step", "mpc_rti_step", "mpc_cond_step",
+                "mpc_cond_rti_step")
 
 
 def _check_variants(variants) -> tuple[str, ...]:
@@ -324,9 +331,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     horizon : int
         MPC horizon (intervals).
     mpc_variants : sequence of str
-        MPC steps to export: ``"mpc_step"`` (SQP to convergence) and/or
-        ``"mpc_rti_step"`` (one SQP step per sample); empty for none.
-        Each adds ~1.2 MB of C (~15 s of gcc -O2) at horizon 20.
+        MPC steps to export (`MPC_VARIANTS`): ``"mpc_step"`` (sqpmethod +
+        qrqp to convergence), ``"mpc_rti_step"`` (one SQP step per
+        sample), each ~1.2 MB of C at horizon 20; ``"mpc_cond_step"``,
+        ``"mpc_cond_rti_step"``: the condensed SQP
+        (`ocp.mpc.condensed`; DAQP, linking ``libdaqpstat.a`` where the
+        casadi wheel ships it, else qrqp), ~0.1 MB; empty for none.
     wheel_qp_plugin : {None, "daqp", "qrqp"}
         Conic of ``wheel_qp``: ``"daqp"`` (≈ 4x faster in C; needs the
         casadi wheel's ``include/daqp`` and ``libdaqpstat.a`` at build
@@ -383,7 +393,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     # a closed-form wheel_qp holds no conic: no solver library to link
     # unless the duty QP's fast path calls daqp
     uses_daqp = (plugin == "daqp" and method != "closed form") or (
-        thrusters is not None and duty_plugin == "daqp")
+        thrusters is not None and duty_plugin == "daqp") or (
+        daqp_available() and any("cond" in v for v in mpc_variants))
     cflags, ldflags = c_flags("daqp" if uses_daqp else "")
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
@@ -398,6 +409,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     patched = False
     text, daqp_patched = patch_daqp_failure(source.read_text())
     text, _ = patch_minmax(text)
+    text, _ = patch_daqp_warm_start(text)
     if qrqp_reuse_factorization:
         text, patched = patch_qrqp(text)
     text, _ = patch_unused_parameters(text)       # last: the others

@@ -126,3 +126,60 @@ def patch_unused_parameters(source: str) -> tuple[str, int]:
         out.append(line)
         i += 1
     return "\n".join(out), count
+
+
+#: CasADi's generated DAQP sets its initial working set from equal bounds
+#: only; the edit adds the simple bounds whose warm-start multiplier
+#: ``lam_x0`` is non-zero (DAQP's sense: 1 active at the upper bound, 3 at
+#: the lower; CasADi's sign: negative at the lower bound). Bounds on
+#: distinct variables are independent, so DAQP's setup accepts any such
+#: set; general rows (``lam_a0``) are left out, as a row dependent on the
+#: others makes the setup fail.
+_DAQP_SENSE = (
+    ("    d->daqp.sense[i] = d_qp->lbx[i]==d_qp->ubx[i] ? 5 : 0;\n",
+     "    d->daqp.sense[i] = d_qp->lbx[i]==d_qp->ubx[i] ? 5 : "
+     "!d_qp->lam_x0 ? 0 : d_qp->lam_x0[i] > 0 ? 1 : "
+     "d_qp->lam_x0[i] < 0 ? 3 : 0;\n"),
+    ("    d->daqp.sense[p_qp->nx+i] = d_qp->lba[i]==d_qp->uba[i] ? 5 : 0;\n",
+     "    d->daqp.sense[p_qp->nx+i] = d_qp->lba[i]==d_qp->uba[i] ? 5 : "
+     "!d_qp->lam_a0 ? 0 : d_qp->lam_a0[i] > 0 ? 1 : "
+     "d_qp->lam_a0[i] < 0 ? 3 : 0;\n"),
+    ("  flag = setup_daqp(&d->daqp,&d->work,&(d->res.setup_time));\n"
+     "  if (flag<0) return 1;\n",
+     "  flag = setup_daqp(&d->daqp,&d->work,&(d->res.setup_time));\n"
+     "  if (flag<0) {  /* a dependent warm start: start cold */\n"
+     "    free_daqp_workspace(&d->work);\n"
+     "    free_daqp_ldp(&d->work);\n"
+     "    for (i=0;i<p_qp->nx+p_qp->na;++i)\n"
+     "      if (!(d->daqp.sense[i]&4)) d->daqp.sense[i] &= ~3;\n"
+     "    flag = setup_daqp(&d->daqp,&d->work,&(d->res.setup_time));\n"
+     "  }\n"
+     "  if (flag<0) {  /* no point: NaN, never a stale one */\n"
+     "    for (i=0;i<p_qp->nx;++i) d_qp->x[i] = NAN;\n"
+     "    return 1;\n"
+     "  }\n"),
+)
+
+
+def patch_daqp_warm_start(source: str) -> tuple[str, int]:
+    """Start generated DAQP conics from the active bounds of ``lam_x0``.
+
+    A simple bound whose warm-start multiplier is non-zero enters DAQP's
+    initial working set (at the bound its sign names); DAQP drops the
+    ones the solution does not need, so the solution is the same and
+    only the iterations change (the condensed MPC passes the previous
+    step's shifted multipliers: fewer iterations through a saturated
+    slew). Conics called with zero multipliers run as before.
+
+    Returns
+    -------
+    text : str
+        The edited text.
+    count : int
+        Lines edited (1 per DAQP runtime; 0 when CasADi's text differs).
+    """
+    count = 0
+    for old, new in _DAQP_SENSE:
+        count += source.count(old)
+        source = source.replace(old, new)
+    return source, count

@@ -65,12 +65,15 @@ from ocp.models.rigid import SpacecraftModel
 from ocp.spacecraft.definition import Spacecraft
 from adcs_common.options import merge_options
 from adcs_common.threads import new_lock, synchronized
+from .condensed import condensed_qp_plugin, condensed_step_functions
+from .plan import check_function, shift_function
 from .problem import (
     BOUND_TOL,
     DEFECT_TOL,
     MPCStep,
     MPCWeights,
     QP_SOLVERS,
+    MPC_SOLVERS,
     NLP_PLUGINS,
     available_mpc_solvers,
     check_reachable,
@@ -105,11 +108,16 @@ class AttitudeMPC:
         Number of intervals N (>= 2).
     dt : float
         Sample time and interval length [s].
-    solver : {"sqpmethod", "ipopt", "fatrop"}
+    solver : {"sqpmethod", "condensed", "ipopt", "fatrop"}
         NLP solver (default ``"sqpmethod"``: Gauss–Newton SQP with a
-        code-generatable conic).
-    qp_solver : {"qrqp", "daqp"}
-        Conic plugin of ``"sqpmethod"`` (default ``"qrqp"``).
+        code-generatable conic). ``"condensed"``: the toolbox's
+        Gauss–Newton SQP whose QP keeps the controls only
+        (`ocp.mpc.condensed`; wheel-only models), exact dense active set,
+        no fallback needed; its step Functions also return
+        ``iterations``.
+    qp_solver : {"qrqp", "daqp"}, optional
+        Conic of ``"sqpmethod"`` (default ``"qrqp"``) or of
+        ``"condensed"`` (default daqp where the casadi wheel has it).
     rti : bool
         Real-time iteration: one full SQP step per sample (``"sqpmethod"``
         only). When that step leaves the applied command or the next
@@ -144,7 +152,7 @@ class AttitudeMPC:
 
     def __init__(self, model: SpacecraftModel, *, horizon: int = 20,
                  dt: float = 0.5, solver: str = "sqpmethod",
-                 qp_solver: str = "qrqp", rti: bool = False,
+                 qp_solver: str | None = None, rti: bool = False,
                  weights: MPCWeights | None = None,
                  rate_max: float | None = None, max_iter: int = 50,
                  expand: bool = True,
@@ -165,29 +173,34 @@ class AttitudeMPC:
                 f"horizon must be an integer >= 2, got {horizon!r}")
         self.dt = as_finite_scalar(dt, "dt")
         check_positive(self.dt, "dt")
-        if not isinstance(solver, str) or solver not in NLP_PLUGINS:
+        if not isinstance(solver, str) or solver not in MPC_SOLVERS:
             raise SolverNotFound(str(solver), available_mpc_solvers(),
                                  "MPC solvers: 'sqpmethod' (with qp_solver "
                                  "'qrqp' or 'daqp'), 'ipopt', 'fatrop'")
         if solver not in available_mpc_solvers():
             raise SolverNotFound(solver, available_mpc_solvers(),
                                  f"the CasADi plugin {solver!r} is missing")
-        if solver == "sqpmethod" and (qp_solver not in QP_SOLVERS
-                                      or not ca.has_conic(qp_solver)):
+        if qp_solver is None:
+            qp_solver = "qrqp" if solver != "condensed" else (
+                condensed_qp_plugin())
+        if solver in ("sqpmethod", "condensed") and (
+                qp_solver not in QP_SOLVERS or not ca.has_conic(qp_solver)):
             raise SolverNotFound(
-                f"sqpmethod:{qp_solver}",
-                tuple(f"sqpmethod:{q}" for q in QP_SOLVERS
+                f"{solver}:{qp_solver}",
+                tuple(f"{solver}:{q}" for q in QP_SOLVERS
                       if ca.has_conic(q)),
                 "qp_solver must be a code-generatable conic")
-        if rti and solver != "sqpmethod":
+        if rti and solver not in ("sqpmethod", "condensed"):
             raise InvalidValueError(
-                f"rti=True needs solver='sqpmethod', got {solver!r}")
+                f"rti=True needs solver='sqpmethod' or 'condensed', got "
+                f"{solver!r}")
         max_iter = as_count(max_iter, "max_iter")
         self.model = model
         self.wheels = model.wheels
         self.horizon = int(horizon)
         self.solver = solver
-        self.qp_solver = qp_solver if solver == "sqpmethod" else ""
+        self.qp_solver = qp_solver if solver in ("sqpmethod",
+                                                 "condensed") else ""
         self.rti = bool(rti)
         self.weights = weights if weights is not None else MPCWeights()
         if not isinstance(self.weights, MPCWeights):
@@ -254,6 +267,15 @@ class AttitudeMPC:
         p = ca.vertcat(x_par, qf, tau)
         r, gv, f = self._objective(z, x_par, qf, tau)
         self.lbz, self.ubz, self._bound_scale = self._bounds()
+        self._residuals = ca.Function("mpc_residuals", [z, p], [f, gv])
+        self.shift_function = shift_function(nx, nu, nz, self._ng)
+        self.check_function = check_function(self, p)
+        self.nlpsol = self.fallback = None
+        if self.solver == "condensed":
+            self.rti_function, full = condensed_step_functions(
+                self, self.qp_solver)
+            self.step_function = self.rti_function if self.rti else full
+            return
         nlp = {"x": z, "p": p, "f": f, "g": gv}
         plugin = NLP_PLUGINS[self.solver]
         opts = merge_options(self._default_options(z, p, r, gv), user_options)
@@ -261,14 +283,10 @@ class AttitudeMPC:
         #: RTI only: the full SQP, run from the same warm start when the
         #: single step leaves the applied command or x_1 outside the
         #: bounds (qrqp can return such a step on degenerate active sets).
-        self.fallback = None
         if self.rti:
             full = merge_options(opts, {"max_iter": self.fallback_max_iter,
                                  "max_iter_ls": 3})
             self.fallback = ca.nlpsol("mpc_nlp_full", plugin, nlp, full)
-        self._residuals = ca.Function("mpc_residuals", [z, p], [f, gv])
-        self._build_shift(x_par)
-        self._build_check(p)
         self._build_step(x_par, qf, tau, p)
 
     def _objective(self, z, x_par, qf, tau):
@@ -336,46 +354,6 @@ class AttitudeMPC:
         ub[xs[0]] = inf  # x_0 is fixed by its equality row
         lb[xs[0]] = -inf
         return lb, ub, scale
-
-    def _build_shift(self, x_par) -> None:
-        nx, nu, nz = self.model.nx, self.model.nu, self._nz
-        z_prev = ca.MX.sym("z_prev", nz)
-        lam_x_prev = ca.MX.sym("lam_x_prev", nz)
-        lam_g_prev = ca.MX.sym("lam_g_prev", self._ng)
-        blk = nx + nu
-        z_sh = ca.vertcat(x_par, z_prev[blk + nx:], z_prev[-(nu + nx):])
-        lx_sh = ca.vertcat(lam_x_prev[blk:], lam_x_prev[-(nu + nx):])
-        lg_sh = ca.vertcat(lam_g_prev[:nx], lam_g_prev[2 * nx:],
-                           lam_g_prev[-nx:])
-        #: ``shift(x, z_prev, lam_x_prev, lam_g_prev) -> (z0, lam_x0,
-        #: lam_g0)``: the previous plan moved one interval ahead, its
-        #: first state replaced by the measured one.
-        self.shift_function = ca.Function(
-            "mpc_shift", [x_par, z_prev, lam_x_prev, lam_g_prev],
-            [z_sh, lx_sh, lg_sh], ["x", "z_prev", "lam_x_prev",
-                                   "lam_g_prev"],
-            ["z0", "lam_x0", "lam_g0"])
-
-    def _build_check(self, p) -> None:
-        nz, scale = self._nz, self._bound_scale
-        zs = ca.MX.sym("z", nz)
-        cost, gs = self._residuals(zs, p)
-        viol = ca.mmax(ca.vertcat(
-            ca.fmax(ca.DM(self.lbz) - zs, 0) / ca.DM(scale),
-            ca.fmax(zs - ca.DM(self.ubz), 0) / ca.DM(scale), 0.0))
-        first = np.r_[np.arange(nz)[self._us[0]],
-                      np.arange(nz)[self._xs[1]]]
-        viol_first = ca.mmax(ca.vertcat(
-            ca.fmax(ca.DM(self.lbz[first]) - zs[first], 0)
-            / ca.DM(scale[first]),
-            ca.fmax(zs[first] - ca.DM(self.ubz[first]), 0)
-            / ca.DM(scale[first]), 0.0))
-        defect = ca.mmax(ca.fabs(gs))
-        #: ``check(z, p) -> (cost, violation, first_violation, defect)``.
-        self.check_function = ca.Function(
-            "mpc_check", [zs, p], [cost, viol, viol_first, defect],
-            ["z", "p"], ["cost", "violation", "first_violation",
-                         "defect"])
 
     def _build_step(self, x_par, qf, tau, p) -> None:
         """Build the step Function: shift the warm start, solve, report."""
@@ -527,15 +505,18 @@ class AttitudeMPC:
             self.initial_guess(x)
         p = np.r_[x, qf, tau]
         t0 = time.perf_counter()
-        if self.rti:
-            # one buffered call: shift, one SQP step, checks
-            z, lam_x, lam_g, u, cost, viol, viol1, defect = \
+        if self.rti or self.solver == "condensed":
+            # one buffered call: shift, SQP step(s), checks
+            z, lam_x, lam_g, u, cost, viol, viol1, defect, *n = \
                 self._rti_call(x, qf, tau, z_prev)
             status, iters = "rti_step", 1
-        if not self.rti or viol1 > BOUND_TOL:
+            if self.solver == "condensed" and not self.rti:
+                iters = int(n[0])
+                status = ("converged" if iters < self.fallback_max_iter
+                          else "iteration_limit")
+        else:
             z0, lx0, lg0 = self.shift_function(x, z_prev, self._lam_x,
                                                self._lam_g)
-        if not self.rti:
             sol = self.nlpsol(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz, lbg=0,
                               ubg=0, lam_x0=lx0, lam_g0=lg0)
             stats = self.nlpsol.stats()
@@ -545,6 +526,8 @@ class AttitudeMPC:
             iters = int(stats.get("iter_count", -1))
         solve_time = time.perf_counter() - t0
         if self.fallback is not None and viol1 > BOUND_TOL:
+            z0, lx0, lg0 = self.shift_function(x, z_prev, self._lam_x,
+                                               self._lam_g)
             sol = self.fallback(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz,
                                 lbg=0, ubg=0, lam_x0=lx0, lam_g0=lg0)
             solve_time = time.perf_counter() - t0
@@ -576,10 +559,11 @@ class AttitudeMPC:
         return result
 
     def _rti_call(self, x, qf, tau, z_prev) -> tuple:
-        """One RTI step through `rti_function`'s bound buffer."""
+        """Call `rti_function` (condensed: `step_function`) via a buffer."""
         call = self._rti_buffer
         if call is None:
-            f = self.rti_function
+            f = self.step_function if self.solver == "condensed" else \
+                self.rti_function
             call = self._rti_buffer = BoundCall(
                 f, tuple(np.zeros(f.nnz_in(i)) for i in range(f.n_in())),
                 tuple(np.zeros(f.nnz_out(i)) for i in range(f.n_out())))

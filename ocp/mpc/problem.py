@@ -35,16 +35,21 @@ BOUND_TOL = 1e-6
 DEFECT_TOL = 1e-6
 
 
+#: Every MPC solver name: the NLP plugins and ``"condensed"`` (the
+#: toolbox's Gauss–Newton SQP on the condensed QP, `ocp.mpc.condensed`).
+MPC_SOLVERS = (*NLP_PLUGINS, "condensed")
+
+
 def available_mpc_solvers() -> tuple[str, ...]:
     """MPC solver names whose CasADi plugin loads on this installation."""
     names = []
-    for name, plugin in NLP_PLUGINS.items():
+    conic = any(ca.has_conic(q) for q in QP_SOLVERS)
+    for name in MPC_SOLVERS:
         try:
-            ok = ca.has_nlpsol(plugin)
+            ok = name == "condensed" or ca.has_nlpsol(NLP_PLUGINS[name])
         except RuntimeError:
             ok = False
-        if ok and (name != "sqpmethod"
-                   or any(ca.has_conic(q) for q in QP_SOLVERS)):
+        if ok and (name not in ("sqpmethod", "condensed") or conic):
             names.append(name)
     return tuple(names)
 

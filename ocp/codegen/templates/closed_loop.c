@@ -30,6 +30,7 @@ static void closed_loop(const char* name, eval_t f, work_t work,
   for (k = 0; k + nx <= nz; k += nx + nu)  /* cold start: x0 everywhere */
     memcpy(z + k, x0, sizeof(casadi_real) * nx);
   double worst = 0.0;
+  for (k = 0; k < sz_res + 8; ++k) r[k] = 0;  /* outputs not asked for */
   for (k = 0; k < steps; ++k) {
     a[0] = x; a[1] = qf; a[2] = tau; a[3] = z; a[4] = lx; a[5] = lg;
     r[0] = u; r[1] = z; r[2] = lx; r[3] = lg; r[4] = &cost; r[5] = &viol;

@@ -1,0 +1,420 @@
+"""The MPC's Gauss–Newton SQP on the condensed QP (controls only).
+
+`AttitudeMPC` with ``solver="condensed"`` solves the same optimal-control
+problem as ``"sqpmethod"`` (same cost, bounds, RK4 multiple shooting), but
+each SQP iteration eliminates the state deviations before the QP:
+
+.. math::
+    δx_0 = 0,\\quad δx_{k+1} = A_k δx_k + B_k δu_k + d_k
+
+(:math:`A_k, B_k` the RK4 Jacobians at the plan, :math:`d_k` its defects),
+so the QP has the N·n_u control deviations only. Its Hessian blocks come
+from the backward recursion
+
+.. math::
+    S_N = Q_N,\\quad S_k = Q_k + A_k^T S_{k+1} A_k,\\quad
+    H_{ij} = (S_{i+1} B_i)^T A_i \\cdots A_{j+1} B_j \\ (i > j),\\quad
+    H_{ii} = R + B_i^T S_{i+1} B_i
+
+(:math:`Q_k = 2 C_k^T C_k + ρI`, :math:`C_k` the Jacobian of the stage's
+least-squares residuals, ρ `AttitudeMPC.regularization`; :math:`R` the
+torque weight plus ρ), about 0.1 Mflop at N = 20, n_x = 11, n_u = 4, in
+small straight-line kernels. The wheel momentum obeys
+:math:`\\dot H_w = s\\,m` exactly, so its bounds are the constant rows
+:math:`H_k = \\bar H_k + e_k + Σ_{j<k} Δt\\, s\\, δu_j`; a rate bound adds
+the ω rows of the sensitivities. The dense QP (N·n_u variables, bounds on
+δu, N·n_w momentum rows) goes to DAQP, an exact dual active-set method
+(qrqp where the casadi wheel ships no DAQP library). One SQP iteration
+takes a full step; ``rti=True`` makes one per sample, otherwise the
+iterations repeat until the step is below `STEP_TOL` and the plan's
+defect below `ocp.mpc.problem.DEFECT_TOL` (at most ``max_iter``).
+
+The multipliers ``lam_x`` of the returned plan are the QP's (bounds on u,
+momentum and rate rows, at their places in z); ``lam_g`` is zero (the
+dynamics are eliminated). Their signs, shifted, start the next QP's
+active set in generated C (`ocp.codegen.patch_daqp_warm_start`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from adcs_common.exceptions import InvalidValueError
+from adcs_common.quaternion import quat_conj, quat_mul
+
+
+#: Largest step ``max |δu / m_max|`` [1] at which the condensed SQP stops.
+STEP_TOL = 1e-9
+
+
+def condensed_qp_plugin() -> str:
+    """Return the condensed QP's conic: daqp where the casadi wheel has it."""
+    try:
+        return "daqp" if ca.has_conic("daqp") else "qrqp"
+    except RuntimeError:
+        return "qrqp"
+
+
+def _kernels(mpc: Any) -> dict[str, ca.Function]:
+    """Small SX Functions the condensing calls (straight-line C)."""
+    model, w, dt = mpc.model, mpc.weights, mpc.dt
+    nx, nu = model.nx, model.nu
+    nw = mpc.wheels.n_wheels
+    h_max = np.asarray(mpc.wheels.h_max, dtype=float)
+    x = ca.SX.sym("x", nx)
+    u = ca.SX.sym("u", nu)
+    tau = ca.SX.sym("tau", 3)
+    F = model.rk4_step(1)(x, u, tau, dt)
+    A = ca.jacobian(F, x)
+    B = ca.jacobian(F, u)
+    # the ω rows of A do not depend on q, its momentum rows are (0 0 I):
+    # the momentum rows of the sensitivities are then exact constants
+    # and the ω rows follow from the (ω, H) rows alone
+    dense = ca.Function("chk", [x, u, tau], [ca.densify(A)])
+    An = np.array(dense(np.r_[0.5, 0.5, 0.5, 0.5, 0.01 * np.arange(1, nx - 3)],
+                        0.01 * np.ones(nu), 1e-3 * np.ones(3)))
+    if np.any(An[4:7, :4] != 0) or np.any(
+            An[7:, :] != np.c_[np.zeros((nw, 7)), np.eye(nw)]):
+        raise InvalidValueError(
+            "solver='condensed' needs the wheel model (rigid_spacecraft "
+            "with wheels): ω independent of q, Ḣ_w = s m")
+    lin = ca.Function("cond_lin", [x, u, tau], [F, A, B],
+                      ["x", "u", "tau"], ["F", "A", "B"])
+    qf = ca.SX.sym("qf", 4)
+    a = ca.SX.sym("a")     # 1: the stage's momentum term, 0: none
+    c = ca.SX.sym("c")     # factor of the attitude and rate terms
+    qe = quat_mul(quat_conj(qf), x[:4])
+    r = ca.vertcat(ca.sqrt(a * w.momentum) * x[7:] / ca.DM(h_max),
+                   ca.sqrt(c * w.attitude) * qe[1:],
+                   ca.sqrt(c * w.rate) * x[4:7])
+    C = ca.jacobian(r, x)
+    rho = mpc.regularization
+    Q = 2.0 * ca.mtimes(C.T, C) + rho * ca.DM.eye(nx)
+    stage = ca.Function("cond_stage", [x, qf, a, c],
+                        [Q, 2.0 * ca.mtimes(C.T, r), ca.sumsqr(r)],
+                        ["x", "qf", "a", "c"], ["Q", "q", "cost"])
+    Qs = ca.SX.sym("Q", Q.sparsity())
+    As = ca.SX.sym("A", A.sparsity())
+    Bs = ca.SX.sym("B", B.sparsity())
+    Ss = ca.SX.sym("S", nx, nx)
+    G = ca.SX.sym("G", nx - 4, nu)
+    du = ca.SX.sym("du", nu)
+    e = ca.SX.sym("e", nx)
+    d = ca.SX.sym("d", nx)
+    lam = ca.SX.sym("lam", nx)
+    q = ca.SX.sym("q", nx)
+    Zt = ca.SX.sym("Zt", nu, nx)
+    ridx = list(range(4, nx))
+    return {
+        "lin": lin, "stage": stage,
+        # S_k = Q_k + A_k' S_{k+1} A_k ; Y = S_{k+1} B_k
+        "lyap": ca.Function("cond_lyap", [Qs, As, Ss],
+                            [ca.densify(Qs + ca.mtimes([As.T, Ss, As]))]),
+        "sb": ca.Function("cond_sb", [Ss, Bs], [ca.densify(
+            ca.mtimes(Ss, Bs))]),
+        # Z' <- Z' A ; H_ij = Z' B
+        "za": ca.Function("cond_za", [Zt, As], [ca.densify(
+            ca.mtimes(Zt, As))]),
+        "zb": ca.Function("cond_zb", [Zt, Bs], [ca.densify(
+            ca.mtimes(Zt, Bs))]),
+        # defects forward: e_{k+1} = A e + d ; gradient backward
+        "efw": ca.Function("cond_efw", [As, e, d], [ca.mtimes(As, e) + d]),
+        "gbw": ca.Function("cond_gbw", [Qs, e, q, As, lam],
+                           [ca.mtimes(Qs, e) + q + ca.mtimes(As.T, lam)]),
+        "bt": ca.Function("cond_bt", [Bs, lam], [ca.mtimes(Bs.T, lam)]),
+        # the (ω, H) rows of the sensitivities: G_{k+1} = A_k G_k
+        "gw": ca.Function("cond_gw", [As, G], [ca.densify(ca.mtimes(
+            As[ridx, ridx], G))]),
+        # the expansion: δx_{k+1} = A δx + B δu + d
+        "xfw": ca.Function("cond_xfw", [As, Bs, e, du, d],
+                           [ca.mtimes(As, e) + ca.mtimes(Bs, du) + d]),
+    }
+
+
+def _iteration(mpc: Any, plugin: str) -> ca.Function:
+    """``cond_iter(z, lam_x, p) -> (z_new, lam_x, step)``: one SQP step.
+
+    ``z`` is a plan whose x_0 is the measured state (p's first n_x
+    entries), ``lam_x`` multipliers in z's layout whose signs start the
+    QP's active set (generated C with `ocp.codegen.patch_daqp_warm_start`;
+    the result does not depend on them); ``step`` is ``max |δu / m_max|``.
+    """
+    kern = _kernels(mpc)
+    model, wh, w, N = mpc.model, mpc.wheels, mpc.weights, mpc.horizon
+    nx, nu, nw = model.nx, model.nu, wh.n_wheels
+    xs, us = mpc._xs, mpc._us
+    z = ca.MX.sym("z", mpc.nz)
+    lx0 = ca.MX.sym("lam_x", mpc.nz)
+    p = ca.MX.sym("p", nx + 7)
+    qf, tau = p[nx:nx + 4], p[nx + 4:]
+    m_max = np.asarray(wh.m_max, dtype=float)
+    rho = mpc.regularization
+    A, B, d = [], [], []
+    for k in range(N):
+        F, Ak, Bk = kern["lin"](z[xs[k]], z[us[k]], tau)
+        A.append(Ak)
+        B.append(Bk)
+        d.append(F - z[xs[k + 1]])
+    Q, q = [None], [None]
+    for k in range(1, N + 1):
+        c = w.terminal if k == N else 1.0
+        Qk, qk, _ = kern["stage"](z[xs[k]], qf, 1.0 if k < N else 0.0, c)
+        Q.append(Qk)
+        q.append(qk)
+    e = [ca.MX.zeros(nx)]
+    for k in range(N):
+        e.append(kern["efw"](A[k], e[k], d[k]) if k else d[0])
+    r_diag = ca.DM(2.0 * w.torque / m_max ** 2 + rho)
+    H = _hessian(kern, A, B, Q, r_diag)
+    # gradient: λ_N = Q_N e_N + q_N, λ_k = Q_k e_k + q_k + A_k' λ_{k+1}
+    lam = ca.mtimes(Q[N], e[N]) + q[N]
+    grad = [None] * N
+    for k in range(N - 1, -1, -1):
+        u_bar = z[us[k]]
+        grad[k] = (2.0 * w.torque * u_bar / ca.DM(m_max ** 2)
+                   + kern["bt"](B[k], lam))
+        if k:
+            lam = kern["gbw"](Q[k], e[k], q[k], A[k], lam)
+    g = ca.vertcat(*grad)
+    rows, lba, uba = _rows(mpc, kern, z, e, A, B)
+    Acon = ca.vertcat(*rows)
+    u_lo, u_hi = model.control_bounds()
+    u_bar = ca.vertcat(*[z[us[k]] for k in range(N)])
+    rate_rows = mpc.rate_max is not None
+    lam_a0 = [lx0[xs[k]][7:] for k in range(1, N + 1)] + (
+        [lx0[xs[k]][4:7] for k in range(1, N + 1)] if rate_rows else [])
+    sol = _routed_qp(plugin, N, nu, nw, Acon)(
+        ca.densify(H), g, ca.vertcat(*lba), ca.vertcat(*uba),
+        np.tile(u_lo, N) - u_bar, np.tile(u_hi, N) - u_bar,
+        ca.vertcat(*[lx0[us[k]] for k in range(N)]), ca.vertcat(*lam_a0))
+    sol = dict(zip(("x", "lam_x", "lam_a"), sol))
+    du = sol["x"]
+    dx = ca.MX.zeros(nx)
+    parts, lam_parts = [], []
+    lam_a = sol["lam_a"]
+    for k in range(N + 1):
+        parts.append(z[xs[k]] + dx)
+        lx = ca.MX.zeros(nx)
+        if k:
+            rate = lam_a[N * nw + 3 * (k - 1):N * nw + 3 * k] if \
+                rate_rows else ca.MX.zeros(3)
+            lx = ca.vertcat(ca.MX.zeros(4), rate,
+                            lam_a[(k - 1) * nw:k * nw])
+        lam_parts.append(lx)
+        if k < N:
+            duk = du[k * nu:(k + 1) * nu]
+            parts.append(z[us[k]] + duk)
+            lam_parts.append(sol["lam_x"][k * nu:(k + 1) * nu])
+            dx = kern["xfw"](A[k], B[k], dx, duk, d[k])
+    step = ca.mmax(ca.fabs(du) / ca.DM(np.tile(np.r_[m_max], N)))
+    return ca.Function("cond_iter", [z, lx0, p],
+                       [ca.vertcat(*parts), ca.vertcat(*lam_parts), step],
+                       ["z", "lam_x0", "p"], ["z_new", "lam_x", "step"])
+
+
+def _hessian(kern: dict, A: list, B: list, Q: list, r_diag: ca.DM) -> ca.MX:
+    """Return the condensed Hessian (N·n_u, N·n_u) of the stage matrices."""
+    N = len(A)
+    # S_k backward, then H_ij = (S_{i+1} B_i)' A_i … A_{j+1} B_j
+    S = [None] * (N + 1)
+    S[N] = ca.densify(Q[N])
+    for k in range(N - 1, 0, -1):
+        S[k] = kern["lyap"](Q[k], A[k], S[k + 1])
+    blocks = [[None] * N for _ in range(N)]
+    for i in range(N):
+        Zt = kern["sb"](S[i + 1], B[i]).T
+        blocks[i][i] = kern["zb"](Zt, B[i]) + ca.diag(r_diag)
+        for j in range(i - 1, -1, -1):
+            Zt = kern["za"](Zt, A[j + 1])
+            blocks[i][j] = kern["zb"](Zt, B[j])
+            blocks[j][i] = blocks[i][j].T
+    return ca.blockcat(blocks)
+
+
+def _rows(mpc: Any, kern: dict, z: ca.MX, e: list, A: list, B: list
+          ) -> tuple[list, list, list]:
+    """Momentum (and rate) rows of the QP: ``(rows, lba, uba)`` lists."""
+    wh, N, xs = mpc.wheels, mpc.horizon, mpc._xs
+    nu, nw = mpc.model.nu, wh.n_wheels
+    h_max = np.asarray(wh.h_max, dtype=float)
+    # momentum rows: H_k = H̄_k + e_k + Σ_{j<k} Δt s δu_j (exact)
+    s = np.asarray(wh.scale * wh.active, dtype=float)
+    a_mom = np.zeros((N * nw, N * nu))
+    for k in range(1, N + 1):
+        for j in range(k):
+            a_mom[(k - 1) * nw:k * nw, j * nu:j * nu + nw] = np.diag(
+                mpc.dt * s)
+    rows = [ca.DM(a_mom)]
+    h_now = ca.vertcat(*[z[xs[k]][7:] + e[k][7:] for k in range(1, N + 1)])
+    lba = [-np.tile(h_max, N) - h_now]
+    uba = [np.tile(h_max, N) - h_now]
+    if mpc.rate_max is not None:
+        # ω rows of the sensitivities, from their (ω, H) rows
+        cols = []
+        for j in range(N):
+            Gr = B[j][4:, :]
+            col = [ca.MX.zeros(3, nu)] * j + [Gr[:3, :]]
+            for k in range(j + 1, N):
+                Gr = kern["gw"](A[k], Gr)
+                col.append(Gr[:3, :])
+            cols.append(ca.vertcat(*col))
+        rows.append(ca.horzcat(*cols))
+        w_now = ca.vertcat(*[z[xs[k]][4:7] + e[k][4:7]
+                             for k in range(1, N + 1)])
+        lba.append(-mpc.rate_max - w_now)
+        uba.append(mpc.rate_max - w_now)
+    return rows, lba, uba
+
+
+#: Largest excess of a momentum or rate row [N·m·s, rad/s] at which the
+#: QP without those rows answers the QP with them.
+ROW_TOL = 1e-10
+
+
+def _independent_rows(N: int, nu: int, nw: int, na: int) -> ca.Function:
+    """``keep(lam_x0, lbx, ubx, lam_a0) -> lam_a0``: a warm start DAQP takes.
+
+    Momentum row k of wheel i is the sum of its bounds' rows j < k, so a
+    working set holding the row, the previous kept row of that wheel and
+    every bound between them is dependent (DAQP's setup then fails). The
+    scan drops such rows; the other rows (rates) start inactive.
+    """
+    lx = ca.SX.sym("lam_x0", N * nu)
+    lb, ub = ca.SX.sym("lbx", N * nu), ca.SX.sym("ubx", N * nu)
+    la = ca.SX.sym("lam_a0", na)
+    out = [ca.SX(0)] * na
+    for i in range(nw):
+        covered = ca.SX(1)
+        for k in range(1, N + 1):
+            j = (k - 1) * nu + i
+            covered = covered * ca.logic_or(lx[j] != 0, lb[j] == ub[j])
+            r = (k - 1) * nw + i
+            keep = ca.logic_and(la[r] != 0, ca.logic_not(covered))
+            out[r] = ca.if_else(keep, la[r], 0)
+            covered = ca.if_else(keep, 1, covered)
+    return ca.Function("cond_rows_warm", [lx, lb, ub, la],
+                       [ca.vertcat(*out)])
+
+
+def _routed_qp(plugin: str, N: int, nu: int, nw: int,
+               Acon: ca.DM | ca.MX) -> ca.Function:
+    """``qp(H, g, lba, uba, lbx, ubx, lam_x0, lam_a0) -> (x, lam_x, lam_a)``.
+
+    When the warm start holds no active row (holds, small slews): the QP
+    with the bounds on δu only first (no general rows: DAQP skips their
+    factorization, about half of its setup); its point is the answer when
+    it meets every row ``lba ≤ A x ≤ uba`` within `ROW_TOL` (the rows can
+    only cut that QP's feasible set), else the QP with the rows, started
+    from its active set. When rows were active: the QP with the rows
+    directly, started from the bounds and the rows of the warm start
+    (`_independent_rows`).
+    """
+    n, na = N * nu, Acon.shape[0]
+    H = ca.MX.sym("H", n, n)
+    g = ca.MX.sym("g", n)
+    lba, uba = ca.MX.sym("lba", na), ca.MX.sym("uba", na)
+    lbx, ubx = ca.MX.sym("lbx", n), ca.MX.sym("ubx", n)
+    lx0, la0 = ca.MX.sym("lam_x0", n), ca.MX.sym("lam_a0", na)
+    ins = [H, g, lba, uba, lbx, ubx, lx0, la0]
+    opts = _qp_options(plugin)
+    box = ca.conic("cond_qp_box", plugin, {"h": H.sparsity()}, opts)
+    rows = ca.conic("cond_qp", plugin, {"h": H.sparsity(),
+                                        "a": Acon.sparsity()}, opts)
+
+    def with_rows(lam_x0, lam_a0):
+        s = rows(h=H, g=g, a=Acon, lba=lba, uba=uba, lbx=lbx, ubx=ubx,
+                 lam_x0=lam_x0, lam_a0=lam_a0)
+        return [s["x"], s["lam_x"], s["lam_a"]]
+
+    # the bounds first; the rows only when the bounds' point breaks one
+    x1, l1 = ca.MX.sym("x1", n), ca.MX.sym("l1", n)
+    args = [H, g, lba, uba, lbx, ubx, l1, x1]
+    pick = ca.Function.if_else(
+        "cond_qp_pick",
+        ca.Function("cond_qp_rows", args, with_rows(l1, ca.MX.zeros(na))),
+        ca.Function("cond_qp_keep", args, [x1, l1, ca.MX.zeros(na)]))
+    s1 = box(h=H, g=g, lbx=lbx, ubx=ubx, lam_x0=lx0)
+    ax = ca.mtimes(Acon, s1["x"])
+    excess = ca.mmax(ca.vertcat(ax - uba, lba - ax, 0.0))
+    staged = ca.Function("cond_qp_staged", ins, pick(
+        excess > ROW_TOL, H, g, lba, uba, lbx, ubx, s1["lam_x"], s1["x"]))
+    warm = _independent_rows(N, nu, nw, na)(lx0, lbx, ubx, la0)
+    direct = ca.Function("cond_qp_direct", ins, with_rows(lx0, warm))
+    route = ca.Function.if_else("cond_qp_route", direct, staged)
+    return ca.Function("cond_qp_routed", ins,
+                       route(ca.mmax(ca.fabs(la0)) > 0, *ins))
+
+
+def _qp_options(plugin: str) -> dict:
+    if plugin == "qrqp":
+        return {"print_iter": False, "print_header": False,
+                "print_info": False, "error_on_fail": False}
+    return {"error_on_fail": False}
+
+
+#: Names of the step Functions' inputs and outputs (`AttitudeMPC`'s, plus
+#: the SQP iteration count).
+STEP_NAMES = (["x", "qf", "tau", "z_prev", "lam_x_prev", "lam_g_prev"],
+              ["u", "z", "lam_x", "lam_g", "cost", "violation",
+               "first_violation", "defect", "iterations"])
+
+
+def condensed_step_functions(mpc: Any, plugin: str | None = None
+                             ) -> tuple[ca.Function, ca.Function]:
+    """``(rti_function, step_function)`` of the condensed SQP.
+
+    Both have `AttitudeMPC.step_function`'s inputs and outputs, plus the
+    output ``iterations``: the RTI Function makes one condensed SQP step
+    from the shifted plan; the step Function repeats it until the step is
+    below `STEP_TOL` (at most ``mpc.fallback_max_iter`` iterations; the
+    iterations after convergence are skipped, not evaluated).
+
+    Parameters
+    ----------
+    mpc : AttitudeMPC
+        The controller (model, weights, bounds, horizon, dt).
+    plugin : {None, "daqp", "qrqp"}
+        Conic of the dense QP (None: `condensed_qp_plugin`).
+    """
+    if mpc.model.thrusters is not None:
+        raise InvalidValueError(
+            "solver='condensed' handles wheel-only models; with thrusters "
+            "use solver='sqpmethod'")
+    plugin = plugin or condensed_qp_plugin()
+    it = _iteration(mpc, plugin)
+    nx, nz, ng = mpc.model.nx, mpc.nz, mpc.ng
+    x = ca.MX.sym("x", nx)
+    qf = ca.MX.sym("qf", 4)
+    tau = ca.MX.sym("tau", 3)
+    z_prev = ca.MX.sym("z_prev", nz)
+    lx_prev = ca.MX.sym("lam_x_prev", nz)
+    lg_prev = ca.MX.sym("lam_g_prev", ng)
+    p = ca.vertcat(x, qf, tau)
+    z0, lx0, _ = mpc.shift_function(x, z_prev, lx_prev, lg_prev)
+    ins = [x, qf, tau, z_prev, lx_prev, lg_prev]
+    us0 = mpc._us[0]
+
+    def outputs(z, lx, n):
+        return [z[us0], z, lx, ca.MX.zeros(ng),
+                *mpc.check_function(z, p), n]
+
+    z1, lx1, _ = it(z0, lx0, p)
+    rti = ca.Function("mpc_cond_rti", ins, outputs(z1, lx1, 1.0),
+                      *STEP_NAMES)
+    # one guarded iteration: skipped once the last step was small
+    zs, ls = ca.MX.sym("z", nz), ca.MX.sym("lam_x", nz)
+    st, n, ps = ca.MX.sym("step"), ca.MX.sym("n"), ca.MX.sym("p", nx + 7)
+    zn, ln, sn = it(zs, ls, ps)
+    more = ca.Function("cond_more", [zs, ls, st, n, ps],
+                       [zn, ln, sn, n + 1])
+    done = ca.Function("cond_done", [zs, ls, st, n, ps], [zs, ls, st, n])
+    guarded = ca.Function.if_else("cond_guarded", done, more)
+    z, lx, step, count = z0, lx0, ca.MX(np.inf), ca.MX(0.0)
+    for _ in range(mpc.fallback_max_iter):
+        z, lx, step, count = guarded(step <= STEP_TOL, z, lx, step, count, p)
+    full = ca.Function("mpc_cond_step", ins, outputs(z, lx, count),
+                       *STEP_NAMES)
+    return rti, full

@@ -1,0 +1,56 @@
+"""The MPC plan's shift (warm start) and its checks, as CasADi Functions."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+
+def shift_function(nx: int, nu: int, nz: int, ng: int) -> ca.Function:
+    """``shift(x, z_prev, lam_x_prev, lam_g_prev) -> (z0, lam_x0, lam_g0)``.
+
+    The previous plan (layout ``x_0, u_0, …, x_N``) moved one interval
+    ahead, its last interval repeated and its first state replaced by the
+    measured one ``x`` (nx,).
+    """
+    x = ca.MX.sym("x", nx)
+    z_prev = ca.MX.sym("z_prev", nz)
+    lam_x_prev = ca.MX.sym("lam_x_prev", nz)
+    lam_g_prev = ca.MX.sym("lam_g_prev", ng)
+    blk = nx + nu
+    z_sh = ca.vertcat(x, z_prev[blk + nx:], z_prev[-(nu + nx):])
+    lx_sh = ca.vertcat(lam_x_prev[blk:], lam_x_prev[-(nu + nx):])
+    lg_sh = ca.vertcat(lam_g_prev[:nx], lam_g_prev[2 * nx:],
+                       lam_g_prev[-nx:])
+    return ca.Function(
+        "mpc_shift", [x, z_prev, lam_x_prev, lam_g_prev],
+        [z_sh, lx_sh, lg_sh], ["x", "z_prev", "lam_x_prev", "lam_g_prev"],
+        ["z0", "lam_x0", "lam_g0"])
+
+
+def check_function(mpc: Any, p: ca.MX) -> ca.Function:
+    """``check(z, p) -> (cost, violation, first_violation, defect)``.
+
+    ``mpc`` is the `AttitudeMPC` (its bounds, their scale, the residuals);
+    the violations are scaled by each bound [1], ``first_violation`` over
+    the applied command and the state after it; ``defect`` is the largest
+    dynamics defect of the plan [state units].
+    """
+    nz, scale = mpc.nz, mpc._bound_scale
+    zs = ca.MX.sym("z", nz)
+    cost, gs = mpc._residuals(zs, p)
+    viol = ca.mmax(ca.vertcat(
+        ca.fmax(ca.DM(mpc.lbz) - zs, 0) / ca.DM(scale),
+        ca.fmax(zs - ca.DM(mpc.ubz), 0) / ca.DM(scale), 0.0))
+    first = np.r_[np.arange(nz)[mpc._us[0]], np.arange(nz)[mpc._xs[1]]]
+    viol_first = ca.mmax(ca.vertcat(
+        ca.fmax(ca.DM(mpc.lbz[first]) - zs[first], 0)
+        / ca.DM(scale[first]),
+        ca.fmax(zs[first] - ca.DM(mpc.ubz[first]), 0)
+        / ca.DM(scale[first]), 0.0))
+    defect = ca.mmax(ca.fabs(gs))
+    return ca.Function(
+        "mpc_check", [zs, p], [cost, viol, viol_first, defect],
+        ["z", "p"], ["cost", "violation", "first_violation", "defect"])
