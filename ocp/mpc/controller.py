@@ -140,7 +140,8 @@ class AttitudeMPC:
         called per interval).
     solver_options : dict, optional
         Options of the CasADi nlpsol, merged over the defaults and
-        forwarded untouched.
+        forwarded untouched; for ``"condensed"``: ``{"step_tol": ...}``
+        (`ocp.mpc.condensed.STEP_TOL`).
 
     Raises
     ------
@@ -272,8 +273,13 @@ class AttitudeMPC:
         self.check_function = check_function(self, p)
         self.nlpsol = self.fallback = None
         if self.solver == "condensed":
+            extra = set(user_options) - {"step_tol"}
+            if extra:
+                raise InvalidValueError(
+                    f"solver='condensed' takes solver_options 'step_tol' "
+                    f"only, got {sorted(extra)}")
             self.rti_function, full = condensed_step_functions(
-                self, self.qp_solver)
+                self, self.qp_solver, **user_options)
             self.step_function = self.rti_function if self.rti else full
             return
         nlp = {"x": z, "p": p, "f": f, "g": gv}

@@ -30,8 +30,8 @@ def exported(tmp_path_factory):
     out = tmp_path_factory.mktemp("export")
     arr = WheelArray.pyramid(h_max=0.2, m_max=0.05)
     return export_c(out, wheels=arr, thrusters=six_thruster_unit(),
-                    mpc_variants=("mpc_rti_step",), build=True,
-                    repeats=200)
+                    mpc_variants=("mpc_rti_step", "mpc_cond_rti_step"),
+                    build=True, repeats=200)
 
 
 def test_files_written(exported):
@@ -202,8 +202,9 @@ def test_duty_qp_in_c_equals_the_allocator_and_says_its_status(exported):
         out = [np.asarray(v).ravel() for v in ext(th, km)]
         assert DUTY_STATUS[int(out[3][0])] == "invalid_input"
         assert np.all(out[0] == 0.0)
+    # DAQP conics: the duty QP's and the condensed MPC's two (bounds, rows)
     assert exported.extras["daqp_patched"] == (
-        exported.extras["duty_qp_plugin"] == "daqp")
+        3 if exported.extras["duty_qp_plugin"] == "daqp" else 0)
 
 
 def test_duty_qp_in_c_writes_every_output_on_every_call(exported):
@@ -253,6 +254,42 @@ def test_driver_runs_and_times(exported):
     assert t["min_norm"]["median_us"] < 5.0
     assert t["wheel_qp"]["median_us"] < 50.0
     assert t["closed_loop:mpc_rti_step"]["median_us"] < 50_000.0
+    # the condensed RTI: same target, no bound broken, faster
+    cond = t["closed_loop:mpc_cond_rti_step"]
+    assert cond["final_error_deg"] < 1e-3
+    assert cond["median_us"] < t["closed_loop:mpc_rti_step"]["median_us"]
+
+
+def test_generated_condensed_step_equals_casadi_in_closed_loop(exported):
+    """80 steps of the slew: the warm-started C (DAQP from the shifted
+    active set) returns what the Python Function returns."""
+    from ocp.codegen.patches import patch_daqp_warm_start
+
+    name = "mpc_cond_rti_step"
+    f = exported.functions[name]
+    ext = ca.external(name, str(exported.shared_library))
+    source = exported.source.read_text()
+    if daqp_available():
+        assert patch_daqp_warm_start(source)[1] == 0   # already applied
+        assert "a dependent warm start: start cold" in source
+    x, qf, tau, z, lx, lg = (np.asarray(a, float)
+                             for a in exported.samples[name])
+    rk4 = exported.functions["rk4"]
+    active = 0
+    for _ in range(80):
+        a = f(x, qf, tau, z, lx, lg)
+        b = ext(x, qf, tau, z, lx, lg)
+        # lam_x (2) is not unique where a momentum row of stage 1 and the
+        # bound of u_0 it scales are both active
+        for i, (ya, yb) in enumerate(zip(a, b)):
+            if i != 2:
+                np.testing.assert_allclose(np.asarray(yb), np.asarray(ya),
+                                           atol=1e-10, rtol=0)
+        z, lx = np.asarray(a[1]).ravel(), np.asarray(a[2]).ravel()
+        active += np.count_nonzero(lx)
+        assert float(a[6]) <= 1e-9          # applied step within bounds
+        x = np.asarray(rk4(x, a[0], tau, 0.5)).ravel()
+    assert active > 100                     # the warm starts were used
 
 
 def test_patch_qrqp_needs_its_text():

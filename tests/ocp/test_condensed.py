@@ -1,0 +1,185 @@
+"""The condensed SQP (`solver="condensed"`): the same OCP, solved smaller.
+
+One condensed step equals a dense numpy condensing of the same QP (every
+sensitivity written out, DAQP's Python package); the converged plan equals
+sqpmethod's; the closed loop meets every bound, rate bounds included.
+"""
+
+import casadi as ca
+import daqp
+import numpy as np
+import pytest
+
+from adcs_common.exceptions import InvalidValueError, SolverNotFound
+from allocation import WheelArray
+from ocp import quat_from_axis_angle, rigid_spacecraft
+from ocp.mpc import AttitudeMPC, simulate_mpc
+from ocp.mpc.condensed import STEP_TOL, _independent_rows
+from ocp.mpc.problem import BOUND_TOL
+from thrusters import six_thruster_unit
+
+WHEELS = WheelArray.pyramid(h_max=0.2, m_max=0.05)
+MODEL = rigid_spacecraft(np.diag([3.0, 2.5, 3.5]), WHEELS)
+QF = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
+
+
+def _dense_step(mpc, z, p):
+    """One Gauss–Newton SQP step by the book: x = x̄ + G δu + e."""
+    N, nx, nu, dt = mpc.horizon, MODEL.nx, MODEL.nu, mpc.dt
+    xs, us, w = mpc._xs, mpc._us, mpc.weights
+    X, U, T = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("t", 3)
+    F = MODEL.rk4_step(1)(X, U, T, dt)
+    lin = ca.Function("lin", [X, U, T], [F, ca.jacobian(F, X),
+                                         ca.jacobian(F, U)])
+    zs, ps = ca.MX.sym("z", mpc.nz), ca.MX.sym("p", nx + 7)
+    r = mpc._objective(zs, ps[:nx], ps[nx:nx + 4], ps[nx + 4:])[0]
+    rJ = ca.Function("rJ", [zs, ps], [r, ca.jacobian(r, zs)])
+    G = np.zeros((N + 1, nx, N * nu))
+    e = np.zeros((N + 1, nx))
+    for k in range(N):
+        Fk, Ak, Bk = (np.array(v) for v in lin(z[xs[k]], z[us[k]], p[-3:]))
+        G[k + 1] = Ak @ G[k]
+        G[k + 1][:, k * nu:(k + 1) * nu] += Bk
+        e[k + 1] = Ak @ e[k] + Fk.ravel() - z[xs[k + 1]]
+    rv, J = (np.array(v) for v in rJ(z, p))
+    M, c = np.zeros((rv.size, N * nu)), rv.ravel().copy()
+    Gz = np.zeros((mpc.nz, N * nu))
+    ez = np.zeros(mpc.nz)
+    for k in range(N + 1):
+        Gz[xs[k]], ez[xs[k]] = G[k], e[k]
+        if k < N:
+            Gz[us[k], k * nu:(k + 1) * nu] = np.eye(nu)
+    M, c = J @ Gz, c + J @ ez
+    # sqpmethod's QP: ½ δzᵀ(2JᵀJ + ρI)δz + ∇fᵀδz with δz = Gz δu + ez
+    rho = mpc.regularization
+    H = 2 * M.T @ M + rho * Gz.T @ Gz
+    g = 2 * M.T @ c + rho * Gz.T @ ez
+    lo, hi = MODEL.control_bounds()
+    u_bar = np.concatenate([z[s] for s in us])
+    h_max = np.asarray(WHEELS.h_max)
+    A = np.concatenate([G[k][7:] for k in range(1, N + 1)])
+    h_now = np.concatenate([z[xs[k]][7:] + e[k][7:] for k in range(1, N + 1)])
+    du, _, flag, _ = daqp.solve(
+        H, g, A, np.r_[np.tile(hi, N) - u_bar, np.tile(h_max, N) - h_now],
+        np.r_[np.tile(lo, N) - u_bar, -np.tile(h_max, N) - h_now])
+    assert flag == 1
+    return z + Gz @ du + ez
+
+
+def _slew_states(n=4):
+    """Shifted plans and states of the benchmark slew's first steps."""
+    mpc = AttitudeMPC(MODEL, horizon=20, dt=0.5, rti=True,
+                      solver="condensed")
+    rk4 = MODEL.rk4_step(1)
+    x = MODEL.state([1.0, 0.0, 0.0, 0.0])
+    out = []
+    for _ in range(n):
+        z_prev = mpc._plan if mpc._plan is not None else \
+            mpc.initial_guess(x)
+        out.append((x.copy(), z_prev.copy()))
+        s = mpc.step(x, QF)
+        x = np.array(rk4(x, s.u, np.zeros(3), 0.5)).ravel()
+    return mpc, out
+
+
+def test_one_condensed_step_equals_the_dense_numpy_qp():
+    mpc, cases = _slew_states(4)
+    for x, z_prev in cases:             # cold, then saturated with
+        p = np.r_[x, QF, np.zeros(3)]   # momentum rows active
+        z0 = np.array(mpc.shift_function(x, z_prev, np.zeros(mpc.nz),
+                                         np.zeros(mpc.ng))[0]).ravel()
+        ref = _dense_step(mpc, z0, p)
+        out = mpc.rti_function(x, QF, np.zeros(3), z_prev,
+                               np.zeros(mpc.nz), np.zeros(mpc.ng))
+        np.testing.assert_allclose(np.asarray(out[1]).ravel(), ref,
+                                   atol=1e-9, rtol=0)
+
+
+def test_condensed_rti_step_is_sqpmethods_rti_step():
+    """The same QP: sqpmethod + qrqp on all of z, condensed on δu."""
+    mpc, cases = _slew_states(2)
+    sqp = AttitudeMPC(MODEL, horizon=20, dt=0.5, rti=True)
+    for x, z_prev in cases:
+        a = mpc.rti_function(x, QF, np.zeros(3), z_prev, np.zeros(mpc.nz),
+                             np.zeros(mpc.ng))
+        b = sqp.rti_function(x, QF, np.zeros(3), z_prev, np.zeros(sqp.nz),
+                             np.zeros(sqp.ng))
+        assert float(b[6]) <= BOUND_TOL        # qrqp's step is a good one
+        np.testing.assert_allclose(np.asarray(a[1]), np.asarray(b[1]),
+                                   atol=1e-8, rtol=0)
+
+
+def test_converged_condensed_plan_is_the_sqpmethod_plan():
+    cond = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="condensed",
+                       solver_options={"step_tol": 1e-10})
+    sqp = AttitudeMPC(MODEL, horizon=20, dt=0.5)
+    rk4 = MODEL.rk4_step(1)
+    x = MODEL.state([1.0, 0.0, 0.0, 0.0])
+    for _ in range(2):
+        a, b = cond.step(x, QF), sqp.step(x, QF)
+        assert a.status == "converged" and b.status == "Solve_Succeeded"
+        assert a.defect < 1e-9 and a.violation <= BOUND_TOL
+        np.testing.assert_allclose(a.plan, b.plan, atol=1e-8, rtol=0)
+        x = np.array(rk4(x, a.u, np.zeros(3), 0.5)).ravel()
+
+
+@pytest.mark.parametrize("rti", [True, False])
+def test_condensed_closed_loop_settles_within_every_bound(rti):
+    mpc = AttitudeMPC(MODEL, horizon=20, dt=0.5, rti=rti,
+                      solver="condensed")
+    r = simulate_mpc(mpc, [1.0, 0.0, 0.0, 0.0], QF, t_final=40.0)
+    assert np.rad2deg(r.final_error) < 1e-3
+    assert r.torque_violation <= 1e-9 and r.momentum_violation <= 1e-9
+    assert STEP_TOL == 1e-6
+
+
+def test_condensed_rate_rows_hold_the_rate_bound():
+    rate_max = 0.02
+    mpc = AttitudeMPC(MODEL, horizon=20, dt=0.5, rti=True,
+                      solver="condensed", rate_max=rate_max)
+    free = AttitudeMPC(MODEL, horizon=20, dt=0.5, rti=True,
+                       solver="condensed")
+    sqp = AttitudeMPC(MODEL, horizon=20, dt=0.5, rti=True,
+                      rate_max=rate_max)
+    r, f, s = (simulate_mpc(m, [1.0, 0.0, 0.0, 0.0], QF, t_final=100.0)
+               for m in (mpc, free, sqp))
+    assert np.abs(f.trajectory.w).max() > 1.5 * rate_max     # it binds
+    assert np.abs(r.trajectory.w).max() <= rate_max * (1 + 1e-3)
+    # 90° at 0.02 rad/s takes 79 s: settled by 100 s, as sqpmethod's
+    assert np.rad2deg(r.final_error) < 0.01
+    assert abs(r.settle_time - s.settle_time) <= 1.0
+
+
+def test_dependent_momentum_rows_leave_the_warm_start():
+    N, nu, nw = 4, 2, 2
+    keep = _independent_rows(N, nu, nw, N * nw)
+    lx = np.zeros(N * nu)
+    lx[[0, 2]] = -1.0        # wheel 0: bounds of steps 0 and 1 active
+    la = np.ones(N * nw)     # every momentum row active
+    out = np.asarray(keep(lx, -np.ones(N * nu), np.ones(N * nu), la)).ravel()
+    # wheel 0: rows 1, 2 are sums of active bounds (dropped), row 3 not;
+    # row 4 follows row 3 with bound 3 inactive: kept
+    assert out[0::2].tolist() == [0.0, 0.0, 1.0, 1.0]
+    assert out[1::2].tolist() == [1.0, 1.0, 1.0, 1.0]
+    # an equal (failed-wheel) bound counts as active
+    lb = -np.ones(N * nu)
+    lb[1::2] = 0.0
+    ub = -lb
+    ub[0::2] = 1.0
+    out = np.asarray(keep(np.zeros(N * nu), lb, ub, la)).ravel()
+    assert out[1::2].tolist() == [0.0, 0.0, 0.0, 0.0]
+
+
+def test_condensed_refuses_what_it_cannot_solve():
+    thr = rigid_spacecraft(np.diag([3.0, 2.5, 3.5]), WHEELS,
+                           thrusters=six_thruster_unit())
+    with pytest.raises(InvalidValueError, match="wheel-only"):
+        AttitudeMPC(thr, solver="condensed")
+    with pytest.raises(InvalidValueError, match="step_tol"):
+        AttitudeMPC(MODEL, solver="condensed",
+                    solver_options={"max_iter": 3})
+    with pytest.raises(InvalidValueError, match="step_tol"):
+        AttitudeMPC(MODEL, solver="condensed",
+                    solver_options={"step_tol": -1.0})
+    with pytest.raises(SolverNotFound):
+        AttitudeMPC(MODEL, solver="condensed", qp_solver="osqp")
