@@ -40,8 +40,9 @@ from allocation import QPAllocator, WheelArray
 def _ours_c(arr: WheelArray) -> dict:
     """Driver medians [µs] of the exported ``wheel_qp`` and ``duty_qp``.
 
-    And the driver's closed loop of ``mpc_rti_step`` (the MPC problem's
-    pyramid; generated RK4 as plant): a row for the MPC table.
+    And the driver's closed loops of ``mpc_rti_step`` (sqpmethod + qrqp)
+    and ``mpc_cond_rti_step`` (the condensed SQP, DAQP) on the MPC
+    problem's pyramid (generated RK4 as plant): rows for the MPC table.
     """
     from ocp import export_c, run_driver
     from thrusters import six_thruster_unit
@@ -49,15 +50,17 @@ def _ours_c(arr: WheelArray) -> dict:
     with tempfile.TemporaryDirectory() as out:
         res = export_c(out, wheels=WheelArray.pyramid(h_max=0.2, m_max=0.05),
                        thrusters=six_thruster_unit(),
-                       mpc_variants=("mpc_rti_step",), build=True,
-                       repeats=20000)
+                       mpc_variants=("mpc_rti_step", "mpc_cond_rti_step"),
+                       build=True, repeats=20000)
         t = run_driver(res)
-        loop = t["closed_loop:mpc_rti_step"]
-        return {"wheel_qp": t["wheel_qp"]["median_us"],
-                "duty_qp": t["duty_qp"]["median_us"],
-                "mpc": ("ours: exported C mpc_rti_step (driver's loop)",
+        mpc = []
+        for name in ("mpc_rti_step", "mpc_cond_rti_step"):
+            loop = t[f"closed_loop:{name}"]
+            mpc.append((f"ours: exported C {name} (driver's loop)",
                         1e-3 * loop["median_us"], 1e-3 * loop["max_us"],
-                        float("nan"), loop["final_error_deg"])}
+                        float("nan"), loop["final_error_deg"]))
+        return {"wheel_qp": t["wheel_qp"]["median_us"],
+                "duty_qp": t["duty_qp"]["median_us"], "mpc": mpc}
 
 
 def cvxpygen_wheel_qp(arr: WheelArray, n: int = 300) -> list[tuple]:
@@ -392,16 +395,16 @@ def main() -> None:
                   f"{us / ours[key]:.0f} |")
     print("\n| MPC closed loop (horizon 20, 90° slew) | median [ms] | worst "
           "[ms] | max |Δu| vs ours [N·m] | final error [deg] | median / "
-          "our C RTI |")
+          "our C condensed RTI |")
     print("|---|---:|---:|---:|---:|---:|")
-    rows = mpc_closed_loops() + [ours["mpc"]]
+    rows = mpc_closed_loops() + ours["mpc"]
     if importlib.util.find_spec("acados") is not None:
         rows += [_in_subprocess(acados_closed_loop, True),
                  _in_subprocess(acados_closed_loop, False)]
     else:
         print("acados: not installed (pip install comma-deps-acados): "
               "skipped")
-    base = ours["mpc"][1]
+    base = ours["mpc"][1][1]
     for label, med, worst, du, final in rows:
         print(f"| {label} | {med:.3g} | {worst:.3g} | {du:.1e} | "
               f"{final:.1e} | {med / base:.2f} |")

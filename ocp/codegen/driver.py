@@ -59,7 +59,8 @@ def _driver_source(fns: dict[str, ca.Function],
                 f"{name}_checkout, {name}_release, {name}_in0, {name}_in1,"
                 f" {f.nnz_in(0)}, {f.nnz_in(3)}, {f.nnz_in(5)}, "
                 f"{model.nu}, {dt!r}, 80);")
-    main = ("int main(void) {\n" + "\n".join(calls) + "\n"
+    main = ("int main(void) {\n  realtime_heap();\n" + "\n".join(calls)
+            + "\n"
             + "\n".join(loops) + "\n  return 0;\n}\n")
     return body + "\n" + (_CLOSED_LOOP if loops else "") + main
 
@@ -144,4 +145,12 @@ The MPC steps shift the previous plan (`z_prev`, multipliers) one
 interval, solve by sqpmethod (Gauss–Newton Hessian, qrqp) and return the
 command `u` to hold over one sample; feed `z`, `lam_x`, `lam_g` back in
 at the next sample. `mpc_rti_step` makes one SQP step per sample.
+`mpc_cond_step` / `mpc_cond_rti_step` (when exported) solve the same
+problem by the condensed SQP (`ocp.mpc.condensed`: the QP on the controls
+only, DAQP started from the active set of `lam_x_prev`; `lam_g` is
+zero); their last output `iterations` counts the SQP iterations.
+CasADi's DAQP runtime allocates its workspace on every solve: `main.c`
+keeps freed memory in the heap (`mallopt`, glibc) so that the timed calls
+do not fault pages in; a flight build without an operating-system heap
+needs an allocator that does the same.
 """

@@ -82,6 +82,7 @@ __all__ = [
     "duty_qp_function",
     "export_c",
     "patch_daqp_failure",
+    "patch_daqp_warm_start",
     "patch_minmax",
     "patch_qrqp",
     "run_driver",
@@ -178,7 +179,7 @@ def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
 def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                       thrusters: ArrayLike | None = None, cycle: float = 2.0,
                       thruster_h_max: float = 0.012, dt: float = 0.5,
-                      horizon: int = 20,
+                      horizon: int = 20, mpc_max_iter: int = 50,
                       mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step"),
                       wheel_qp_plugin: str | None = "qrqp",
                       wheel_qp_fast_path: bool = True,
@@ -259,7 +260,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
             rti = "rti" in name
             kw = ({"solver": "condensed", "qp_solver": condensed_plugin}
                   if "cond" in name else {"expand": False})
-            ctl = AttitudeMPC(model, horizon=horizon, dt=dt, rti=rti, **kw)
+            ctl = AttitudeMPC(model, horizon=horizon, dt=dt, rti=rti,
+                              max_iter=mpc_max_iter, **kw)
             fns[name] = _renamed(ctl.step_function, name)
             samples[name] = [x0, qf, np.zeros(3), ctl.initial_guess(x0),
                              np.zeros(ctl.nz), np.zeros(ctl.ng)]
@@ -297,7 +299,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              thrusters: ArrayLike | None = None,
              inertia: ArrayLike | None = None, cycle: float = 2.0,
              thruster_h_max: float = 0.012, dt: float = 0.5,
-             horizon: int = 20,
+             horizon: int = 20, mpc_max_iter: int = 50,
              mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step"),
              wheel_qp_plugin: str | None = None,
              wheel_qp_fast_path: bool = True,
@@ -330,6 +332,9 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         Sample time of the wheel QP momentum bound, RK4 and MPC [s].
     horizon : int
         MPC horizon (intervals).
+    mpc_max_iter : int
+        SQP iteration limit of ``mpc_step`` and ``mpc_cond_step`` (and of
+        ``mpc_rti_step``'s fallback).
     mpc_variants : sequence of str
         MPC steps to export (`MPC_VARIANTS`): ``"mpc_step"`` (sqpmethod +
         qrqp to convergence), ``"mpc_rti_step"`` (one SQP step per
@@ -399,6 +404,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
+        mpc_max_iter=mpc_max_iter,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin)
     cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True})

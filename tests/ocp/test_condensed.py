@@ -26,7 +26,7 @@ QF = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
 def _dense_step(mpc, z, p):
     """One Gauss–Newton SQP step by the book: x = x̄ + G δu + e."""
     N, nx, nu, dt = mpc.horizon, MODEL.nx, MODEL.nu, mpc.dt
-    xs, us, w = mpc._xs, mpc._us, mpc.weights
+    xs, us = mpc._xs, mpc._us
     X, U, T = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("t", 3)
     F = MODEL.rk4_step(1)(X, U, T, dt)
     lin = ca.Function("lin", [X, U, T], [F, ca.jacobian(F, X),
@@ -183,3 +183,17 @@ def test_condensed_refuses_what_it_cannot_solve():
                     solver_options={"step_tol": -1.0})
     with pytest.raises(SolverNotFound):
         AttitudeMPC(MODEL, solver="condensed", qp_solver="osqp")
+
+
+def test_condensed_with_a_failed_wheel_settles_as_sqpmethod():
+    arr = WHEELS.with_failed(1)
+    model = rigid_spacecraft(np.diag([3.0, 2.5, 3.5]), arr)
+    qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(60.0))
+    a, b = (simulate_mpc(AttitudeMPC(model, horizon=20, dt=0.5, rti=True,
+                                     **kw), [1.0, 0.0, 0.0, 0.0], qf,
+                         t_final=40.0)
+            for kw in ({"solver": "condensed"}, {}))
+    assert a.settle_time == b.settle_time
+    assert a.torque_violation <= 1e-9 and a.momentum_violation <= 1e-9
+    # the failed wheel (index 1) is never commanded
+    assert np.abs(a.trajectory.wheel_torque[:, 1]).max() == 0.0

@@ -261,8 +261,10 @@ def test_driver_runs_and_times(exported):
 
 
 def test_generated_condensed_step_equals_casadi_in_closed_loop(exported):
-    """80 steps of the slew: the warm-started C (DAQP from the shifted
-    active set) returns what the Python Function returns."""
+    """80 steps of the slew: the warm-started C returns what Python does.
+
+    (DAQP starts from the shifted active set.)
+    """
     from ocp.codegen.patches import patch_daqp_warm_start
 
     name = "mpc_cond_rti_step"
@@ -328,3 +330,44 @@ def test_cli_export_run_prints_cold_and_warm_times_and_checks(tmp_path,
                  "--cc", "no-such-cc"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no-such-cc" in err[0]
+
+
+@pytest.mark.skipif(not daqp_available(), reason="needs the DAQP library")
+def test_daqp_warm_start_patch_survives_a_dependent_working_set(tmp_path):
+    """A row equal to a bound, both in the warm start: the right point.
+
+    DAQP's setup may refuse that working set: the patched conic then
+    starts cold.
+    """
+    import subprocess
+
+    from allocation.qp.conic_function import conic_c_flags
+    from ocp.codegen.patches import patch_daqp_failure, patch_daqp_warm_start
+
+    H, A = ca.DM.eye(2), ca.DM([[1.0, 0.0]])
+    qp = ca.conic("q", "daqp", {"h": H.sparsity(), "a": A.sparsity()},
+                  {"error_on_fail": False})
+    g, lx0, la0 = ca.MX.sym("g", 2), ca.MX.sym("lx0", 2), ca.MX.sym("la0")
+    sol = qp(h=H, g=g, a=A, lba=-10, uba=1, lbx=-10, ubx=1, lam_x0=lx0,
+             lam_a0=la0)
+    f = ca.Function("warm_qp", [g, lx0, la0], [sol["x"]])
+    cg = ca.CodeGenerator("warm_qp.c")
+    cg.add(f)
+    cg.generate(f"{tmp_path}/")
+    src = (tmp_path / "warm_qp.c").read_text()
+    src, n_fail = patch_daqp_failure(src)
+    src, n_warm = patch_daqp_warm_start(src)
+    assert n_fail == 1 and n_warm == 3
+    (tmp_path / "warm_qp.c").write_text(src)
+    lib = tmp_path / "warm_qp.so"
+    subprocess.run(["gcc", "-O2", "-fPIC", "-shared", str(tmp_path /
+                    "warm_qp.c"), "-o", str(lib), *conic_c_flags("daqp")],
+                   check=True)
+    ext = ca.external("warm_qp", str(lib))
+    for warm in ([1.0, 0.0], [1.0, 1.0], [0.0, 0.0], [-1.0, 1.0]):
+        for la in (1.0, 0.0, -1.0):
+            x = np.asarray(ext([-2.0, -2.0], warm, la)).ravel()
+            np.testing.assert_allclose(x, [1.0, 1.0], atol=1e-12)
+            np.testing.assert_allclose(
+                x, np.asarray(f([-2.0, -2.0], warm, la)).ravel(),
+                atol=1e-12)

@@ -12,6 +12,20 @@
 #include <string.h>
 #include <time.h>
 #include "adcs_codegen.h"
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
+/* CasADi's DAQP runtime allocates its workspace on every solve and frees
+ * it after. As real-time Linux programs do, keep freed memory in the heap
+ * (no trimming, no mmap) so that those calls do not fault pages in. */
+static void realtime_heap(void) {
+#if defined(__GLIBC__)
+  mallopt(M_TRIM_THRESHOLD, 64 << 20);
+  mallopt(M_TOP_PAD, 16 << 20);
+  mallopt(M_MMAP_MAX, 0);
+#endif
+}
 
 typedef int (*eval_t)(const casadi_real**, casadi_real**, casadi_int*,
                       casadi_real*, int);
