@@ -34,10 +34,16 @@ REASONS = {
                                "cycle the 0.0012 N·m disturbance alone "
                                "adds up to 0.012 N·m·s (tests)",
     "same, steady state": "as above: within the cycles",
-    "group": "[4]'s slew profile and controller are not given; ours "
-             "(cycloidal slew, PD) fires about 10x less",
-    "D": "[4]'s slew profile and controller are not given; ours "
-         "(cycloidal slew, PD) fires about 10x less",
+    "group": "[4]'s groups each spent 8.6 N·s in balanced pairs, 20x "
+             "the torque impulse the slew needs: its controller fired "
+             "nearly every cycle, and the paper does not give it; a "
+             "stiffer PID, attitude noise or a constant torque does not "
+             "reproduce it within the 0.4° holds (docs/findings.md)",
+    "D": "[4]'s groups each spent 8.6 N·s in balanced pairs, 20x the "
+         "torque impulse the slew needs: its controller fired nearly "
+         "every cycle, and the paper does not give it; a stiffer PID, "
+         "attitude noise or a constant torque does not reproduce it "
+         "within the 0.4° holds (docs/findings.md)",
     "peak |H_Y|": "[4] gives no inertia; with our diagonal J an X slew "
                   "does not couple into Y, while a product of inertia "
                   "J_xz = 0.39 kg·m² gives [4]'s 0.03 N·m·s (tests)",
