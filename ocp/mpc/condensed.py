@@ -8,25 +8,20 @@ each SQP iteration eliminates the state deviations before the QP:
     δx_0 = 0,\\quad δx_{k+1} = A_k δx_k + B_k δu_k + d_k
 
 (:math:`A_k, B_k` the RK4 Jacobians at the plan, :math:`d_k` its defects),
-so the QP has the N·n_u control deviations only. Its Hessian blocks come
-from the backward recursion
-
-.. math::
-    S_N = Q_N,\\quad S_k = Q_k + A_k^T S_{k+1} A_k,\\quad
-    H_{ij} = (S_{i+1} B_i)^T A_i \\cdots A_{j+1} B_j \\ (i > j),\\quad
-    H_{ii} = R + B_i^T S_{i+1} B_i
-
-(:math:`Q_k = 2 C_k^T C_k + ρI`, :math:`C_k` the Jacobian of the stage's
-least-squares residuals, ρ `AttitudeMPC.regularization`; :math:`R` the
-torque weight plus ρ), about 0.1 Mflop at N = 20, n_x = 11, n_u = 4, in
-small straight-line kernels. The wheel momentum obeys
-:math:`\\dot H_w = s\\,m` exactly, so its bounds are the constant rows
-:math:`H_k = \\bar H_k + e_k + Σ_{j<k} Δt\\, s\\, δu_j`; a rate bound adds
-the ω rows of the sensitivities. The dense QP (N·n_u variables, bounds on
-δu, N·n_w momentum rows) goes to DAQP, an exact dual active-set method
-(qrqp where the casadi wheel ships no DAQP library). One SQP iteration
-takes a full step; ``rti=True`` makes one per sample, otherwise the
-iterations repeat until the step ``max |δu / m_max|`` is below
+so the QP has the N·n_u control deviations only. Its Hessian is never
+formed: a Riccati recursion (`ocp.mpc.riccati`; :math:`Q_k = 2 C_k^T C_k
++ ρI`, :math:`C_k` the Jacobian of the stage's least-squares residuals,
+ρ `AttitudeMPC.regularization`, R the torque weight plus ρ) writes it as
+``WᵀW`` with W block lower triangular, and the QP is solved in
+``y = W δu``, where its Hessian is the identity. DAQP, an exact dual
+active-set method (qrqp where the casadi wheel ships no DAQP library),
+then factors nothing: the bounds on δu are the rows of ``W⁻¹``, and the
+momentum rows (and, with a rate bound, the rate rows) come from the same
+closed-loop sweep, as lower block-triangular rows in y. The QP is
+solved with the bounds alone first when the last plan had no row
+active, and with the rows when its point breaks one (`_routed_qp`).
+One SQP iteration takes a full step; ``rti=True`` makes one per sample,
+otherwise the iterations repeat until the step ``max |δu / m_max|`` is below
 ``step_tol`` (default `STEP_TOL`; at most ``max_iter``). Gauss–Newton
 converges linearly: through a saturated slew a step shrinks by about 0.8
 per iteration, so the plan is then within about 5 · step_tol · m_max of
@@ -48,6 +43,7 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.quaternion import quat_conj, quat_mul
 from adcs_common.validation import as_finite_scalar, check_positive
+from .riccati import factor_rows, riccati_kernels
 
 
 #: Default step ``max |δu / m_max|`` [1] at which the condensed SQP stops.
@@ -103,35 +99,18 @@ def _kernels(mpc: Any) -> dict[str, ca.Function]:
     Qs = ca.SX.sym("Q", Q.sparsity())
     As = ca.SX.sym("A", A.sparsity())
     Bs = ca.SX.sym("B", B.sparsity())
-    Ss = ca.SX.sym("S", nx, nx)
-    G = ca.SX.sym("G", nx - 4, nu)
     du = ca.SX.sym("du", nu)
     e = ca.SX.sym("e", nx)
     d = ca.SX.sym("d", nx)
     lam = ca.SX.sym("lam", nx)
     q = ca.SX.sym("q", nx)
-    Zt = ca.SX.sym("Zt", nu, nx)
-    ridx = list(range(4, nx))
     return {
         "lin": lin, "stage": stage,
-        # S_k = Q_k + A_k' S_{k+1} A_k ; Y = S_{k+1} B_k
-        "lyap": ca.Function("cond_lyap", [Qs, As, Ss],
-                            [ca.densify(Qs + ca.mtimes([As.T, Ss, As]))]),
-        "sb": ca.Function("cond_sb", [Ss, Bs], [ca.densify(
-            ca.mtimes(Ss, Bs))]),
-        # Z' <- Z' A ; H_ij = Z' B
-        "za": ca.Function("cond_za", [Zt, As], [ca.densify(
-            ca.mtimes(Zt, As))]),
-        "zb": ca.Function("cond_zb", [Zt, Bs], [ca.densify(
-            ca.mtimes(Zt, Bs))]),
         # defects forward: e_{k+1} = A e + d ; gradient backward
         "efw": ca.Function("cond_efw", [As, e, d], [ca.mtimes(As, e) + d]),
         "gbw": ca.Function("cond_gbw", [Qs, e, q, As, lam],
                            [ca.mtimes(Qs, e) + q + ca.mtimes(As.T, lam)]),
         "bt": ca.Function("cond_bt", [Bs, lam], [ca.mtimes(Bs.T, lam)]),
-        # the (ω, H) rows of the sensitivities: G_{k+1} = A_k G_k
-        "gw": ca.Function("cond_gw", [As, G], [ca.densify(ca.mtimes(
-            As[ridx, ridx], G))]),
         # the expansion: δx_{k+1} = A δx + B δu + d
         "xfw": ca.Function("cond_xfw", [As, Bs, e, du, d],
                            [ca.mtimes(As, e) + ca.mtimes(Bs, du) + d]),
@@ -172,7 +151,6 @@ def _iteration(mpc: Any, plugin: str) -> ca.Function:
     for k in range(N):
         e.append(kern["efw"](A[k], e[k], d[k]) if k else d[0])
     r_diag = ca.DM(2.0 * w.torque / m_max ** 2 + rho)
-    H = _hessian(kern, A, B, Q, r_diag)
     # gradient: λ_N = Q_N e_N + q_N, λ_k = Q_k e_k + q_k + A_k' λ_{k+1}
     lam = ca.mtimes(Q[N], e[N]) + q[N]
     grad = [None] * N
@@ -183,22 +161,43 @@ def _iteration(mpc: Any, plugin: str) -> ca.Function:
         if k:
             lam = kern["gbw"](Q[k], e[k], q[k], A[k], lam)
     g = ca.vertcat(*grad)
-    rows, lba, uba = _rows(mpc, kern, z, e, A, B)
-    Acon = ca.vertcat(*rows)
+    rate_rows = mpc.rate_max is not None
+    rk = riccati_kernels(kern["stage"].sparsity_out(0),
+                         kern["lin"].sparsity_out(1),
+                         kern["lin"].sparsity_out(2),
+                         mpc.dt * np.asarray(wh.scale * wh.active, float))
+    winv, Rows = factor_rows(rk, A, B, Q, r_diag, rate_rows)
+    h_max = np.asarray(wh.h_max, dtype=float)
+    h_now = ca.vertcat(*[z[xs[k]][7:] + e[k][7:] for k in range(1, N + 1)])
+    lba, uba = [-np.tile(h_max, N) - h_now], [np.tile(h_max, N) - h_now]
+    if rate_rows:
+        w_now = ca.vertcat(*[z[xs[k]][4:7] + e[k][4:7]
+                             for k in range(1, N + 1)])
+        lba.append(-mpc.rate_max - w_now)
+        uba.append(mpc.rate_max - w_now)
     u_lo, u_hi = model.control_bounds()
     u_bar = ca.vertcat(*[z[us[k]] for k in range(N)])
-    rate_rows = mpc.rate_max is not None
     lam_a0 = [lx0[xs[k]][7:] for k in range(1, N + 1)] + (
         [lx0[xs[k]][4:7] for k in range(1, N + 1)] if rate_rows else [])
-    sol = _routed_qp(plugin, N, nu, nw, Acon.sparsity())(
-        ca.densify(H), g, Acon, ca.vertcat(*lba), ca.vertcat(*uba),
-        np.tile(u_lo, N) - u_bar, np.tile(u_hi, N) - u_bar,
+    y, lam_u, lam_a = _routed_qp(plugin, N, nu, nw, winv.sparsity(),
+                                 Rows.sparsity())(
+        ca.mtimes(winv.T, g), winv, Rows, np.tile(u_lo, N) - u_bar,
+        np.tile(u_hi, N) - u_bar, ca.vertcat(*lba), ca.vertcat(*uba),
         ca.vertcat(*[lx0[us[k]] for k in range(N)]), ca.vertcat(*lam_a0))
-    sol = dict(zip(("x", "lam_x", "lam_a"), sol))
-    du = sol["x"]
+    du = ca.mtimes(winv, y)
+    parts, lam_parts = _expand(kern, z, xs, us, A, B, d, du, lam_u, lam_a,
+                               nw, rate_rows)
+    step = ca.mmax(ca.fabs(du) / ca.DM(np.tile(np.r_[m_max], N)))
+    return ca.Function("cond_iter", [z, lx0, p],
+                       [ca.vertcat(*parts), ca.vertcat(*lam_parts), step],
+                       ["z", "lam_x0", "p"], ["z_new", "lam_x", "step"])
+
+
+def _expand(kern, z, xs, us, A, B, d, du, lam_u, lam_a, nw, rate_rows):
+    """Return the new plan ``z + δz`` and its multipliers (z's layout)."""
+    N, nu, nx = len(A), B[0].shape[1], B[0].shape[0]
     dx = ca.MX.zeros(nx)
     parts, lam_parts = [], []
-    lam_a = sol["lam_a"]
     for k in range(N + 1):
         parts.append(z[xs[k]] + dx)
         lx = ca.MX.zeros(nx)
@@ -211,66 +210,9 @@ def _iteration(mpc: Any, plugin: str) -> ca.Function:
         if k < N:
             duk = du[k * nu:(k + 1) * nu]
             parts.append(z[us[k]] + duk)
-            lam_parts.append(sol["lam_x"][k * nu:(k + 1) * nu])
+            lam_parts.append(lam_u[k * nu:(k + 1) * nu])
             dx = kern["xfw"](A[k], B[k], dx, duk, d[k])
-    step = ca.mmax(ca.fabs(du) / ca.DM(np.tile(np.r_[m_max], N)))
-    return ca.Function("cond_iter", [z, lx0, p],
-                       [ca.vertcat(*parts), ca.vertcat(*lam_parts), step],
-                       ["z", "lam_x0", "p"], ["z_new", "lam_x", "step"])
-
-
-def _hessian(kern: dict, A: list, B: list, Q: list, r_diag: ca.DM) -> ca.MX:
-    """Return the condensed Hessian (N·n_u, N·n_u) of the stage matrices."""
-    N = len(A)
-    # S_k backward, then H_ij = (S_{i+1} B_i)' A_i … A_{j+1} B_j
-    S = [None] * (N + 1)
-    S[N] = ca.densify(Q[N])
-    for k in range(N - 1, 0, -1):
-        S[k] = kern["lyap"](Q[k], A[k], S[k + 1])
-    blocks = [[None] * N for _ in range(N)]
-    for i in range(N):
-        Zt = kern["sb"](S[i + 1], B[i]).T
-        blocks[i][i] = kern["zb"](Zt, B[i]) + ca.diag(r_diag)
-        for j in range(i - 1, -1, -1):
-            Zt = kern["za"](Zt, A[j + 1])
-            blocks[i][j] = kern["zb"](Zt, B[j])
-            blocks[j][i] = blocks[i][j].T
-    return ca.blockcat(blocks)
-
-
-def _rows(mpc: Any, kern: dict, z: ca.MX, e: list, A: list, B: list
-          ) -> tuple[list, list, list]:
-    """Momentum (and rate) rows of the QP: ``(rows, lba, uba)`` lists."""
-    wh, N, xs = mpc.wheels, mpc.horizon, mpc._xs
-    nu, nw = mpc.model.nu, wh.n_wheels
-    h_max = np.asarray(wh.h_max, dtype=float)
-    # momentum rows: H_k = H̄_k + e_k + Σ_{j<k} Δt s δu_j (exact)
-    s = np.asarray(wh.scale * wh.active, dtype=float)
-    a_mom = np.zeros((N * nw, N * nu))
-    for k in range(1, N + 1):
-        for j in range(k):
-            a_mom[(k - 1) * nw:k * nw, j * nu:j * nu + nw] = np.diag(
-                mpc.dt * s)
-    rows = [ca.DM(a_mom)]
-    h_now = ca.vertcat(*[z[xs[k]][7:] + e[k][7:] for k in range(1, N + 1)])
-    lba = [-np.tile(h_max, N) - h_now]
-    uba = [np.tile(h_max, N) - h_now]
-    if mpc.rate_max is not None:
-        # ω rows of the sensitivities, from their (ω, H) rows
-        cols = []
-        for j in range(N):
-            Gr = B[j][4:, :]
-            col = [ca.MX.zeros(3, nu)] * j + [Gr[:3, :]]
-            for k in range(j + 1, N):
-                Gr = kern["gw"](A[k], Gr)
-                col.append(Gr[:3, :])
-            cols.append(ca.vertcat(*col))
-        rows.append(ca.horzcat(*cols))
-        w_now = ca.vertcat(*[z[xs[k]][4:7] + e[k][4:7]
-                             for k in range(1, N + 1)])
-        lba.append(-mpc.rate_max - w_now)
-        uba.append(mpc.rate_max - w_now)
-    return rows, lba, uba
+    return parts, lam_parts
 
 
 #: Largest excess of a momentum or rate row [N·m·s, rad/s] at which the
@@ -303,54 +245,56 @@ def _independent_rows(N: int, nu: int, nw: int, na: int) -> ca.Function:
                        [ca.vertcat(*out)])
 
 
-def _routed_qp(plugin: str, N: int, nu: int, nw: int,
-               sp_a: ca.Sparsity) -> ca.Function:
-    """``qp(H, g, A, lba, uba, lbx, ubx, lam_x0, lam_a0) -> (x, ...)``.
+def _routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
+               sp_r: ca.Sparsity) -> ca.Function:
+    """Build the QP in ``y`` (`ocp.mpc.riccati`): Hessian I, bounds as rows.
 
-    Outputs ``(x, lam_x, lam_a)``.
-
+    ``qp(g, W⁻¹, rows, lbu, ubu, lba, uba, lam_u0, lam_a0) -> (y, lam_u,
+    lam_a)``: minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
+    ubu`` (the bounds on δu) and ``lba ≤ rows·y ≤ uba`` (momentum, rate).
     When the warm start holds no active row (holds, small slews): the QP
-    with the bounds on δu only first (no general rows: DAQP skips their
-    factorization, about half of its setup); its point is the answer when
-    it meets every row ``lba ≤ A x ≤ uba`` within `ROW_TOL` (the rows can
-    only cut that QP's feasible set), else the QP with the rows, started
-    from its active set. When rows were active: the QP with the rows
-    directly, started from the bounds and the rows of the warm start
-    (`_independent_rows`).
+    with the bounds alone first; its point is the answer when it meets
+    every row within `ROW_TOL` (the rows can only cut that QP's feasible
+    set), else the QP with the rows, started from its active set. When
+    rows were active: the QP with the rows directly, started from the
+    bounds and the rows of the warm start (`_independent_rows`).
     """
-    n, na = N * nu, sp_a.size1()
-    H = ca.MX.sym("H", n, n)
+    n, na = N * nu, sp_r.size1()
     g = ca.MX.sym("g", n)
-    Acon = ca.MX.sym("A", sp_a)
+    W = ca.MX.sym("Winv", sp_w)
+    R = ca.MX.sym("rows", sp_r)
+    lbu, ubu = ca.MX.sym("lbu", n), ca.MX.sym("ubu", n)
     lba, uba = ca.MX.sym("lba", na), ca.MX.sym("uba", na)
-    lbx, ubx = ca.MX.sym("lbx", n), ca.MX.sym("ubx", n)
-    lx0, la0 = ca.MX.sym("lam_x0", n), ca.MX.sym("lam_a0", na)
-    ins = [H, g, Acon, lba, uba, lbx, ubx, lx0, la0]
+    lu0, la0 = ca.MX.sym("lam_u0", n), ca.MX.sym("lam_a0", na)
+    ins = [g, W, R, lbu, ubu, lba, uba, lu0, la0]
     opts = _qp_options(plugin)
-    box = ca.conic("cond_qp_box", plugin, {"h": H.sparsity()}, opts)
-    rows = ca.conic("cond_qp", plugin, {"h": H.sparsity(),
-                                        "a": sp_a}, opts)
+    eye = ca.DM.eye(n)
+    box = ca.conic("cond_qp_box", plugin, {"h": eye.sparsity(),
+                                           "a": sp_w}, opts)
+    WR = ca.vertcat(W, R)    # evaluated in the branches with the rows
+    full = ca.conic("cond_qp", plugin, {"h": eye.sparsity(),
+                                        "a": WR.sparsity()}, opts)
 
-    def with_rows(lam_x0, lam_a0):
-        s = rows(h=H, g=g, a=Acon, lba=lba, uba=uba, lbx=lbx, ubx=ubx,
-                 lam_x0=lam_x0, lam_a0=lam_a0)
-        return [s["x"], s["lam_x"], s["lam_a"]]
+    def with_rows(lam_u, lam_a):
+        s = full(h=eye, g=g, a=WR, lba=ca.vertcat(lbu, lba),
+                 uba=ca.vertcat(ubu, uba), lam_a0=ca.vertcat(lam_u, lam_a))
+        return [s["x"], s["lam_a"][:n], s["lam_a"][n:]]
 
     # the bounds first; the rows only when the bounds' point breaks one
-    x1, l1 = ca.MX.sym("x1", n), ca.MX.sym("l1", n)
-    args = [H, g, Acon, lba, uba, lbx, ubx, l1, x1]
+    y1, l1 = ca.MX.sym("y1", n), ca.MX.sym("l1", n)
+    args = [g, W, R, lbu, ubu, lba, uba, l1, y1]
     pick = ca.Function.if_else(
         "cond_qp_pick",
         ca.Function("cond_qp_rows", args, with_rows(l1, ca.MX.zeros(na))),
-        ca.Function("cond_qp_keep", args, [x1, l1, ca.MX.zeros(na)]))
-    s1 = box(h=H, g=g, lbx=lbx, ubx=ubx, lam_x0=lx0)
-    ax = ca.mtimes(Acon, s1["x"])
-    excess = ca.mmax(ca.vertcat(ax - uba, lba - ax, 0.0))
+        ca.Function("cond_qp_keep", args, [y1, l1, ca.MX.zeros(na)]))
+    s1 = box(h=eye, g=g, a=W, lba=lbu, uba=ubu, lam_a0=lu0)
+    ay = ca.mtimes(R, s1["x"])
+    excess = ca.mmax(ca.vertcat(ay - uba, lba - ay, 0.0))
     staged = ca.Function("cond_qp_staged", ins, pick(
-        excess > ROW_TOL, H, g, Acon, lba, uba, lbx, ubx, s1["lam_x"],
+        excess > ROW_TOL, g, W, R, lbu, ubu, lba, uba, s1["lam_a"],
         s1["x"]))
-    warm = _independent_rows(N, nu, nw, na)(lx0, lbx, ubx, la0)
-    direct = ca.Function("cond_qp_direct", ins, with_rows(lx0, warm))
+    warm = _independent_rows(N, nu, nw, na)(lu0, lbu, ubu, la0)
+    direct = ca.Function("cond_qp_direct", ins, with_rows(lu0, warm))
     route = ca.Function.if_else("cond_qp_route", direct, staged)
     return ca.Function("cond_qp_routed", ins,
                        route(ca.mmax(ca.fabs(la0)) > 0, *ins))
