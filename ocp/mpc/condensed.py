@@ -280,12 +280,15 @@ def _routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
                  uba=ca.vertcat(ubu, uba), lam_a0=ca.vertcat(lam_u, lam_a))
         return [s["x"], s["lam_a"][:n], s["lam_a"][n:]]
 
+    rows_warm = _independent_rows(N, nu, nw, na)
     # the bounds first; the rows only when the bounds' point breaks one
     y1, l1 = ca.MX.sym("y1", n), ca.MX.sym("l1", n)
     args = [g, W, R, lbu, ubu, lba, uba, l1, y1]
     pick = ca.Function.if_else(
         "cond_qp_pick",
-        ca.Function("cond_qp_rows", args, with_rows(l1, ca.MX.zeros(na))),
+        ca.Function("cond_qp_rows", args, with_rows(l1, rows_warm(
+            l1, lbu, ubu, ca.if_else(ca.mtimes(R, y1) > uba, 1, 0)
+            - ca.if_else(ca.mtimes(R, y1) < lba, 1, 0)))),
         ca.Function("cond_qp_keep", args, [y1, l1, ca.MX.zeros(na)]))
     s1 = box(h=eye, g=g, a=W, lba=lbu, uba=ubu, lam_a0=lu0)
     ay = ca.mtimes(R, s1["x"])
@@ -293,7 +296,7 @@ def _routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     staged = ca.Function("cond_qp_staged", ins, pick(
         excess > ROW_TOL, g, W, R, lbu, ubu, lba, uba, s1["lam_a"],
         s1["x"]))
-    warm = _independent_rows(N, nu, nw, na)(lu0, lbu, ubu, la0)
+    warm = rows_warm(lu0, lbu, ubu, la0)
     direct = ca.Function("cond_qp_direct", ins, with_rows(lu0, warm))
     route = ca.Function.if_else("cond_qp_route", direct, staged)
     return ca.Function("cond_qp_routed", ins,
