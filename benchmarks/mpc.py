@@ -11,7 +11,7 @@ built with gcc -O3 and run by the driver in its own closed loop
 (generated RK4 as plant, 80 steps): with the factorization-reusing qrqp
 (`ocp.codegen.patch_qrqp`, the default) and, as the baseline of the same
 run, with qrqp as CasADi generates it (no condensed rows), and the
-condensed SQP capped at 10 iterations; the drivers run in turn 5 times
+condensed SQP capped at 8 iterations; the drivers run in turn 5 times
 (3 with ``--quick``) and the C figures are the
 medians over those runs (max: median of the per-run maxima). The
 driver's per-call medians of the other exported functions (wheel QP on an
@@ -79,7 +79,7 @@ def run(quick: bool = False, with_c: bool = True, daqp: bool = False,
 
         # (note, qrqp patched, MPC variants, SQP iteration limit)
         variants = [("", True, MPC_VARIANTS, 50),
-                    (", max_iter 10", True, ("mpc_cond_step",), 10)]
+                    (", max_iter 8", True, ("mpc_cond_step",), 8)]
         if baseline:
             variants.append((", qrqp as generated", False,
                              ("mpc_step", "mpc_rti_step"), 50))

@@ -126,7 +126,7 @@ def _iteration(mpc: Any, plugin: str) -> ca.Function:
     the result does not depend on them); ``step`` is ``max |δu / m_max|``.
     """
     kern = _kernels(mpc)
-    model, wh, w, N = mpc.model, mpc.wheels, mpc.weights, mpc.horizon
+    model, wh, N = mpc.model, mpc.wheels, mpc.horizon
     nx, nu, nw = model.nx, model.nu, wh.n_wheels
     xs, us = mpc._xs, mpc._us
     z = ca.MX.sym("z", mpc.nz)
@@ -134,39 +134,9 @@ def _iteration(mpc: Any, plugin: str) -> ca.Function:
     p = ca.MX.sym("p", nx + 7)
     qf, tau = p[nx:nx + 4], p[nx + 4:]
     m_max = np.asarray(wh.m_max, dtype=float)
-    rho = mpc.regularization
-    A, B, d = [], [], []
-    for k in range(N):
-        F, Ak, Bk = kern["lin"](z[xs[k]], z[us[k]], tau)
-        A.append(Ak)
-        B.append(Bk)
-        d.append(F - z[xs[k + 1]])
-    Q, q = [None], [None]
-    for k in range(1, N + 1):
-        c = w.terminal if k == N else 1.0
-        Qk, qk, _ = kern["stage"](z[xs[k]], qf, 1.0 if k < N else 0.0, c)
-        Q.append(Qk)
-        q.append(qk)
-    e = [ca.MX.zeros(nx)]
-    for k in range(N):
-        e.append(kern["efw"](A[k], e[k], d[k]) if k else d[0])
-    r_diag = ca.DM(2.0 * w.torque / m_max ** 2 + rho)
-    # gradient: λ_N = Q_N e_N + q_N, λ_k = Q_k e_k + q_k + A_k' λ_{k+1}
-    lam = ca.mtimes(Q[N], e[N]) + q[N]
-    grad = [None] * N
-    for k in range(N - 1, -1, -1):
-        u_bar = z[us[k]]
-        grad[k] = (2.0 * w.torque * u_bar / ca.DM(m_max ** 2)
-                   + kern["bt"](B[k], lam))
-        if k:
-            lam = kern["gbw"](Q[k], e[k], q[k], A[k], lam)
-    g = ca.vertcat(*grad)
+    A, B, d, Q, e, g = _stages(mpc, kern, z, qf, tau)
     rate_rows = mpc.rate_max is not None
-    rk = riccati_kernels(kern["stage"].sparsity_out(0),
-                         kern["lin"].sparsity_out(1),
-                         kern["lin"].sparsity_out(2),
-                         mpc.dt * np.asarray(wh.scale * wh.active, float))
-    winv, Rows = factor_rows(rk, A, B, Q, r_diag, rate_rows)
+    winv, Rows = _factor(mpc, kern, A, B, Q)
     h_max = np.asarray(wh.h_max, dtype=float)
     h_now = ca.vertcat(*[z[xs[k]][7:] + e[k][7:] for k in range(1, N + 1)])
     lba, uba = [-np.tile(h_max, N) - h_now], [np.tile(h_max, N) - h_now]
@@ -191,6 +161,74 @@ def _iteration(mpc: Any, plugin: str) -> ca.Function:
     return ca.Function("cond_iter", [z, lx0, p],
                        [ca.vertcat(*parts), ca.vertcat(*lam_parts), step],
                        ["z", "lam_x0", "p"], ["z_new", "lam_x", "step"])
+
+
+def _stages(mpc: Any, kern: dict, z, qf, tau) -> tuple:
+    """Linearise the plan: ``(A, B, d, Q, e, g)`` of the condensed QP.
+
+    ``A, B, d`` (k = 0…N−1): RK4 Jacobians and defects; ``Q`` (k = 1…N):
+    the stages' Gauss–Newton Hessians plus ρI; ``e``: the defects carried
+    along (δx for δu = 0); ``g``: the gradient in δu.
+    """
+    model, w, N = mpc.model, mpc.weights, mpc.horizon
+    nx = model.nx
+    xs, us = mpc._xs, mpc._us
+    m_max = np.asarray(mpc.wheels.m_max, dtype=float)
+    A, B, d = [], [], []
+    for k in range(N):
+        F, Ak, Bk = kern["lin"](z[xs[k]], z[us[k]], tau)
+        A.append(Ak)
+        B.append(Bk)
+        d.append(F - z[xs[k + 1]])
+    Q, q = [None], [None]
+    for k in range(1, N + 1):
+        c = w.terminal if k == N else 1.0
+        Qk, qk, _ = kern["stage"](z[xs[k]], qf, 1.0 if k < N else 0.0, c)
+        Q.append(Qk)
+        q.append(qk)
+    e = [ca.MX.zeros(nx)]
+    for k in range(N):
+        e.append(kern["efw"](A[k], e[k], d[k]) if k else d[0])
+    # gradient: λ_N = Q_N e_N + q_N, λ_k = Q_k e_k + q_k + A_k' λ_{k+1}
+    lam = ca.mtimes(Q[N], e[N]) + q[N]
+    grad = [None] * N
+    for k in range(N - 1, -1, -1):
+        grad[k] = (2.0 * w.torque * z[us[k]] / ca.DM(m_max ** 2)
+                   + kern["bt"](B[k], lam))
+        if k:
+            lam = kern["gbw"](Q[k], e[k], q[k], A[k], lam)
+    return A, B, d, Q, e, ca.vertcat(*grad)
+
+
+def _factor(mpc: Any, kern: dict, A: list, B: list, Q: list) -> tuple:
+    """``(W⁻¹, rows)`` of the QP in y (`ocp.mpc.riccati.factor_rows`)."""
+    wh = mpc.wheels
+    m_max = np.asarray(wh.m_max, dtype=float)
+    r_diag = ca.DM(2.0 * mpc.weights.torque / m_max ** 2
+                   + mpc.regularization)
+    rk = riccati_kernels(kern["stage"].sparsity_out(0),
+                         kern["lin"].sparsity_out(1),
+                         kern["lin"].sparsity_out(2),
+                         mpc.dt * np.asarray(wh.scale * wh.active, float))
+    return factor_rows(rk, A, B, Q, r_diag, mpc.rate_max is not None)
+
+
+def qp_factor_function(mpc: Any) -> ca.Function:
+    """``cond_factor(z, p) -> (Winv, rows, g)`` of one condensed QP.
+
+    For checks and studies: at the plan ``z`` (x_0 the measured state)
+    and parameters ``p = (x, q_f, τ)``, the QP in δu has the Hessian
+    ``H = W⁻ᵀW⁻¹`` and the gradient ``g`` (N·n_u,); ``rows @ y`` are the
+    momentum (and rate) deviations of the states 1…N for δu = W⁻¹y.
+    """
+    kern = _kernels(mpc)
+    nx = mpc.model.nx
+    z = ca.MX.sym("z", mpc.nz)
+    p = ca.MX.sym("p", nx + 7)
+    A, B, _, Q, _, g = _stages(mpc, kern, z, p[nx:nx + 4], p[nx + 4:])
+    winv, rows = _factor(mpc, kern, A, B, Q)
+    return ca.Function("cond_factor", [z, p], [winv, rows, g],
+                       ["z", "p"], ["Winv", "rows", "g"])
 
 
 def _expand(kern, z, xs, us, A, B, d, du, lam_u, lam_a, nw, rate_rows):

@@ -14,7 +14,7 @@ from adcs_common.exceptions import InvalidValueError, SolverNotFound
 from allocation import WheelArray
 from ocp import quat_from_axis_angle, rigid_spacecraft
 from ocp.mpc import AttitudeMPC, simulate_mpc
-from ocp.mpc.condensed import STEP_TOL, _independent_rows
+from ocp.mpc.condensed import STEP_TOL, _independent_rows, qp_factor_function
 from ocp.mpc.problem import BOUND_TOL
 from thrusters import six_thruster_unit
 
@@ -25,6 +25,14 @@ QF = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
 
 def _dense_step(mpc, z, p):
     """One Gauss–Newton SQP step by the book: x = x̄ + G δu + e."""
+    H, g, A, lba, uba, lo, hi, Gz, ez = _dense_qp(mpc, z, p)
+    du, _, flag, _ = daqp.solve(H, g, A, np.r_[hi, uba], np.r_[lo, lba])
+    assert flag == 1
+    return z + Gz @ du + ez
+
+
+def _dense_qp(mpc, z, p):
+    """Build the condensed QP with every sensitivity written out (numpy)."""
     N, nx, nu, dt = mpc.horizon, MODEL.nx, MODEL.nu, mpc.dt
     xs, us = mpc._xs, mpc._us
     X, U, T = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("t", 3)
@@ -59,11 +67,8 @@ def _dense_step(mpc, z, p):
     h_max = np.asarray(WHEELS.h_max)
     A = np.concatenate([G[k][7:] for k in range(1, N + 1)])
     h_now = np.concatenate([z[xs[k]][7:] + e[k][7:] for k in range(1, N + 1)])
-    du, _, flag, _ = daqp.solve(
-        H, g, A, np.r_[np.tile(hi, N) - u_bar, np.tile(h_max, N) - h_now],
-        np.r_[np.tile(lo, N) - u_bar, -np.tile(h_max, N) - h_now])
-    assert flag == 1
-    return z + Gz @ du + ez
+    return (H, g, A, -np.tile(h_max, N) - h_now, np.tile(h_max, N) - h_now,
+            np.tile(lo, N) - u_bar, np.tile(hi, N) - u_bar, Gz, ez)
 
 
 def _slew_states(n=4):
@@ -93,6 +98,24 @@ def test_one_condensed_step_equals_the_dense_numpy_qp():
                                np.zeros(mpc.nz), np.zeros(mpc.ng))
         np.testing.assert_allclose(np.asarray(out[1]).ravel(), ref,
                                    atol=1e-9, rtol=0)
+
+
+def test_riccati_factor_is_the_condensed_hessians():
+    """W⁻ᵀ H W⁻¹ = I, the same gradient, momentum rows = A_mom W⁻¹."""
+    mpc, cases = _slew_states(3)
+    f = qp_factor_function(mpc)
+    for x, z_prev in cases:
+        p = np.r_[x, QF, np.zeros(3)]
+        z0 = np.array(mpc.shift_function(x, z_prev, np.zeros(mpc.nz),
+                                         np.zeros(mpc.ng))[0]).ravel()
+        H, g, A = _dense_qp(mpc, z0, p)[:3]
+        winv, rows, gc = (np.array(v) for v in f(z0, p))
+        n = H.shape[0]
+        np.testing.assert_allclose(winv.T @ H @ winv, np.eye(n), atol=1e-9)
+        np.testing.assert_allclose(gc.ravel(), g, rtol=1e-10,
+                                   atol=1e-10 * np.abs(g).max())
+        np.testing.assert_allclose(rows, A @ winv, atol=1e-12)
+        assert np.all(np.triu(winv, 4) == 0.0)     # block lower triangular
 
 
 def test_condensed_rti_step_is_sqpmethods_rti_step():
