@@ -270,9 +270,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="sample time [s]")
     exp.add_argument("--horizon", type=int, default=20,
                      help="MPC horizon (intervals)")
-    exp.add_argument("--mpc", default="mpc_step,mpc_rti_step",
-                     help="MPC variants to export (comma-separated; "
-                     "empty for none)")
+    exp.add_argument("--mpc", default="mpc_step,mpc_rti_step,"
+                     "mpc_cond_rti_step",
+                     help="MPC variants to export (comma-separated, from "
+                     "mpc_step, mpc_rti_step, mpc_cond_step, "
+                     "mpc_cond_rti_step; empty for none)")
     exp.add_argument("--build", action="store_true",
                      help="compile the driver and a shared library (gcc)")
     exp.add_argument("--run", action="store_true",

@@ -180,7 +180,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                       thrusters: ArrayLike | None = None, cycle: float = 2.0,
                       thruster_h_max: float = 0.012, dt: float = 0.5,
                       horizon: int = 20, mpc_max_iter: int = 50,
-                      mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step"),
+                      mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step",
+                                          "mpc_cond_rti_step"),
                       wheel_qp_plugin: str | None = "qrqp",
                       wheel_qp_fast_path: bool = True,
                       duty_qp_plugin: str | None = "qrqp"
@@ -300,7 +301,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              inertia: ArrayLike | None = None, cycle: float = 2.0,
              thruster_h_max: float = 0.012, dt: float = 0.5,
              horizon: int = 20, mpc_max_iter: int = 50,
-             mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step"),
+             mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step",
+                                          "mpc_cond_rti_step"),
              wheel_qp_plugin: str | None = None,
              wheel_qp_fast_path: bool = True,
              duty_qp_plugin: str | None = None,
@@ -341,7 +343,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         sample), each ~1.2 MB of C at horizon 20; ``"mpc_cond_step"``,
         ``"mpc_cond_rti_step"``: the condensed SQP
         (`ocp.mpc.condensed`; DAQP, linking ``libdaqpstat.a`` where the
-        casadi wheel ships it, else qrqp), ~0.1 MB; empty for none.
+        casadi wheel ships it, else qrqp), ~0.8 MB; empty for none.
+        Default: both sqpmethod steps and the condensed RTI step.
     wheel_qp_plugin : {None, "daqp", "qrqp"}
         Conic of ``wheel_qp``: ``"daqp"`` (≈ 4x faster in C; needs the
         casadi wheel's ``include/daqp`` and ``libdaqpstat.a`` at build

@@ -127,29 +127,23 @@ def factor_rows(kern: dict, A: list, B: list, Q: list, r_diag: ca.DM,
         for k in range(j + 1, N):
             winv[k][j], S, mom[k][j], rate[k][j] = kern["sweep"](
                 K[k], Acl[k], S)
-    blocks = [winv[k][j] for j in range(N) for k in range(j, N)]
-    blocks += [mom[k][j] for j in range(N) for k in range(j, N)]
+    mats = [_lower_blocks(winv, nu, nu)]
+    rows = [_lower_blocks(mom, nx - 7, nu)]
     if rate_rows:
-        blocks += [rate[k][j] for j in range(N) for k in range(j, N)]
-    return _assembler(N, nx, nu, rate_rows)(*blocks)
+        rows.append(_lower_blocks(rate, 3, nu))
+    return mats[0], (rows[0] if len(rows) == 1 else ca.vertcat(*rows))
 
 
-def _assembler(N: int, nx: int, nu: int, rate_rows: bool) -> ca.Function:
-    """``(blocks…) -> (W⁻¹, rows)``: one SX copy of each nonzero.
+def _lower_blocks(grid: list, h: int, w: int) -> ca.MX:
+    """Return the lower block-triangular matrix of ``grid[k][j]`` (k ≥ j).
 
-    MX concatenation of the lower block-triangular matrices goes through
-    transposes in generated C; this writes each nonzero once.
+    Written block by block into one matrix (in-place copies in generated
+    C); MX concatenation would go through transposes there.
     """
-    syms = {}
-    mats = []
-    for name, h in (("w", nu), ("m", nx - 7)) + ((("r", 3),)
-                                                  if rate_rows else ()):
-        grid = [[ca.SX(h, nu)] * N for _ in range(N)]
-        for j in range(N):
-            for k in range(j, N):
-                grid[k][j] = syms[(name, k, j)] = ca.SX.sym(
-                    f"{name}{k}_{j}", h, nu)
-        mats.append(ca.blockcat(grid))
-    ins = [syms[key] for key in syms]
-    return ca.Function("ric_assemble", ins,
-                       [mats[0], ca.vertcat(*mats[1:])])
+    N = len(grid)
+    sp = ca.kron(ca.DM(ca.Sparsity.lower(N), 1.0), ca.DM.ones(h, w))
+    M = ca.MX(sp.sparsity())
+    for j in range(N):
+        for k in range(j, N):
+            M[k * h:(k + 1) * h, j * w:(j + 1) * w] = grid[k][j]
+    return M
