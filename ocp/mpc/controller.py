@@ -140,8 +140,10 @@ class AttitudeMPC:
         called per interval).
     solver_options : dict, optional
         Options of the CasADi nlpsol, merged over the defaults and
-        forwarded untouched; for ``"condensed"``: ``{"step_tol": ...}``
-        (`ocp.mpc.condensed.STEP_TOL`).
+        forwarded untouched; for ``"condensed"``: ``{"step_tol": ...,
+        "anderson": m}`` (`ocp.mpc.condensed.STEP_TOL`, the memory of the
+        Anderson acceleration, `ocp.mpc.condensed.ANDERSON_MEMORY`; 0
+        turns it off).
 
     Raises
     ------
@@ -273,11 +275,11 @@ class AttitudeMPC:
         self.check_function = check_function(self, p)
         self.nlpsol = self.fallback = None
         if self.solver == "condensed":
-            extra = set(user_options) - {"step_tol"}
+            extra = set(user_options) - {"step_tol", "anderson"}
             if extra:
                 raise InvalidValueError(
                     f"solver='condensed' takes solver_options 'step_tol' "
-                    f"only, got {sorted(extra)}")
+                    f"and 'anderson' only, got {sorted(extra)}")
             self.rti_function, full = condensed_step_functions(
                 self, self.qp_solver, **user_options)
             self.step_function = self.rti_function if self.rti else full

@@ -26,7 +26,7 @@ from __future__ import annotations
 import casadi as ca
 
 
-def _chol_lower(M: ca.SX) -> ca.SX:
+def chol_lower(M: ca.SX) -> ca.SX:
     """Lower Cholesky factor of a small symmetric positive-definite SX."""
     n = M.shape[0]
     L = ca.SX.zeros(n, n)
@@ -39,7 +39,7 @@ def _chol_lower(M: ca.SX) -> ca.SX:
     return L
 
 
-def _inv_lower(L: ca.SX) -> ca.SX:
+def inv_lower(L: ca.SX) -> ca.SX:
     """Inverse of a small lower-triangular SX by forward substitution."""
     n = L.shape[0]
     X = ca.SX.zeros(n, n)
@@ -71,7 +71,7 @@ def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
     PA = ca.mtimes(P, A)
     BPA = ca.mtimes(B.T, PA)
     Re = ca.diag(r) + ca.mtimes([B.T, P, B])
-    Lit = _inv_lower(_chol_lower(Re)).T
+    Lit = inv_lower(chol_lower(Re)).T
     K = -ca.mtimes([Lit, Lit.T, BPA])
     Pk = Q + ca.mtimes(A.T, PA) + ca.mtimes(BPA.T, K)
     Pk = 0.5 * (Pk + Pk.T)

@@ -14,7 +14,8 @@ from adcs_common.exceptions import InvalidValueError, SolverNotFound
 from allocation import WheelArray
 from ocp import quat_from_axis_angle, rigid_spacecraft
 from ocp.mpc import AttitudeMPC, simulate_mpc
-from ocp.mpc.condensed import STEP_TOL, _independent_rows, qp_factor_function
+from ocp.mpc.condensed import STEP_TOL, qp_factor_function
+from ocp.mpc.condensed_qp import _independent_rows
 from ocp.mpc.problem import BOUND_TOL
 from thrusters import six_thruster_unit
 
@@ -146,6 +147,35 @@ def test_converged_condensed_plan_is_the_sqpmethod_plan():
         x = np.array(rk4(x, a.u, np.zeros(3), 0.5)).ravel()
 
 
+def test_anderson_cuts_the_slews_iterations_to_the_same_plans():
+    loops = {}
+    for m in (0, 3):
+        mpc = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="condensed",
+                          solver_options={"anderson": m})
+        iters, plans, step = [], [], mpc.step
+
+        def record(*a, _step=step, _iters=iters, _plans=plans, **k):
+            s = _step(*a, **k)
+            _iters.append(s.iterations)
+            _plans.append(s.plan)
+            return s
+
+        mpc.step = record
+        r = simulate_mpc(mpc, [1.0, 0.0, 0.0, 0.0], QF, t_final=12.0)
+        loops[m] = (np.array(iters), np.array(plans), r)
+    plain, acc = loops[0], loops[3]
+    # plain Gauss–Newton: 50 and 45 iterations on steps 3 and 4 of the
+    # slew (linear convergence); with memory 3: 17 at the cold first
+    # step, at most 10 after it
+    assert plain[0].max() >= 45 and acc[0][1:].max() <= 10
+    assert acc[0].max() <= 17 and acc[0].sum() < 0.6 * plain[0].sum()
+    assert acc[2].extras["statuses"] == {"converged": len(acc[0])}
+    # both stop on a step below 1e-6 · m_max: the same plans to ~1e-6
+    assert np.abs(acc[1] - plain[1]).max() < 1e-6
+    assert acc[2].torque_violation <= 1e-9
+    assert acc[2].momentum_violation <= 1e-9
+
+
 @pytest.mark.parametrize("rti", [True, False])
 def test_condensed_closed_loop_settles_within_every_bound(rti):
     mpc = AttitudeMPC(MODEL, horizon=20, dt=0.5, rti=rti,
@@ -204,6 +234,10 @@ def test_condensed_refuses_what_it_cannot_solve():
     with pytest.raises(InvalidValueError, match="step_tol"):
         AttitudeMPC(MODEL, solver="condensed",
                     solver_options={"step_tol": -1.0})
+    for bad in (-1, 1.5, True, None):
+        with pytest.raises(InvalidValueError, match="anderson"):
+            AttitudeMPC(MODEL, solver="condensed",
+                        solver_options={"anderson": bad})
     with pytest.raises(SolverNotFound):
         AttitudeMPC(MODEL, solver="condensed", qp_solver="osqp")
 

@@ -1,0 +1,107 @@
+"""The condensed MPC's QP in ``y = W δu`` and how it is routed.
+
+`ocp.mpc.condensed` hands each SQP iteration's QP here: Hessian I (the
+Riccati factor W, `ocp.mpc.riccati`), the bounds on δu as the rows of
+W⁻¹, the momentum (and rate) rows lower block triangular. The bounds
+alone are solved first when the warm start has no active row; the rows
+are added only when that point breaks one.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+
+#: Largest excess of a momentum or rate row [N·m·s, rad/s] at which the
+#: QP without those rows answers the QP with them.
+ROW_TOL = 1e-10
+
+
+def _independent_rows(N: int, nu: int, nw: int, na: int) -> ca.Function:
+    """``keep(lam_x0, lbx, ubx, lam_a0) -> lam_a0``: a warm start DAQP takes.
+
+    Momentum row k of wheel i is the sum of its bounds' rows j < k, so a
+    working set holding the row, the previous kept row of that wheel and
+    every bound between them is dependent (DAQP's setup then fails). The
+    scan drops such rows; the other rows (rates) start inactive.
+    """
+    lx = ca.SX.sym("lam_x0", N * nu)
+    lb, ub = ca.SX.sym("lbx", N * nu), ca.SX.sym("ubx", N * nu)
+    la = ca.SX.sym("lam_a0", na)
+    out = [ca.SX(0)] * na
+    for i in range(nw):
+        covered = ca.SX(1)
+        for k in range(1, N + 1):
+            j = (k - 1) * nu + i
+            covered = covered * ca.logic_or(lx[j] != 0, lb[j] == ub[j])
+            r = (k - 1) * nw + i
+            keep = ca.logic_and(la[r] != 0, ca.logic_not(covered))
+            out[r] = ca.if_else(keep, la[r], 0)
+            covered = ca.if_else(keep, 1, covered)
+    return ca.Function("cond_rows_warm", [lx, lb, ub, la],
+                       [ca.vertcat(*out)])
+
+
+def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
+               sp_r: ca.Sparsity) -> ca.Function:
+    """Build the QP in ``y`` (`ocp.mpc.riccati`): Hessian I, bounds as rows.
+
+    ``qp(g, W⁻¹, rows, lbu, ubu, lba, uba, lam_u0, lam_a0) -> (y, lam_u,
+    lam_a)``: minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
+    ubu`` (the bounds on δu) and ``lba ≤ rows·y ≤ uba`` (momentum, rate).
+    When the warm start holds no active row (holds, small slews): the QP
+    with the bounds alone first; its point is the answer when it meets
+    every row within `ROW_TOL` (the rows can only cut that QP's feasible
+    set), else the QP with the rows, started from its active set. When
+    rows were active: the QP with the rows directly, started from the
+    bounds and the rows of the warm start (`_independent_rows`).
+    """
+    n, na = N * nu, sp_r.size1()
+    g = ca.MX.sym("g", n)
+    W = ca.MX.sym("Winv", sp_w)
+    R = ca.MX.sym("rows", sp_r)
+    lbu, ubu = ca.MX.sym("lbu", n), ca.MX.sym("ubu", n)
+    lba, uba = ca.MX.sym("lba", na), ca.MX.sym("uba", na)
+    lu0, la0 = ca.MX.sym("lam_u0", n), ca.MX.sym("lam_a0", na)
+    ins = [g, W, R, lbu, ubu, lba, uba, lu0, la0]
+    opts = _qp_options(plugin)
+    eye = ca.DM.eye(n)
+    box = ca.conic("cond_qp_box", plugin, {"h": eye.sparsity(),
+                                           "a": sp_w}, opts)
+    WR = ca.vertcat(W, R)    # evaluated in the branches with the rows
+    full = ca.conic("cond_qp", plugin, {"h": eye.sparsity(),
+                                        "a": WR.sparsity()}, opts)
+
+    def with_rows(lam_u, lam_a):
+        s = full(h=eye, g=g, a=WR, lba=ca.vertcat(lbu, lba),
+                 uba=ca.vertcat(ubu, uba), lam_a0=ca.vertcat(lam_u, lam_a))
+        return [s["x"], s["lam_a"][:n], s["lam_a"][n:]]
+
+    rows_warm = _independent_rows(N, nu, nw, na)
+    # the bounds first; the rows only when the bounds' point breaks one
+    y1, l1 = ca.MX.sym("y1", n), ca.MX.sym("l1", n)
+    args = [g, W, R, lbu, ubu, lba, uba, l1, y1]
+    pick = ca.Function.if_else(
+        "cond_qp_pick",
+        ca.Function("cond_qp_rows", args, with_rows(l1, rows_warm(
+            l1, lbu, ubu, ca.if_else(ca.mtimes(R, y1) > uba, 1, 0)
+            - ca.if_else(ca.mtimes(R, y1) < lba, 1, 0)))),
+        ca.Function("cond_qp_keep", args, [y1, l1, ca.MX.zeros(na)]))
+    s1 = box(h=eye, g=g, a=W, lba=lbu, uba=ubu, lam_a0=lu0)
+    ay = ca.mtimes(R, s1["x"])
+    excess = ca.mmax(ca.vertcat(ay - uba, lba - ay, 0.0))
+    staged = ca.Function("cond_qp_staged", ins, pick(
+        excess > ROW_TOL, g, W, R, lbu, ubu, lba, uba, s1["lam_a"],
+        s1["x"]))
+    warm = rows_warm(lu0, lbu, ubu, la0)
+    direct = ca.Function("cond_qp_direct", ins, with_rows(lu0, warm))
+    route = ca.Function.if_else("cond_qp_route", direct, staged)
+    return ca.Function("cond_qp_routed", ins,
+                       route(ca.mmax(ca.fabs(la0)) > 0, *ins))
+
+
+def _qp_options(plugin: str) -> dict:
+    if plugin == "qrqp":
+        return {"print_iter": False, "print_header": False,
+                "print_info": False, "error_on_fail": False}
+    return {"error_on_fail": False}
