@@ -323,30 +323,34 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
     z1, lx1, _ = it(z0, lx0, p)
     rti = ca.Function("mpc_cond_rti", ins, outputs(z1, lx1, 1.0),
                       *STEP_NAMES)
-    # one guarded iteration: skipped once the last step was small
+    # the iterations nest: iteration k's Switch runs iteration k + 1 only
+    # when its step was not small, so a converged plan returns through the
+    # iterations made, not through max_iter skipped ones
     zs, ls = ca.MX.sym("z", nz), ca.MX.sym("lam_x", nz)
-    st, n, ps = ca.MX.sym("step"), ca.MX.sym("n"), ca.MX.sym("p", nx + 7)
+    n, ps = ca.MX.sym("n"), ca.MX.sym("p", nx + 7)
     m = int(anderson)
+    mix = anderson_function(nz, m) if m else None
     hist = [ca.MX.sym("G_hist", nz, m + 1), ca.MX.sym("F_hist", nz, m + 1),
             ca.MX.sym("valid", m + 1)] if m else []
-    zn, ln, sn = it(zs, ls, ps)
-    args = [zs, ls, st, n, ps, *hist]
-    more_out = [zn, ln, sn, n + 1]
-    if m:
-        za, *hist_n = anderson_function(nz, m)(zn, zs, *hist)
-        # the last iteration returns its QP step, never a mixed point
-        last = ca.logic_or(sn <= step_tol, n + 1 >= mpc.fallback_max_iter)
-        more_out = [ca.if_else(last, zn, za), ln, sn, n + 1, *hist_n]
-    more = ca.Function("cond_more", args, more_out)
-    done = ca.Function("cond_done", args, [zs, ls, st, n, *hist])
-    guarded = ca.Function.if_else("cond_guarded", done, more)
-    state = [z0, lx0, ca.MX(np.inf), ca.MX(0.0)]
-    if m:
-        state += [ca.MX.zeros(nz, m + 1), ca.MX.zeros(nz, m + 1),
-                  ca.MX.zeros(m + 1)]
-    for _ in range(mpc.fallback_max_iter):
-        state = guarded(state[2] <= step_tol, *state[:4], p, *state[4:])
-    z, lx, step, count = state[:4]
+    args = [zs, ls, n, ps, *hist]
+    done = ca.Function("cond_done", args, [zs, ls, n])
+    inner = None
+    for k in range(mpc.fallback_max_iter - 1, -1, -1):
+        zn, ln, sn = it(zs, ls, ps)
+        if inner is None:
+            out = [zn, ln, n + 1]
+        else:
+            nxt, hist_n = zn, []
+            if m:
+                za, *hist_n = mix(zn, zs, *hist)
+                # a converged iteration returns its QP step, not a mix
+                nxt = ca.if_else(sn <= step_tol, zn, za)
+            out = inner(sn <= step_tol, nxt, ln, n + 1, ps, *hist_n)
+        inner = ca.Function.if_else(
+            f"cond_iter_{k}", done, ca.Function(f"cond_more_{k}", args, out))
+    z, lx, count = inner(0, z0, lx0, 0.0, p, *(
+        [ca.MX.zeros(nz, m + 1), ca.MX.zeros(nz, m + 1), ca.MX.zeros(m + 1)]
+        if m else []))
     full = ca.Function("mpc_cond_step", ins, outputs(z, lx, count),
                        *STEP_NAMES)
     return rti, full
