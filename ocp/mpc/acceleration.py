@@ -4,7 +4,8 @@ Gauss–Newton SQP is a fixed-point iteration ``z ← G(z)`` (G: one
 linearisation and QP step). Through a saturated slew it converges
 linearly, each step about 0.8 of the last (the dynamics' curvature,
 weighted by large multipliers, is missing from its Hessian). Anderson
-acceleration (type II, Walker & Ni, *SIAM J. Numer. Anal.* 49(4), 2011)
+acceleration (type II; H. F. Walker, P. Ni, "Anderson acceleration for
+fixed-point iterations", *SIAM J. Numer. Anal.* 49(4), 2011)
 mixes the last ``m`` iterates instead: with ``f_i = G(z_i) − z_i``,
 
 .. math::
@@ -17,8 +18,8 @@ linear map it is a Krylov method (GMRES-like); here it cuts the slew's
 QP step (`ocp.mpc.condensed` stops on a G step), so the answer is the
 same optimum; only the path to it changes.
 
-`anderson_numpy` and `anderson_function` (CasADi SX, for the generated
-C) are the same update; the tests hold them equal (1e-12).
+`anderson_numpy` and `anderson_function` (CasADi, for the generated C)
+are the same update; the tests hold them equal (1e-12).
 """
 
 from __future__ import annotations
@@ -71,18 +72,25 @@ def anderson_numpy(g: np.ndarray, z: np.ndarray, G_hist: np.ndarray,
 
 
 def anderson_function(n: int, memory: int) -> ca.Function:
-    """Return `anderson_numpy` as a CasADi SX Function.
+    """Return `anderson_numpy` as a CasADi Function.
 
     ``anderson(g, z, G_hist, F_hist, valid) -> (z_next, G_next, F_next,
     valid_next)``; ``n`` is the iterate's length, ``memory`` (m ≥ 1)
-    the number of differences mixed; the histories are (n, m + 1).
+    the number of differences mixed; the histories are (n, m + 1). The
+    n-long work is MX (loops in generated C), the m × m solve SX.
     """
     if int(memory) < 1:
         raise InvalidValueError(f"memory must be at least 1, got {memory}")
     m = int(memory)
-    g, z = ca.SX.sym("g", n), ca.SX.sym("z", n)
-    Gh0, Fh0 = ca.SX.sym("G_hist", n, m + 1), ca.SX.sym("F_hist", n, m + 1)
-    v0 = ca.SX.sym("valid", m + 1)
+    Ms, bs, vs = ca.SX.sym("M", m, m), ca.SX.sym("b", m), ca.SX.sym("vd", m)
+    Mr = Ms + ca.diag(1.0 - vs) + ANDERSON_RIDGE * (ca.trace(Ms) + 1e-30) \
+        * ca.SX.eye(m)
+    Li = inv_lower(chol_lower(Mr))
+    solve = ca.Function("anderson_solve", [Ms, bs, vs],
+                        [ca.mtimes([Li.T, Li, bs])])
+    g, z = ca.MX.sym("g", n), ca.MX.sym("z", n)
+    Gh0, Fh0 = ca.MX.sym("G_hist", n, m + 1), ca.MX.sym("F_hist", n, m + 1)
+    v0 = ca.MX.sym("valid", m + 1)
     f = g - z
     Gh = ca.horzcat(Gh0[:, 1:], g)
     Fh = ca.horzcat(Fh0[:, 1:], f)
@@ -90,11 +98,7 @@ def anderson_function(n: int, memory: int) -> ca.Function:
     vd = v[:-1]
     dF = ca.mtimes(Fh[:, 1:] - Fh[:, :-1], ca.diag(vd))
     dG = ca.mtimes(Gh[:, 1:] - Gh[:, :-1], ca.diag(vd))
-    M = ca.mtimes(dF.T, dF)
-    M = M + ca.diag(1.0 - vd) + ANDERSON_RIDGE * (ca.trace(M) + 1e-30) \
-        * ca.SX.eye(m)
-    Li = inv_lower(chol_lower(M))
-    gamma = ca.mtimes([Li.T, Li, ca.mtimes(dF.T, f)])
+    gamma = solve(ca.mtimes(dF.T, dF), ca.mtimes(dF.T, f), vd)
     return ca.Function("anderson", [g, z, Gh0, Fh0, v0],
                        [g - ca.mtimes(dG, gamma), Gh, Fh, v],
                        ["g", "z", "G_hist", "F_hist", "valid"],
