@@ -40,8 +40,9 @@ from allocation import QPAllocator, WheelArray
 def _ours_c(arr: WheelArray) -> dict:
     """Driver medians [µs] of the exported ``wheel_qp`` and ``duty_qp``.
 
-    And the driver's closed loops of ``mpc_rti_step`` (sqpmethod + qrqp)
-    and ``mpc_cond_rti_step`` (the condensed SQP, DAQP) on the MPC
+    And the driver's closed loops of ``mpc_rti_step`` (sqpmethod + qrqp),
+    ``mpc_cond_rti_step`` and ``mpc_cond_step`` (the condensed SQP, DAQP:
+    one iteration per sample, and to convergence) on the MPC
     problem's pyramid (generated RK4 as plant): rows for the MPC table.
     """
     from ocp import export_c, run_driver
@@ -50,11 +51,12 @@ def _ours_c(arr: WheelArray) -> dict:
     with tempfile.TemporaryDirectory() as out:
         res = export_c(out, wheels=WheelArray.pyramid(h_max=0.2, m_max=0.05),
                        thrusters=six_thruster_unit(),
-                       mpc_variants=("mpc_rti_step", "mpc_cond_rti_step"),
+                       mpc_variants=("mpc_rti_step", "mpc_cond_rti_step",
+                                     "mpc_cond_step"),
                        build=True, repeats=20000)
         t = run_driver(res)
         mpc = []
-        for name in ("mpc_rti_step", "mpc_cond_rti_step"):
+        for name in ("mpc_rti_step", "mpc_cond_rti_step", "mpc_cond_step"):
             loop = t[f"closed_loop:{name}"]
             mpc.append((f"ours: exported C {name} (driver's loop)",
                         1e-3 * loop["median_us"], 1e-3 * loop["max_us"],
