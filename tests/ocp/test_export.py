@@ -30,7 +30,8 @@ def exported(tmp_path_factory):
     out = tmp_path_factory.mktemp("export")
     arr = WheelArray.pyramid(h_max=0.2, m_max=0.05)
     return export_c(out, wheels=arr, thrusters=six_thruster_unit(),
-                    mpc_variants=("mpc_rti_step", "mpc_cond_rti_step"),
+                    mpc_variants=("mpc_rti_step", "mpc_cond_rti_step",
+                                  "mpc_cond_step"),
                     build=True, repeats=200)
 
 
@@ -202,9 +203,10 @@ def test_duty_qp_in_c_equals_the_allocator_and_says_its_status(exported):
         out = [np.asarray(v).ravel() for v in ext(th, km)]
         assert DUTY_STATUS[int(out[3][0])] == "invalid_input"
         assert np.all(out[0] == 0.0)
-    # DAQP conics: the duty QP's and the condensed MPC's two (bounds, rows)
+    # DAQP conics: the duty QP's and two (bounds, rows) per condensed MPC
+    # variant (RTI and to convergence)
     assert exported.extras["daqp_patched"] == (
-        3 if exported.extras["duty_qp_plugin"] == "daqp" else 0)
+        5 if exported.extras["duty_qp_plugin"] == "daqp" else 0)
 
 
 def test_duty_qp_in_c_writes_every_output_on_every_call(exported):
@@ -258,16 +260,20 @@ def test_driver_runs_and_times(exported):
     cond = t["closed_loop:mpc_cond_rti_step"]
     assert cond["final_error_deg"] < 1e-3
     assert cond["median_us"] < t["closed_loop:mpc_rti_step"]["median_us"]
+    full = t["closed_loop:mpc_cond_step"]
+    assert full["final_error_deg"] < 1e-3
 
 
-def test_generated_condensed_step_equals_casadi_in_closed_loop(exported):
+@pytest.mark.parametrize("name", ["mpc_cond_rti_step", "mpc_cond_step"])
+def test_generated_condensed_step_equals_casadi_in_closed_loop(exported,
+                                                                name):
     """80 steps of the slew: the warm-started C returns what Python does.
 
-    (DAQP starts from the shifted active set.)
+    (DAQP starts from the shifted active set; ``mpc_cond_step`` iterates
+    to convergence with Anderson acceleration.)
     """
     from ocp.codegen.patches import patch_daqp_warm_start
 
-    name = "mpc_cond_rti_step"
     f = exported.functions[name]
     ext = ca.external(name, str(exported.shared_library))
     source = exported.source.read_text()
