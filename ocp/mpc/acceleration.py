@@ -16,7 +16,7 @@ mixes the last ``m`` iterates instead: with ``f_i = G(z_i) − z_i``,
 linear map it is a Krylov method (GMRES-like); here it cuts the slew's
 50 Gauss–Newton iterations to about 10. Every returned plan is still a
 QP step (`ocp.mpc.condensed` stops on a G step), so the answer is the
-same optimum; only the path to it changes.
+same optimum to the step tolerance; only the path to it changes.
 
 `anderson_numpy` and `anderson_function` (CasADi, for the generated C)
 are the same update; the tests hold them equal (1e-12).
