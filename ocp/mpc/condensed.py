@@ -43,10 +43,10 @@ import casadi as ca
 import numpy as np
 
 from adcs_common.exceptions import InvalidValueError
-from adcs_common.quaternion import quat_conj, quat_mul
 from adcs_common.validation import as_finite_scalar, check_positive
 from .acceleration import anderson_function
 from .condensed_qp import routed_qp
+from .problem import momentum_residual, pointing_residuals
 from .riccati import factor_rows, riccati_kernels
 
 
@@ -93,10 +93,8 @@ def _kernels(mpc: Any) -> dict[str, ca.Function]:
     qf = ca.SX.sym("qf", 4)
     a = ca.SX.sym("a")     # 1: the stage's momentum term, 0: none
     c = ca.SX.sym("c")     # factor of the attitude and rate terms
-    qe = quat_mul(quat_conj(qf), x[:4])
-    r = ca.vertcat(ca.sqrt(a * w.momentum) * x[7:] / ca.DM(h_max),
-                   ca.sqrt(c * w.attitude) * qe[1:],
-                   ca.sqrt(c * w.rate) * x[4:7])
+    r = ca.vertcat(momentum_residual(x, w, h_max, a),
+                   pointing_residuals(x, qf, w, c))
     C = ca.jacobian(r, x)
     rho = mpc.regularization
     Q = 2.0 * ca.mtimes(C.T, C) + rho * ca.DM.eye(nx)

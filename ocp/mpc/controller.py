@@ -60,7 +60,6 @@ from adcs_common.validation import (
     check_positive,
 )
 
-from adcs_common.quaternion import quat_conj, quat_mul
 from ocp.models.rigid import SpacecraftModel
 from ocp.spacecraft.definition import Spacecraft
 from adcs_common.options import merge_options
@@ -77,6 +76,8 @@ from .problem import (
     NLP_PLUGINS,
     available_mpc_solvers,
     check_reachable,
+    momentum_residual,
+    pointing_residuals,
 )
 
 
@@ -178,8 +179,9 @@ class AttitudeMPC:
         check_positive(self.dt, "dt")
         if not isinstance(solver, str) or solver not in MPC_SOLVERS:
             raise SolverNotFound(str(solver), available_mpc_solvers(),
-                                 "MPC solvers: 'sqpmethod' (with qp_solver "
-                                 "'qrqp' or 'daqp'), 'ipopt', 'fatrop'")
+                                 "MPC solvers: 'sqpmethod' or 'condensed' "
+                                 "(with qp_solver 'qrqp' or 'daqp'), "
+                                 "'ipopt', 'fatrop'")
         if solver not in available_mpc_solvers():
             raise SolverNotFound(solver, available_mpc_solvers(),
                                  f"the CasADi plugin {solver!r} is missing")
@@ -320,13 +322,10 @@ class AttitudeMPC:
             if prop.size:
                 lin = lin + w.propellant * ca.dot(ca.DM(prop),
                                                   z[us[k]][nw:])
-            res.append(np.sqrt(w.momentum) * z[xs[k]][7:] / ca.DM(h_max))
+            res.append(momentum_residual(z[xs[k]], w, h_max))
         for k in range(1, N + 1):
-            c = w.terminal if k == N else 1.0
-            xk = z[xs[k]]
-            qe = quat_mul(quat_conj(qf), xk[:4])
-            res.append(np.sqrt(c * w.attitude) * qe[1:])
-            res.append(np.sqrt(c * w.rate) * xk[4:7])
+            res.append(pointing_residuals(
+                z[xs[k]], qf, w, w.terminal if k == N else 1.0))
         r = ca.vertcat(*res)
         # the linear propellant term has no curvature: the Gauss–Newton
         # Hessian of the squares is still the cost's Hessian

@@ -7,6 +7,7 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
+from adcs_common.quaternion import quat_conj, quat_mul
 from adcs_common.results import ResultMixin
 from adcs_common.exceptions import (
     InfeasibleError,
@@ -132,6 +133,28 @@ class MPCStep(ResultMixin):
     solve_time: float
     iterations: int
     status: str
+
+
+def momentum_residual(x, weights: MPCWeights, h_max: np.ndarray,
+                      factor=1.0):
+    """Least-squares residual of a state's wheel momenta (n_w,).
+
+    ``√(factor · w_H) · H / h_max`` for the state ``x`` (SX, MX or numpy,
+    n_x); ``factor`` may be symbolic (the condensed kernels pass 0 or 1).
+    """
+    return ca.sqrt(factor * weights.momentum) * x[7:] / ca.DM(h_max)
+
+
+def pointing_residuals(x, qf, weights: MPCWeights, factor=1.0):
+    """Least-squares residuals of a state's attitude and rate (6,).
+
+    ``√(c · w_q) · vec(q_f* ⊗ q)`` and ``√(c · w_ω) · ω`` for the state
+    ``x`` and target ``qf``, ``c = factor`` (`MPCWeights.terminal` on the
+    last stage).
+    """
+    qe = quat_mul(quat_conj(qf), x[:4])
+    return ca.vertcat(ca.sqrt(factor * weights.attitude) * qe[1:],
+                      ca.sqrt(factor * weights.rate) * x[4:7])
 
 
 def check_reachable(mpc: Any, x: np.ndarray) -> None:
