@@ -5,6 +5,8 @@ from __future__ import annotations
 from typing import Any, TYPE_CHECKING
 
 import numpy as np
+
+from adcs_common.exceptions import InvalidValueError
 from .scenarios import (
     MASS,
     REORIENT_BOUNDS,
@@ -201,8 +203,6 @@ def plot_scenario(result: ScenarioResult, path: Any) -> None:
 def table_frame(rows: list[tuple]) -> pd.DataFrame:
     """Rows (quantity, paper, ours, diff) as a `pandas.DataFrame`."""
     import pandas as pd
-
-    from adcs_common.exceptions import InvalidValueError
 
     rows = list(rows) if isinstance(rows, (list, tuple)) else None
     if rows is None or not all(isinstance(r, tuple) and len(r) == 4

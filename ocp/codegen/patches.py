@@ -129,12 +129,11 @@ def patch_unused_parameters(source: str) -> tuple[str, int]:
 
 
 #: CasADi's generated DAQP sets its initial working set from equal bounds
-#: only; the edit adds the simple bounds whose warm-start multiplier
-#: ``lam_x0`` is non-zero (DAQP's sense: 1 active at the upper bound, 3 at
-#: the lower; CasADi's sign: negative at the lower bound). Bounds on
-#: distinct variables are independent, so DAQP's setup accepts any such
-#: set; general rows (``lam_a0``) are left out, as a row dependent on the
-#: others makes the setup fail.
+#: only; the edits add the bounds and rows whose warm-start multiplier
+#: (``lam_x0``, ``lam_a0``) is non-zero (DAQP's sense: 1 active at the
+#: upper bound, 3 at the lower; CasADi's sign: negative at the lower
+#: bound). A working set with a dependent row makes DAQP's setup fail:
+#: the third edit then restarts it cold, and writes NaN if that fails.
 _DAQP_SENSE = (
     ("    d->daqp.sense[i] = d_qp->lbx[i]==d_qp->ubx[i] ? 5 : 0;\n",
      "    d->daqp.sense[i] = d_qp->lbx[i]==d_qp->ubx[i] ? 5 : "
@@ -162,10 +161,11 @@ _DAQP_SENSE = (
 
 
 def patch_daqp_warm_start(source: str) -> tuple[str, int]:
-    """Start generated DAQP conics from the active bounds of ``lam_x0``.
+    """Start generated DAQP conics from the active set of the warm start.
 
-    A simple bound whose warm-start multiplier is non-zero enters DAQP's
-    initial working set (at the bound its sign names); DAQP drops the
+    A bound or row whose warm-start multiplier (``lam_x0``, ``lam_a0``) is
+    non-zero enters DAQP's initial working set (at the bound its sign
+    names); a dependent set restarts cold. DAQP drops the
     ones the solution does not need, so the solution is the same and
     only the iterations change (the condensed MPC passes the previous
     step's shifted multipliers: fewer iterations through a saturated
@@ -176,7 +176,7 @@ def patch_daqp_warm_start(source: str) -> tuple[str, int]:
     text : str
         The edited text.
     count : int
-        Lines edited (1 per DAQP runtime; 0 when CasADi's text differs).
+        Edits made (3 per DAQP runtime; 0 when CasADi's text differs).
     """
     count = 0
     for old, new in _DAQP_SENSE:
