@@ -158,3 +158,24 @@ def test_spacecraft_command_lists_and_prints(capsys):
     assert main(["spacecraft", "meteor-m"]) == 0
     text = capsys.readouterr().out
     assert "delta_deg = 55.0" in text and 'name = "meteor-m"' in text
+
+
+def test_the_files_wheels_drive_the_condensed_mpc(craft_file):
+    from ocp import rigid_spacecraft
+    from ocp.mpc import AttitudeMPC, simulate_mpc
+
+    sc = load_spacecraft(craft_file)
+    model = rigid_spacecraft(sc.inertia, sc.wheels)   # the wheels only
+    qf = quat_from_axis_angle([1.0, 1.0, 1.0], np.deg2rad(30.0))
+    x = model.state([1.0, 0.0, 0.0, 0.0])
+    cond = AttitudeMPC(model, solver="condensed", rti=True)
+    sqp = AttitudeMPC(model, rti=True)
+    # the same QP: the first steps agree
+    np.testing.assert_allclose(cond.step(x, qf).plan, sqp.step(x, qf).plan,
+                               atol=1e-10, rtol=0)
+    r = simulate_mpc(AttitudeMPC(model, solver="condensed"),
+                     [1.0, 0.0, 0.0, 0.0], qf, t_final=60.0)
+    assert np.rad2deg(r.final_error) < 0.01
+    assert r.torque_violation <= 1e-9 and r.momentum_violation <= 1e-9
+    # wheel 2 of the file (index 1) is failed: never commanded
+    assert np.abs(r.trajectory.wheel_torque[:, 1]).max() == 0.0

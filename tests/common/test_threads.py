@@ -73,19 +73,24 @@ def _run(mpc, model, n=15):
     return np.array(us)
 
 
-def test_one_mpc_per_thread_follows_its_trajectory_exactly():
+MPC_KINDS = [{"rti": True}, {"solver": "condensed"}]
+
+
+@pytest.mark.parametrize("kw", MPC_KINDS)
+def test_one_mpc_per_thread_follows_its_trajectory_exactly(kw):
     model = _model()
-    ref = _run(AttitudeMPC(model, horizon=8, rti=True), model)
-    mpcs = [AttitudeMPC(model, horizon=8, rti=True) for _ in range(THREADS)]
+    ref = _run(AttitudeMPC(model, horizon=8, **kw), model)
+    mpcs = [AttitudeMPC(model, horizon=8, **kw) for _ in range(THREADS)]
     with ThreadPoolExecutor(THREADS) as pool:
         runs = list(pool.map(lambda m: _run(m, model), mpcs))
     for us in runs:
         np.testing.assert_allclose(us, ref, rtol=0, atol=1e-12)
 
 
-def test_a_shared_mpc_refuses_a_second_thread_until_reset():
+@pytest.mark.parametrize("kw", MPC_KINDS)
+def test_a_shared_mpc_refuses_a_second_thread_until_reset(kw):
     model = _model()
-    mpc = AttitudeMPC(model, horizon=8, rti=True)
+    mpc = AttitudeMPC(model, horizon=8, **kw)
     x = model.state([1.0, 0.0, 0.0, 0.0])
     qf = quat_from_axis_angle([1, 1, 0], 0.5)
     mpc.step(x, qf)
