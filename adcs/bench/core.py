@@ -22,7 +22,8 @@ PROBLEMS = ("wheels", "thrusters", "slew")
 #: An answer whose KKT residual or error exceeds this is "wrong".
 TOL = 1e-6
 #: ``"<backend>@loose"``: OSQP at its own default tolerances, without
-#: polishing: a fast solver whose answers the certificate must catch.
+#: polishing: a fast solver whose loose answers the toolbox's optimality
+#: certificate must polish to the optimum (or refuse).
 LOOSE_OSQP = {"eps_abs": 1e-3, "eps_rel": 1e-3, "polishing": False}
 #: Control rows added to the default QP backend lists.
 CONTROLS = ("osqp@loose",)
@@ -235,8 +236,9 @@ def explain(row: BenchRow, budget: float) -> str:
     """Say what a failed, wrong or too-slow row means."""
     parts = []
     if row.backend.endswith("@loose"):
-        parts.append("control row: OSQP at eps 1e-3 without polishing, "
-                     "so the check must catch its loose answers")
+        parts.append("control row: OSQP at eps 1e-3 without polishing; "
+                     "the toolbox's certificate polishes its answers on "
+                     "their active set, so they must come out right")
     if row.wrong:
         parts.append(f"{row.wrong} answers beyond the {TOL:g} check (max "
                      f"error {row.max_error:.1e}, max KKT "

@@ -8,6 +8,7 @@ from .backends import (
     make_backend,
     resolve,
 )
+from .certificate import Certificate, certify
 from .problem import QP, primal_residual
 from .solution import QPSolution
 
@@ -16,8 +17,10 @@ __all__ = [
     "INSTALL_HINT",
     "QP",
     "Backend",
+    "Certificate",
     "QPSolution",
     "available_solvers",
+    "certify",
     "make_backend",
     "primal_residual",
     "resolve",

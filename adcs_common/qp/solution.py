@@ -19,11 +19,14 @@ class QPSolution:
     x : (n,) ndarray or None
         The point, None when the backend found none.
     success : bool
-        The backend reports an optimal point (the allocators still check
-        it before they call their own result a success).
-    status : {"solved", "infeasible", "failed"}
-        The backend's verdict in the toolbox's words; its own text is
-        ``extras["backend_status"]``.
+        The point is the QP's optimum: through `make_backend` every point
+        is certified (`certificate.certify`) before it is called a
+        success.
+    status : {"solved", "infeasible", "failed", "inaccurate"}
+        The verdict in the toolbox's words (``"inaccurate"``: a point
+        that failed the optimality certificate); the backend's own text is
+        ``extras["backend_status"]``, the certificate
+        ``extras["certificate"]``.
     iterations : int
         Iterations reported (-1 if the backend does not say).
     solve_time : float

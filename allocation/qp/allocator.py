@@ -27,6 +27,7 @@ from .result import BatchAllocation, WheelAllocation
 from .solvers import available_solvers
 from .problem import (
     facet_normals,
+    flat_max_scale,
     max_scale,
     pin_to_face,
     set_normals,
@@ -186,6 +187,7 @@ class QPAllocator:
         self._nrow = 3 + (2 * n if motor is not None else 0)
         self._backend = self._make_backend(self._nrow, 3)
         self._ls_backend: Backend | None = None
+        self._ls_exact: Backend | None = None
         self._exact: Backend | None = None
         #: momentum bound of each working wheel (inf: failed, free)
         self._h_cap = np.where(array.active, array.h_max, np.inf)
@@ -298,7 +300,18 @@ class QPAllocator:
         if self._ls_backend is None:
             self._ls_backend = self._make_backend(self._nrow - 3, 0)
         data = self._data(P, q, np.zeros((0, n)), np.zeros(0), lo, hi, h)
-        res = self._solve(self._ls_backend, data)
+        try:
+            res = self._solve(self._ls_backend, data)
+        except SolverError:
+            if self._backend.name == EXACT_SOLVER:
+                raise
+            # an iterative backend's projection failed its certificate:
+            # the exact one projects (the result's extras say which)
+            if self._ls_exact is None:
+                self._ls_exact = make_backend(
+                    EXACT_SOLVER, self._nvar, self._nrow - 3, 0, {},
+                    available_solvers())
+            res = self._solve(self._ls_exact, data)
         return A @ np.clip(res.x[:n], lo, hi)
 
     def _check(self, x, target, lo, hi, backend: str) -> np.ndarray:
@@ -437,15 +450,19 @@ class QPAllocator:
         if closed is not None:
             return closed
         normals = set_normals(self.array, lo, hi, self._normals, self._active)
-        alpha = None if normals is None else max_scale(
-            normals, self._axes, lo, hi, M,
-            self._abs_na if normals is self._normals else None)
+        # a flat set (the free wheels span less than 3-D) is approached
+        # from its centre, which lies in its plane
+        anchor = np.zeros(3) if normals is not None else \
+            self._axes @ ((lo + hi) / 2.0)
+        alpha = flat_max_scale(self._axes, lo, hi, M) if normals is None \
+            else max_scale(normals, self._axes, lo, hi, M,
+                           self._abs_na if normals is self._normals else None)
         if alpha is not None and alpha >= 1.0:
             mode, status = "exact", "optimal"
-            boundary, anchor = M, np.zeros(3)
+            boundary = M
         elif alpha is not None and self.saturation == "scale":
             mode, status = "scale", "saturated"
-            boundary, anchor = alpha * M, np.zeros(3)
+            boundary = alpha * M
         else:
             mode, status = "least_squares", "saturated"
             boundary = self._project(M, lo, hi, h)

@@ -78,12 +78,15 @@ def max_scale(normals: np.ndarray, axes: np.ndarray, lo: np.ndarray,
     The attainable set ``{A m : lo <= m <= hi}`` is the zonotope with
     centre ``A (lo+hi)/2`` and generators ``a_i (hi_i - lo_i)/2``; with
     its facets ``n·x <= d`` the admissible ``α`` solve ``α n·M <= d``.
+    The test runs along the unit direction of M, in N·m, so its
+    tolerances are relative to the size of the set and never to the size
+    of M: a demand of 1e11 N·m gets the same α·|M| as one of 1 N·m.
 
     Parameters
     ----------
     normals : (F, 3) ndarray
-        Facet normals from `facet_normals` (all ``hi_i > lo_i`` for the
-        working wheels) or of the actual set.
+        Unit facet normals from `facet_normals` (all ``hi_i > lo_i`` for
+        the working wheels) or of the actual set.
     axes : (3, N) ndarray
         Working axes.
     lo, hi : (N,) ndarray
@@ -103,18 +106,110 @@ def max_scale(normals: np.ndarray, axes: np.ndarray, lo: np.ndarray,
         abs_normal_axes = np.abs(normals @ axes)
     d = normals @ (axes @ ((lo + hi) * 0.5)) + abs_normal_axes @ (
         (hi - lo) * 0.5)
-    s = normals @ torque
-    tol = _BOUNDARY_TOL * (np.abs(d).max() + np.abs(s).max() + 1e-300)
-    pos = s > tol
-    neg = s < -tol
+    return _scale_along(d, normals @ torque, float(np.linalg.norm(torque)),
+                        _set_size(axes, lo, hi))
+
+
+def _set_size(axes: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
+    """Size of the attainable set [N·m]: the scale of its tolerances."""
+    return float(np.abs(axes).sum(axis=0) @ np.maximum(np.abs(lo),
+                                                       np.abs(hi))) + 1e-300
+
+
+def _scale_along(d: np.ndarray, s: np.ndarray, norm: float, size: float,
+                 extra: tuple[float, float] = (-np.inf, np.inf)
+                 ) -> float | None:
+    """Largest α in [0, 1] with ``α s <= d`` row by row, or None.
+
+    ``s = n·M`` for unit normals n, ``norm = |M|``; the rows are tested
+    along ``M/|M|`` (distances in N·m) with the tolerance
+    ``_BOUNDARY_TOL · size``. ``extra`` further bounds ``α |M|`` (an
+    interval, in N·m).
+    """
+    tol = _BOUNDARY_TOL * size
+    if norm == 0.0:
+        return 1.0 if bool((d >= -tol).all()) else None
+    u = s / norm                         # n·(M/|M|), in [-1, 1]
+    pos = u > _BOUNDARY_TOL
+    neg = u < -_BOUNDARY_TOL
     if (d[~(pos | neg)] < -tol).any():
         return None
-    a_hi = (d[pos] / s[pos]).min() if pos.any() else np.inf
-    a_lo = (d[neg] / s[neg]).max() if neg.any() else -np.inf
-    alpha = min(1.0, a_hi)
-    if alpha < max(a_lo, 0.0) - 1e-12:
+    b_hi = min(float((d[pos] / u[pos]).min()) if pos.any() else np.inf,
+               extra[1])
+    b_lo = max(float((d[neg] / u[neg]).max()) if neg.any() else -np.inf,
+               extra[0])
+    beta = min(norm, b_hi)
+    if beta < max(b_lo, 0.0) - tol:
         return None
-    return float(alpha)
+    return float(min(max(beta, 0.0), norm) / norm)
+
+
+def flat_max_scale(axes: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                   torque: np.ndarray) -> float | None:
+    """`max_scale` when the free wheels do not span 3-D.
+
+    Wheels with ``lo == hi`` (pinned by the momentum bound, or failed)
+    only shift the set; when the others span a plane, a line or nothing,
+    the attainable set is a flat zonotope. ``α M`` then lies in its
+    affine hull for one α (or for every α when M is parallel to it), and
+    within the hull the 2-D or 1-D zonotope's edges bound α as facets do
+    in 3-D.
+
+    Parameters
+    ----------
+    axes : (3, N) ndarray
+        Working axes.
+    lo, hi : (N,) ndarray
+        Torque bounds [N·m].
+    torque : (3,) ndarray
+        Demand M [N·m].
+
+    Returns
+    -------
+    float or None
+        As `max_scale`.
+    """
+    size = _set_size(axes, lo, hi)
+    tol = _BOUNDARY_TOL * size
+    centre = axes @ ((lo + hi) * 0.5)
+    gens = axes * ((hi - lo) * 0.5)
+    free = hi - lo > 0
+    U, sv, _ = np.linalg.svd(gens[:, free], full_matrices=True) if \
+        free.any() else (np.eye(3), np.zeros(0), None)
+    rank = int((sv > 1e-10 * (sv.max(initial=0.0) + 1e-300)).sum())
+    basis, normal = U[:, :rank], U[:, rank:]
+    norm = float(np.linalg.norm(torque))
+    # α M - centre must have no component off the hull: α (Vᵀ M) = Vᵀ c
+    vM, vc = normal.T @ torque, normal.T @ centre
+    extra = (-np.inf, np.inf)
+    if norm > 0.0 and np.linalg.norm(vM) > _BOUNDARY_TOL * norm:
+        beta = float(vM @ vc) / float(vM @ vM) * norm     # α |M| [N·m]
+        if np.abs(beta / norm * vM - vc).max() > tol:
+            return None
+        extra = (beta - tol, beta + tol)
+    elif np.abs(vc).max(initial=0.0) > tol:
+        return None
+    if rank == 0:
+        return _scale_along(np.zeros(0), np.zeros(0), norm, size, extra)
+    g = basis.T @ gens[:, free]                        # (r, k) in the hull
+    if rank == 1:
+        normals = np.array([[1.0], [-1.0]])
+    else:
+        perp = np.vstack([-g[1], g[0]]).T
+        lengths = np.linalg.norm(perp, axis=1)
+        perp = perp[lengths > 1e-10 * lengths.max()]
+        perp /= np.linalg.norm(perp, axis=1)[:, None]
+        normals = np.vstack([perp, -perp])
+    c = basis.T @ centre
+    d = normals @ c + np.abs(normals @ g).sum(axis=1)
+    alpha = _scale_along(d, normals @ (basis.T @ torque), norm, size, extra)
+    if alpha is not None and extra[0] > -np.inf:
+        # the hull fixes α: within the edges' interval, or unattainable
+        beta = 0.5 * (extra[0] + extra[1])
+        if alpha * norm < beta - tol:
+            return None
+        alpha = min(max(beta, 0.0), norm) / norm
+    return alpha
 
 
 def set_normals(array: WheelArray, lo: np.ndarray, hi: np.ndarray,

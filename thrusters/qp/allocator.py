@@ -376,7 +376,8 @@ class DutyCycleAllocator:
         l[self._l_absent] = -np.inf
         u[self._u_absent] = np.inf
         sol = backend.solve(QP(qp.P, q, qp.A, l, u, qp.lb, ub, qp.n_eq))
-        if sol.x is None:
+        if sol.x is None or not sol.success:
+            # no point, or one that failed the optimality certificate
             return None, sol, np.inf
         residual = float((self._R @ sol.x + self._Rth @ th
                           + self._r0).max())

@@ -24,6 +24,7 @@ from typing import Any, Protocol
 import casadi as ca
 
 from ...exceptions import SolverNotFound
+from ..certificate import CERTIFY_TOL, certify
 from ..problem import QP
 from ..solution import QPSolution
 
@@ -113,16 +114,54 @@ def available_solvers(qpsolvers_names: tuple[str, ...] | None = None,
     return tuple(names)
 
 
+class CertifiedBackend:
+    """A backend whose every answer is polished and certified optimal.
+
+    `certificate.certify` runs on each point the backend returns: the
+    exact KKT solution of the active set the backend found replaces it
+    when that is the optimum; otherwise the answer keeps the backend's
+    point with ``success=False`` and ``status="inaccurate"``. The
+    verdict is ``extras["certificate"]`` either way.
+    """
+
+    def __init__(self, backend: Backend, tol: float = CERTIFY_TOL) -> None:
+        self.backend = backend
+        self.name = backend.name
+        self.tol = tol
+
+    def __getattr__(self, attr: str) -> Any:
+        return getattr(self.backend, attr)
+
+    def solve(self, qp: QP) -> QPSolution:
+        """Solve with the backend, then polish and certify its point."""
+        sol = self.backend.solve(qp)
+        if sol.x is None:
+            return sol
+        x, cert = certify(qp, sol.x, self.tol)
+        extras = {**sol.extras, "certificate": cert.as_dict()}
+        if cert.certified:
+            return QPSolution(x, True, "solved", sol.iterations,
+                              sol.solve_time, extras)
+        extras.setdefault("backend_status", sol.status)
+        return QPSolution(sol.x, False, "inaccurate", sol.iterations,
+                          sol.solve_time, extras)
+
+
 def make_backend(name: str, n: int, k: int, n_eq: int,
                  options: dict[str, Any] | None = None,
                  offered: tuple[str, ...] | None = None,
-                 hint: str = INSTALL_HINT) -> Backend:
+                 hint: str = INSTALL_HINT,
+                 certified: bool = True) -> Backend:
     """Build backend ``name`` for a QP of n variables and k rows.
 
     Parameters
     ----------
     offered : tuple of str, optional
         The names the caller offers (default `available_solvers`).
+    certified : bool
+        Wrap the backend in `CertifiedBackend` (default): every answer it
+        calls a success is the QP's optimum to a relative 1e-9, polished
+        on the backend's active set.
 
     Raises
     ------
@@ -141,4 +180,5 @@ def make_backend(name: str, n: int, k: int, n_eq: int,
             f"solver_options must be a dict, got {type(options).__name__}")
     family, plugin = resolve(name)
     module = importlib.import_module(f"{__name__}.{FAMILIES[family]}")
-    return module.Backend(plugin, n, k, n_eq, dict(options or {}))
+    backend = module.Backend(plugin, n, k, n_eq, dict(options or {}))
+    return CertifiedBackend(backend) if certified else backend
