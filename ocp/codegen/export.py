@@ -260,7 +260,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                 continue
             rti = "rti" in name
             kw = ({"solver": "condensed", "qp_solver": condensed_plugin}
-                  if "cond" in name else {"expand": False})
+                  if "cond" in name else {"solver": "sqpmethod",
+                                          "expand": False})
             ctl = AttitudeMPC(model, horizon=horizon, dt=dt, rti=rti,
                               max_iter=mpc_max_iter, **kw)
             fns[name] = _renamed(ctl.step_function, name)

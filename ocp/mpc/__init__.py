@@ -10,6 +10,7 @@ from .closed_loop import (
 from .controller import (
     QP_SOLVERS,
     AttitudeMPC,
+    default_mpc_solver,
     MPCStep,
     MPCWeights,
     available_mpc_solvers,
@@ -17,6 +18,7 @@ from .controller import (
 
 __all__ = [
     "AttitudeMPC",
+    "default_mpc_solver",
     "ClosedLoopResult",
     "MPCStep",
     "MPCWeights",

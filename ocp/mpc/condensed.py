@@ -123,7 +123,8 @@ def _kernels(mpc: Any) -> dict[str, ca.Function]:
 
 
 def _iteration(mpc: Any, plugin: str) -> ca.Function:
-    """``cond_iter(z, lam_x, p) -> (z_new, lam_x, step)``: one SQP step.
+    """``cond_iter(z, lam_x, p) -> (z_new, lam_x, step, qp_kkt)``: one SQP
+    step and its QP's optimality certificate (`condensed_qp.qp_kkt`).
 
     ``z`` is a plan whose x_0 is the measured state (p's first n_x
     entries), ``lam_x`` multipliers in z's layout whose signs start the
@@ -154,7 +155,7 @@ def _iteration(mpc: Any, plugin: str) -> ca.Function:
     u_bar = ca.vertcat(*[z[us[k]] for k in range(N)])
     lam_a0 = [lx0[xs[k]][7:] for k in range(1, N + 1)] + (
         [lx0[xs[k]][4:7] for k in range(1, N + 1)] if rate_rows else [])
-    y, lam_u, lam_a = routed_qp(plugin, N, nu, nw, winv.sparsity(),
+    y, lam_u, lam_a, kkt = routed_qp(plugin, N, nu, nw, winv.sparsity(),
                                  Rows.sparsity())(
         ca.mtimes(winv.T, g), winv, Rows, np.tile(u_lo, N) - u_bar,
         np.tile(u_hi, N) - u_bar, ca.vertcat(*lba), ca.vertcat(*uba),
@@ -164,8 +165,10 @@ def _iteration(mpc: Any, plugin: str) -> ca.Function:
                                nw, rate_rows)
     step = ca.mmax(ca.fabs(du) / ca.DM(np.tile(np.r_[m_max], N)))
     return ca.Function("cond_iter", [z, lx0, p],
-                       [ca.vertcat(*parts), ca.vertcat(*lam_parts), step],
-                       ["z", "lam_x0", "p"], ["z_new", "lam_x", "step"])
+                       [ca.vertcat(*parts), ca.vertcat(*lam_parts), step,
+                        kkt],
+                       ["z", "lam_x0", "p"],
+                       ["z_new", "lam_x", "step", "qp_kkt"])
 
 
 def _stages(mpc: Any, kern: dict, z, qf, tau) -> tuple:
@@ -259,10 +262,10 @@ def _expand(kern, z, xs, us, A, B, d, du, lam_u, lam_a, nw, rate_rows):
 
 
 #: Names of the step Functions' inputs and outputs (`AttitudeMPC`'s, plus
-#: the SQP iteration count).
+#: the SQP iteration count and the last QP's KKT residual).
 STEP_NAMES = (["x", "qf", "tau", "z_prev", "lam_x_prev", "lam_g_prev"],
               ["u", "z", "lam_x", "lam_g", "cost", "violation",
-               "first_violation", "defect", "iterations"])
+               "first_violation", "defect", "iterations", "qp_kkt"])
 
 
 def condensed_step_functions(mpc: Any, plugin: str | None = None,
@@ -272,7 +275,8 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
     """``(rti_function, step_function)`` of the condensed SQP.
 
     Both have `AttitudeMPC.step_function`'s inputs and outputs, plus the
-    output ``iterations``: the RTI Function makes one condensed SQP step
+    outputs ``iterations`` and ``qp_kkt`` (the KKT residual of the last
+    QP's point, `condensed_qp.qp_kkt`: its optimality certificate): the RTI Function makes one condensed SQP step
     from the shifted plan; the step Function repeats it until the step is
     below ``step_tol`` (at most ``mpc.fallback_max_iter`` iterations; the
     iterations after convergence are skipped, not evaluated).
@@ -314,41 +318,41 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
     ins = [x, qf, tau, z_prev, lx_prev, lg_prev]
     us0 = mpc._us[0]
 
-    def outputs(z, lx, n):
+    def outputs(z, lx, n, kkt):
         return [z[us0], z, lx, ca.MX.zeros(ng),
-                *mpc.check_function(z, p), n]
+                *mpc.check_function(z, p), n, kkt]
 
-    z1, lx1, _ = it(z0, lx0, p)
-    rti = ca.Function("mpc_cond_rti", ins, outputs(z1, lx1, 1.0),
+    z1, lx1, _, kkt1 = it(z0, lx0, p)
+    rti = ca.Function("mpc_cond_rti", ins, outputs(z1, lx1, 1.0, kkt1),
                       *STEP_NAMES)
     # the iterations nest: iteration k's Switch runs iteration k + 1 only
     # when its step was not small, so a converged plan returns through the
     # iterations made, not through max_iter skipped ones
     zs, ls = ca.MX.sym("z", nz), ca.MX.sym("lam_x", nz)
-    n, ps = ca.MX.sym("n"), ca.MX.sym("p", nx + 7)
+    n, ps, kk = ca.MX.sym("n"), ca.MX.sym("p", nx + 7), ca.MX.sym("kkt")
     m = int(anderson)
     mix = anderson_function(nz, m) if m else None
     hist = [ca.MX.sym("G_hist", nz, m + 1), ca.MX.sym("F_hist", nz, m + 1),
             ca.MX.sym("valid", m + 1)] if m else []
-    args = [zs, ls, n, ps, *hist]
-    done = ca.Function("cond_done", args, [zs, ls, n])
+    args = [zs, ls, n, kk, ps, *hist]
+    done = ca.Function("cond_done", args, [zs, ls, n, kk])
     inner = None
     for k in range(mpc.fallback_max_iter - 1, -1, -1):
-        zn, ln, sn = it(zs, ls, ps)
+        zn, ln, sn, kn = it(zs, ls, ps)
         if inner is None:
-            out = [zn, ln, n + 1]
+            out = [zn, ln, n + 1, kn]
         else:
             nxt, hist_n = zn, []
             if m:
                 za, *hist_n = mix(zn, zs, *hist)
                 # a converged iteration returns its QP step, not a mix
                 nxt = ca.if_else(sn <= step_tol, zn, za)
-            out = inner(sn <= step_tol, nxt, ln, n + 1, ps, *hist_n)
+            out = inner(sn <= step_tol, nxt, ln, n + 1, kn, ps, *hist_n)
         inner = ca.Function.if_else(
             f"cond_iter_{k}", done, ca.Function(f"cond_more_{k}", args, out))
-    z, lx, count = inner(0, z0, lx0, 0.0, p, *(
+    z, lx, count, kkt = inner(0, z0, lx0, 0.0, 0.0, p, *(
         [ca.MX.zeros(nz, m + 1), ca.MX.zeros(nz, m + 1), ca.MX.zeros(m + 1)]
         if m else []))
-    full = ca.Function("mpc_cond_step", ins, outputs(z, lx, count),
+    full = ca.Function("mpc_cond_step", ins, outputs(z, lx, count, kkt),
                        *STEP_NAMES)
     return rti, full

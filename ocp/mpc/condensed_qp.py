@@ -47,7 +47,7 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     """Build the QP in ``y`` (`ocp.mpc.riccati`): Hessian I, bounds as rows.
 
     ``qp(g, W⁻¹, rows, lbu, ubu, lba, uba, lam_u0, lam_a0) -> (y, lam_u,
-    lam_a)``: minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
+    lam_a, kkt)``: minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
     ubu`` (the bounds on δu) and ``lba ≤ rows·y ≤ uba`` (momentum, rate).
     When the warm start holds no active row (holds, small slews): the QP
     with the bounds alone first; its point is the answer when it meets
@@ -55,6 +55,7 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     set), else the QP with the rows, started from its active set. When
     rows were active: the QP with the rows directly, started from the
     bounds and the rows of the warm start (`_independent_rows`).
+    ``kkt`` is the point's optimality certificate (`qp_kkt`).
     """
     n, na = N * nu, sp_r.size1()
     g = ca.MX.sym("g", n)
@@ -96,8 +97,36 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     warm = rows_warm(lu0, lbu, ubu, la0)
     direct = ca.Function("cond_qp_direct", ins, with_rows(lu0, warm))
     route = ca.Function.if_else("cond_qp_route", direct, staged)
-    return ca.Function("cond_qp_routed", ins,
-                       route(ca.mmax(ca.fabs(la0)) > 0, *ins))
+    y, lam_u, lam_a = route(ca.mmax(ca.fabs(la0)) > 0, *ins)
+    kkt = qp_kkt(y, lam_u, lam_a, g, W, R, lbu, ubu, lba, uba)
+    return ca.Function("cond_qp_routed", ins, [y, lam_u, lam_a, kkt])
+
+
+def qp_kkt(y, lam_u, lam_a, g, W, R, lbu, ubu, lba, uba):
+    """Optimality certificate of the QP's point: the KKT residual.
+
+    The largest of stationarity ``|y + g + W⁻ᵀλ_u + Rᵀλ_a|_∞``
+    (relative to ``1 + |g|_∞``), the row violations and the
+    complementarity ``λ⁺ (ub - v) + λ⁻ (v - lb)`` of every row ``v``
+    (relative to the rows' scale): zero at the QP's optimum (the QP is
+    strictly convex), whatever conic solved it. Loops in generated C (MX
+    products), no unrolling.
+    """
+    v, a = ca.mtimes(W, y), ca.mtimes(R, y)
+    stat = ca.mmax(ca.fabs(y + g + ca.mtimes(W.T, lam_u)
+                           + ca.mtimes(R.T, lam_a)))
+    scale_g = 1.0 + ca.mmax(ca.fabs(g))
+    size = 1.0 + ca.mmax(ca.vertcat(ca.fabs(lbu), ca.fabs(ubu),
+                                    ca.fabs(lba), ca.fabs(uba)))
+    lam = 1.0 + ca.mmax(ca.vertcat(ca.fabs(lam_u), ca.fabs(lam_a)))
+    primal = ca.mmax(ca.vertcat(v - ubu, lbu - v, a - uba, lba - a, 0.0))
+    comp = ca.mmax(ca.vertcat(
+        ca.fmax(lam_u, 0) * ca.fabs(ubu - v),
+        ca.fmax(-lam_u, 0) * ca.fabs(v - lbu),
+        ca.fmax(lam_a, 0) * ca.fabs(uba - a),
+        ca.fmax(-lam_a, 0) * ca.fabs(a - lba)))
+    return ca.fmax(stat / scale_g, ca.fmax(primal / size,
+                                           comp / (lam * size)))
 
 
 def _qp_options(plugin: str) -> dict:

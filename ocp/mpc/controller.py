@@ -64,8 +64,9 @@ from ocp.models.rigid import SpacecraftModel
 from ocp.spacecraft.definition import Spacecraft
 from adcs_common.options import merge_options
 from adcs_common.threads import new_lock, synchronized
+from .certificate import default_mpc_solver, qp_kkt_function
 from .condensed import condensed_qp_plugin, condensed_step_functions
-from .plan import check_function, shift_function
+from .plan import check_function, plan_bounds, shift_function
 from .problem import (
     BOUND_TOL,
     DEFECT_TOL,
@@ -74,6 +75,7 @@ from .problem import (
     QP_SOLVERS,
     MPC_SOLVERS,
     NLP_PLUGINS,
+    QP_KKT_TOL,
     available_mpc_solvers,
     check_reachable,
     momentum_residual,
@@ -83,6 +85,7 @@ from .problem import (
 
 __all__ = [
     "AttitudeMPC",
+    "default_mpc_solver",
     "MPCStep",
     "MPCWeights",
     "QP_SOLVERS",
@@ -109,13 +112,17 @@ class AttitudeMPC:
         Number of intervals N (>= 2).
     dt : float
         Sample time and interval length [s].
-    solver : {"sqpmethod", "condensed", "ipopt", "fatrop"}
-        NLP solver (default ``"sqpmethod"``: Gauss–Newton SQP with a
-        code-generatable conic). ``"condensed"``: the toolbox's
-        Gauss–Newton SQP whose QP keeps the controls only
-        (`ocp.mpc.condensed`; wheel-only models), exact dense active set,
-        no fallback needed; its step Functions also return
-        ``iterations``.
+    solver : {None, "condensed", "sqpmethod", "ipopt", "fatrop"}
+        NLP solver. None (default): `default_mpc_solver`, which is
+        ``"condensed"`` for wheel-only models and ``"sqpmethod"`` with
+        thrusters. ``"condensed"``: the toolbox's Gauss–Newton SQP whose
+        QP keeps the controls only (`ocp.mpc.condensed`; wheel-only
+        models), exact dense active set, each QP point certified by its
+        KKT residual; its step Functions also return ``iterations``.
+        ``"sqpmethod"``: CasADi's Gauss–Newton SQP with a
+        code-generatable conic (qrqp by default); with ``rti`` its QP
+        point is certified too and a step that fails goes to the full
+        SQP.
     qp_solver : {"qrqp", "daqp"}, optional
         Conic of ``"sqpmethod"`` (default ``"qrqp"``) or of
         ``"condensed"`` (default daqp where the casadi wheel has it).
@@ -155,7 +162,7 @@ class AttitudeMPC:
     """
 
     def __init__(self, model: SpacecraftModel, *, horizon: int = 20,
-                 dt: float = 0.5, solver: str = "sqpmethod",
+                 dt: float = 0.5, solver: str | None = None,
                  qp_solver: str | None = None, rti: bool = False,
                  weights: MPCWeights | None = None,
                  rate_max: float | None = None, max_iter: int = 50,
@@ -171,6 +178,8 @@ class AttitudeMPC:
             raise InvalidValueError(
                 "model must be a SpacecraftModel with a wheel array "
                 "(rigid_spacecraft(inertia, wheels))")
+        if solver is None:
+            solver = default_mpc_solver(model)
         if (not isinstance(horizon, (int, np.integer)) or isinstance(
                 horizon, bool) or horizon < 2):
             raise InvalidValueError(
@@ -271,7 +280,8 @@ class AttitudeMPC:
         tau = ca.MX.sym("tau", 3)
         p = ca.vertcat(x_par, qf, tau)
         r, gv, f = self._objective(z, x_par, qf, tau)
-        self.lbz, self.ubz, self._bound_scale = self._bounds()
+        self.lbz, self.ubz, self._bound_scale = plan_bounds(self)
+        self.qp_kkt_function = qp_kkt_function(self, z, p, r, gv, f)
         self._residuals = ca.Function("mpc_residuals", [z, p], [f, gv])
         self.shift_function = shift_function(nx, nu, nz, self._ng)
         self.check_function = check_function(self, p)
@@ -337,31 +347,6 @@ class AttitudeMPC:
         prop = np.zeros(0) if thr is None else thr.propellant_rate()
         return prop / prop.max() if prop.size else prop
 
-    def _bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(lbz, ubz, scale)`` of the decision vector."""
-        model, N, wh = self.model, self.horizon, self.wheels
-        xs, us = self._xs, self._us
-        inf = np.inf
-        h_max = np.asarray(wh.h_max, dtype=float)
-        m_max = np.asarray(wh.m_max, dtype=float)
-        u_lo, u_hi = model.control_bounds()
-        wmax = inf if self.rate_max is None else self.rate_max
-        x_hi = np.r_[np.full(4, inf), np.full(3, wmax), h_max]
-        ub = np.empty(self._nz)
-        lb = np.empty(self._nz)
-        scale = np.ones(self._nz)   # of each bound, for the violation
-        n_thr = len(self._propellant_weights())
-        for k in range(N + 1):
-            ub[xs[k]], lb[xs[k]] = x_hi, -x_hi
-            scale[xs[k]] = np.r_[np.ones(4), np.full(3, 1.0 if wmax == inf
-                                                     else wmax), h_max]
-            if k < N:
-                ub[us[k]], lb[us[k]] = u_hi, u_lo
-                scale[us[k]] = np.r_[m_max, np.ones(n_thr)]
-        ub[xs[0]] = inf  # x_0 is fixed by its equality row
-        lb[xs[0]] = -inf
-        return lb, ub, scale
-
     def _build_step(self, x_par, qf, tau, p) -> None:
         """Build the step Function: shift the warm start, solve, report."""
         nz, us = self._nz, self._us
@@ -374,13 +359,17 @@ class AttitudeMPC:
         zo, lxo, lgo = sol["x"], sol["lam_x"], sol["lam_g"]
         names = (["x", "qf", "tau", "z_prev", "lam_x_prev", "lam_g_prev"],
                  ["u", "z", "lam_x", "lam_g", "cost", "violation",
-                  "first_violation", "defect"])
+                  "first_violation", "defect", "qp_kkt"])
+        # RTI: the one SQP step's QP point, certified (a converged SQP's
+        # last step is its QP's point too)
+        kkt = self.qp_kkt_function(sh[0], zo, lxo, lgo, p)
         #: ``step_function`` without the RTI fallback: what `step` calls
         #: (through a bound buffer) with ``rti=True``.
         self.rti_function = ca.Function(
             "mpc_rti_single",
             [x_par, qf, tau, z_prev, lam_x_prev, lam_g_prev],
-            [zo[us[0]], zo, lxo, lgo, *self.check_function(zo, p)], *names)
+            [zo[us[0]], zo, lxo, lgo, *self.check_function(zo, p), kkt],
+            *names)
         if self.fallback is not None:
             # evaluated only when the RTI step fails its check
             a = [ca.MX.sym(n, s.sparsity()) for n, s in
@@ -393,13 +382,18 @@ class AttitudeMPC:
                                [fb["x"], fb["lam_x"], fb["lam_g"]])
             keep = ca.Function("mpc_keep", a, [a[4], a[5], a[6]])
             pick = ca.Function.if_else("mpc_pick", full, keep)
-            bad = self.check_function(zo, p)[2] > BOUND_TOL
+            # the step is not its QP's solution, or leaves a bound: the
+            # full SQP from the same warm start
+            bad = ca.logic_or(self.check_function(zo, p)[2] > BOUND_TOL,
+                              ca.logic_not(kkt <= QP_KKT_TOL))
             zo, lxo, lgo = pick(bad, sh[0], sh[1], sh[2], p, zo, lxo, lgo)
+            # the full SQP's plan is not one QP step from the warm start
+            kkt = ca.if_else(bad, np.nan, kkt)
         chk = self.check_function(zo, p)
         self.step_function = ca.Function(
             "mpc_step",
             [x_par, qf, tau, z_prev, lam_x_prev, lam_g_prev],
-            [zo[us[0]], zo, lxo, lgo, *chk], *names)
+            [zo[us[0]], zo, lxo, lgo, *chk, kkt], *names)
 
     def _default_options(self, z, p, r, g) -> dict:
         if self.solver == "ipopt":
@@ -512,11 +506,12 @@ class AttitudeMPC:
             self.initial_guess(x)
         p = np.r_[x, qf, tau]
         t0 = time.perf_counter()
+        kkt = float("nan")
         if self.rti or self.solver == "condensed":
             # one buffered call: shift, SQP step(s), checks
             z, lam_x, lam_g, u, cost, viol, viol1, defect, *n = \
                 self._rti_call(x, qf, tau, z_prev)
-            status, iters = "rti_step", 1
+            status, iters, kkt = "rti_step", 1, n[-1]
             if self.solver == "condensed" and not self.rti:
                 iters = int(n[0])
                 status = ("converged" if iters < self.fallback_max_iter
@@ -532,7 +527,8 @@ class AttitudeMPC:
             status = str(stats.get("return_status", "unknown"))
             iters = int(stats.get("iter_count", -1))
         solve_time = time.perf_counter() - t0
-        if self.fallback is not None and viol1 > BOUND_TOL:
+        if self.fallback is not None and (viol1 > BOUND_TOL
+                                          or not kkt <= QP_KKT_TOL):
             z0, lx0, lg0 = self.shift_function(x, z_prev, self._lam_x,
                                                self._lam_g)
             sol = self.fallback(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz,
@@ -544,10 +540,17 @@ class AttitudeMPC:
             status = ("rti_fallback:"
                       + str(stats.get("return_status", "unknown")))
             iters = 1 + int(stats.get("iter_count", -1))
+            kkt = float("nan")
         result = MPCStep(u=u, plan=z, cost=cost, violation=viol,
                          first_violation=viol1, defect=defect,
                          solve_time=solve_time, iterations=iters,
-                         status=status)
+                         status=status, qp_kkt=kkt)
+        if check and self.solver == "condensed" and not kkt <= QP_KKT_TOL:
+            self.reset()
+            raise SolverError(
+                f"MPC step ({self.name}): the QP's point fails its "
+                f"optimality certificate (KKT residual {kkt:.3g} > "
+                f"{QP_KKT_TOL:g})", solver=self.name, result=result)
         if check:
             bad = not (np.isfinite(cost) and np.all(np.isfinite(z)))
             # RTI: only the applied command and the state it leads to are

@@ -54,3 +54,34 @@ def check_function(mpc: Any, p: ca.MX) -> ca.Function:
     return ca.Function(
         "mpc_check", [zs, p], [cost, viol, viol_first, defect],
         ["z", "p"], ["cost", "violation", "first_violation", "defect"])
+
+
+def plan_bounds(mpc: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(lbz, ubz, scale)`` of an `AttitudeMPC`'s decision vector.
+
+    Torques within ±m_max (duties in [0, 1]), wheel momenta within
+    ±h_max, body rates within ±rate_max when set; x_0 free (its
+    equality row fixes it); ``scale`` of each bound, for the violations.
+    """
+    model, N, wh = mpc.model, mpc.horizon, mpc.wheels
+    xs, us = mpc._xs, mpc._us
+    inf = np.inf
+    h_max = np.asarray(wh.h_max, dtype=float)
+    m_max = np.asarray(wh.m_max, dtype=float)
+    u_lo, u_hi = model.control_bounds()
+    wmax = inf if mpc.rate_max is None else mpc.rate_max
+    x_hi = np.r_[np.full(4, inf), np.full(3, wmax), h_max]
+    ub = np.empty(mpc._nz)
+    lb = np.empty(mpc._nz)
+    scale = np.ones(mpc._nz)   # of each bound, for the violation
+    n_thr = len(mpc._propellant_weights())
+    for k in range(N + 1):
+        ub[xs[k]], lb[xs[k]] = x_hi, -x_hi
+        scale[xs[k]] = np.r_[np.ones(4), np.full(3, 1.0 if wmax == inf
+                                                 else wmax), h_max]
+        if k < N:
+            ub[us[k]], lb[us[k]] = u_hi, u_lo
+            scale[us[k]] = np.r_[m_max, np.ones(n_thr)]
+    ub[xs[0]] = inf  # x_0 is fixed by its equality row
+    lb[xs[0]] = -inf
+    return lb, ub, scale

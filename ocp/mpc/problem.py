@@ -36,6 +36,11 @@ BOUND_TOL = 1e-6
 DEFECT_TOL = 1e-6
 
 
+#: Largest KKT residual [relative, 1] of an SQP step's QP point accepted as
+#: that QP's solution (`MPCStep.qp_kkt`).
+QP_KKT_TOL = 1e-6
+
+
 #: Every MPC solver name: the NLP plugins and ``"condensed"`` (the
 #: toolbox's Gauss–Newton SQP on the condensed QP, `ocp.mpc.condensed`).
 MPC_SOLVERS = (*NLP_PLUGINS, "condensed")
@@ -122,6 +127,13 @@ class MPCStep(ResultMixin):
         SQP/IPOPT iterations (-1 when the solver does not report them).
     status : str
         The solver's return status.
+    qp_kkt : float
+        Optimality certificate of the last SQP step: the KKT residual of
+        its QP's point (stationarity, row violation, complementarity;
+        relative) [1]. Zero at the QP's solution; NaN for IPOPT and
+        fatrop, whose steps are not QPs. A step above `QP_KKT_TOL` is not
+        that QP's solution: the RTI of ``"sqpmethod"`` then falls back to
+        the full SQP, and `AttitudeMPC.step` refuses it otherwise.
     """
 
     u: np.ndarray
@@ -133,6 +145,7 @@ class MPCStep(ResultMixin):
     solve_time: float
     iterations: int
     status: str
+    qp_kkt: float = float("nan")
 
 
 def momentum_residual(x, weights: MPCWeights, h_max: np.ndarray,

@@ -122,7 +122,7 @@ def test_riccati_factor_is_the_condensed_hessians():
 def test_condensed_rti_step_is_sqpmethods_rti_step():
     """The same QP: sqpmethod + qrqp on all of z, condensed on δu."""
     mpc, cases = _slew_states(2)
-    sqp = AttitudeMPC(MODEL, horizon=20, dt=0.5, rti=True)
+    sqp = AttitudeMPC(MODEL, solver="sqpmethod", horizon=20, dt=0.5, rti=True)
     for x, z_prev in cases:
         a = mpc.rti_function(x, QF, np.zeros(3), z_prev, np.zeros(mpc.nz),
                              np.zeros(mpc.ng))
@@ -136,7 +136,7 @@ def test_condensed_rti_step_is_sqpmethods_rti_step():
 def test_converged_condensed_plan_is_the_sqpmethod_plan():
     cond = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="condensed",
                        solver_options={"step_tol": 1e-10})
-    sqp = AttitudeMPC(MODEL, horizon=20, dt=0.5)
+    sqp = AttitudeMPC(MODEL, solver="sqpmethod", horizon=20, dt=0.5)
     rk4 = MODEL.rk4_step(1)
     x = MODEL.state([1.0, 0.0, 0.0, 0.0])
     for _ in range(2):
@@ -193,7 +193,7 @@ def test_condensed_rate_rows_hold_the_rate_bound():
                       solver="condensed", rate_max=rate_max)
     free = AttitudeMPC(MODEL, horizon=20, dt=0.5, rti=True,
                        solver="condensed")
-    sqp = AttitudeMPC(MODEL, horizon=20, dt=0.5, rti=True,
+    sqp = AttitudeMPC(MODEL, horizon=20, dt=0.5, rti=True, solver="sqpmethod",
                       rate_max=rate_max)
     r, f, s = (simulate_mpc(m, [1.0, 0.0, 0.0, 0.0], QF, t_final=100.0)
                for m in (mpc, free, sqp))

@@ -38,6 +38,7 @@ class Backend(ConicBackend):
     def __init__(self, plugin: str, n: int, k: int, n_eq: int,
                  options: dict[str, Any]) -> None:
         self.name = f"casadi-c:{plugin}"
+        self.plugin = plugin
         fn = wrapped_conic(plugin, n, k, options)
         folder = tempfile.mkdtemp(prefix="adcs_qp_")
         try:

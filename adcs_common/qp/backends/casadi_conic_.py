@@ -3,7 +3,8 @@
 The conic is built once per problem size with dense sparsity; each call
 passes the numeric data. ``qrqp`` can report success on a point that
 violates constraints (seen on a few random allocations, by up to 0.01):
-the allocators check every point they get.
+the allocators check every point they get. qrqp is never handed a
+problem with more equality constraints than variables (`_overdetermined`).
 """
 
 from __future__ import annotations
@@ -58,6 +59,21 @@ def wrapped_conic(plugin: str, n: int, k: int,
     return ca.Function("qp_c", args, [x])
 
 
+def _overdetermined(qp: QP) -> bool:
+    """More equality rows and fixed variables than variables, or every
+    variable fixed.
+
+    CasADi's qrqp (called, and its generated C) writes past its buffers
+    on such a problem (measured: ``munmap_chunk(): invalid pointer`` a few
+    calls after a least-squares QP of three wheels all pinned by their
+    momentum bounds), so it never sees one: the allocators hand it to
+    DAQP and say so.
+    """
+    fixed = int(np.count_nonzero(qp.lb == qp.ub))
+    eq_rows = int(np.count_nonzero(qp.l == qp.u))
+    return fixed + eq_rows > qp.n or fixed == qp.n
+
+
 class Backend:
     """A ``casadi.conic`` bound to numpy buffers (no argument conversion).
 
@@ -69,6 +85,7 @@ class Backend:
     def __init__(self, plugin: str, n: int, k: int, n_eq: int,
                  options: dict[str, Any]) -> None:
         self.name = f"casadi:{plugin}"
+        self.plugin = plugin
         self._bind(wrapped_conic(plugin, n, k, options), n, k)
 
     def _bind(self, function: ca.Function, n: int, k: int) -> None:
@@ -81,6 +98,10 @@ class Backend:
 
     def solve(self, qp: QP) -> QPSolution:
         """Solve one QP."""
+        if self.plugin == "qrqp" and _overdetermined(qp):
+            return QPSolution.failed(
+                backend_status="more equality constraints than variables "
+                "(qrqp corrupts its memory on such a problem)")
         h, g, a, lba, uba, lbx, ubx = self._in
         if qp.P is not self._P_obj:
             h[:] = qp.P.ravel(order="F")

@@ -1,0 +1,81 @@
+"""Which MPC solver runs by default, and the certificate of an SQP step.
+
+An SQP step is a QP's point; `qp_kkt_function` measures how far the
+point and multipliers a solver returned are from that QP's KKT
+conditions, so a step reported as taken is that QP's solution
+(`ocp.mpc.condensed_qp.qp_kkt` does the same for the condensed QP).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from ocp.models.rigid import SpacecraftModel
+
+from .problem import available_mpc_solvers
+
+
+def default_mpc_solver(model: SpacecraftModel) -> str:
+    """The MPC solver `AttitudeMPC` takes when none is named.
+
+    ``"condensed"`` for a wheel-only model: on the 80-step saturated slew
+    each of its 160 RTI and SQP steps was its QP's exact solution and its
+    converged plans equal IPOPT's to 3.3e-6, while sqpmethod + qrqp
+    returned a step that was not its QP's solution in 2 of 160 (off by up
+    to 0.083 m_max, bounds kept); it is also faster in C
+    (docs/benchmarks.md). ``"sqpmethod"`` for a model with thrusters (the
+    condensed SQP handles wheels only).
+    """
+    if model.thrusters is None and "condensed" in available_mpc_solvers():
+        return "condensed"
+    return "sqpmethod"
+
+
+def qp_kkt_function(mpc: Any, z, p, r, gv, f) -> ca.Function:
+    """``qp_kkt(z0, z1, lam_x, lam_g, p)``: is z1 the SQP QP's point?
+
+    The Gauss–Newton QP at ``z0`` is ``min ½ dzᵀ H dz + ∇fᵀ dz`` subject
+    to ``g + J_g dz = 0`` and the bounds on ``z0 + dz``, with ``H = 2
+    J_rᵀ J_r + ρ I`` (``r`` the residuals, ``ρ`` the MPC's
+    regularisation). Its KKT residual at ``dz = z1 - z0`` with the
+    returned multipliers (CasADi's signs: ``∇f + H dz + J_gᵀ λ_g + λ_x =
+    0``, ``λ_x > 0`` only at an upper bound): the largest of stationarity
+    (relative to ``1 + |∇f|_∞``), the linearised constraints' residual
+    and complementarity (relative to ``1 + |λ_x|_∞``) [1]. Products only
+    (``jtimes``): no Hessian is formed.
+
+    Parameters
+    ----------
+    mpc : AttitudeMPC
+        Its ``nz``, ``ng``, bounds and ``regularization``.
+    z, p : casadi.MX
+        The decision vector and parameter symbols ``r``, ``gv`` and ``f``
+        are built on.
+    r, gv, f : casadi.MX
+        Least-squares residuals, dynamics rows and cost.
+    """
+    dz = ca.MX.sym("dz", mpc.nz)
+    lx = ca.MX.sym("lam_x", mpc.nz)
+    lg = ca.MX.sym("lam_g", mpc.ng)
+    z1 = ca.MX.sym("z1", mpc.nz)
+    jr_dz = ca.jtimes(r, z, dz)
+    h_dz = 2 * ca.jtimes(r, z, jr_dz, True) + mpc.regularization * dz
+    grad = ca.gradient(f, z)
+    stat = grad + h_dz + ca.jtimes(gv, z, lg, True) + lx
+    lin = gv + ca.jtimes(gv, z, dz)
+    big = 1e10                 # an absent bound: any multiplier is wrong
+    ub = ca.DM(np.minimum(mpc.ubz, big))
+    lb = ca.DM(np.maximum(mpc.lbz, -big))
+    lam = 1.0 + ca.mmax(ca.fabs(lx))
+    comp = ca.mmax(ca.vertcat(ca.fmax(lx, 0) * ca.fabs(ub - z1),
+                              ca.fmax(-lx, 0) * ca.fabs(z1 - lb)))
+    kkt = ca.fmax(ca.mmax(ca.fabs(stat)) / (1.0 + ca.mmax(ca.fabs(grad))),
+                  ca.fmax(ca.mmax(ca.fabs(lin)), comp / lam))
+    inner = ca.Function("qp_kkt_at", [z, dz, z1, lx, lg, p], [kkt])
+    z0 = ca.MX.sym("z0", mpc.nz)
+    return ca.Function("mpc_qp_kkt", [z0, z1, lx, lg, p],
+                       [inner(z0, z1 - z0, z1, lx, lg, p)],
+                       ["z0", "z1", "lam_x", "lam_g", "p"], ["qp_kkt"])
