@@ -171,6 +171,14 @@ def run_sweep(study: Callable[..., dict], params: list[dict], *,
         dimensions ``(case, <name>_index)``. ``attrs``: ``chunks``,
         ``chunks_loaded`` (verified, from ``out``), ``chunks_computed``
         and ``chunks_failed_verification`` (counts).
+
+    Raises
+    ------
+    InvalidValueError
+        ``study`` or ``params`` malformed, ``out`` not a writable folder.
+    SweepError
+        A finished chunk cannot be saved in ``out`` (e.g. a folder in
+        its place), or array outputs of different lengths.
     """
     import pandas as pd
     import xarray as xr
@@ -188,22 +196,7 @@ def run_sweep(study: Callable[..., dict], params: list[dict], *,
     chunks = _chunks(params, int(size))
     folder = None if out is None else output_folder(
         Path(out) / "chunks", "out")
-    done: dict[int, list[dict]] = {}
-    todo, failed = [], []
-    name, code, memo = study_name(study), code_version(study), {}
-    for i, chunk in enumerate(chunks):
-        if folder is None:
-            todo.append((i, chunk, None, ""))
-            continue
-        key = chunk_key(name, code, chunk_inputs(study, chunk, memo), chunk)
-        path = chunk_path(folder, key)
-        rows, reason = load_chunk(path, key, chunk)
-        if rows is not None:
-            done[i] = rows
-            continue
-        if reason:
-            failed.append(f"{path.name}: {reason}")
-        todo.append((i, chunk, path, key))
+    done, todo, failed = _saved(study, chunks, folder)
     if failed:
         warnings.warn(f"{_failed_text(len(failed))} ({'; '.join(failed)})",
                       SweepCacheWarning, stacklevel=2)
@@ -231,6 +224,31 @@ def run_sweep(study: Callable[..., dict], params: list[dict], *,
     return ds
 
 
+def _saved(study: Callable, chunks: list[list[dict]], folder: Path | None):
+    """Split chunks into those saved and verified, and those to compute.
+
+    Returns ``done`` ({index: rows}), ``todo`` ([(index, chunk, path,
+    key)], path None without a folder) and ``failed`` (one "file:
+    reason" per saved chunk that failed verification).
+    """
+    if folder is None:
+        return {}, [(i, c, None, "") for i, c in enumerate(chunks)], []
+    done: dict[int, list[dict]] = {}
+    todo, failed = [], []
+    name, code, memo = study_name(study), code_version(study), {}
+    for i, chunk in enumerate(chunks):
+        key = chunk_key(name, code, chunk_inputs(study, chunk, memo), chunk)
+        path = chunk_path(folder, key)
+        rows, reason = load_chunk(path, key, chunk)
+        if rows is not None:
+            done[i] = rows
+            continue
+        if reason:
+            failed.append(f"{path.name}: {reason}")
+        todo.append((i, chunk, path, key))
+    return done, todo, failed
+
+
 def _failed_text(n: int) -> str:
     """``"2 chunks failed verification, recomputed"``."""
     return (f"{n} saved chunk{'s' if n != 1 else ''} failed verification, "
@@ -242,7 +260,11 @@ def _keep(rows: list[dict], path: Path | None, key: str,
     """Save a finished chunk (with ``out``) and return its rows, as saved."""
     if path is None:
         return [{k: plain(v) for k, v in r.items()} for r in rows]
-    return save_chunk(path, key, chunk, rows)
+    try:
+        return save_chunk(path, key, chunk, rows)
+    except OSError as exc:
+        raise SweepError(f"cannot save the chunk {path}: "
+                         f"{exc.strerror or exc}") from None
 
 
 def _dataset(rows: list[dict], pd, xr):

@@ -337,6 +337,18 @@ def test_a_tampered_chunk_is_detected_and_recomputed(how, tmp_path):
     assert third.attrs["chunks_failed_verification"] == 0
 
 
+def test_a_chunk_that_cannot_be_saved_is_one_error(tmp_path, capsys):
+    from adcs.sweep import SweepError
+
+    run_sweep(versioned, [{"x": 1.0}], out=tmp_path, progress=False)
+    (chunk,) = (tmp_path / "chunks").glob("*.json")
+    chunk.unlink()
+    chunk.mkdir()                  # a folder where the chunk was: unusable
+    with pytest.warns(match="unreadable"), \
+            pytest.raises(SweepError, match="cannot save the chunk"):
+        run_sweep(versioned, [{"x": 1.0}], out=tmp_path, progress=False)
+
+
 def test_a_study_nan_is_saved_and_resumed(tmp_path):
     def nan_study(x):
         return {"y": float("nan") if x else 1.0}
