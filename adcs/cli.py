@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+import warnings
 from typing import Sequence
 
 from adcs.provenance import version
@@ -135,7 +136,7 @@ def _bench(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     from adcs_common.paths import output_folder
 
-    from .sweep import SWEEPS, run_sweep
+    from .sweep import SWEEPS, SweepCacheWarning, run_sweep
     from .sweep.plots import plot_sweep
 
     from ocp.spacecraft import load_spacecraft
@@ -149,14 +150,23 @@ def _sweep(args: argparse.Namespace) -> int:
         raise InvalidValueError(f"--t-fail must be > 0 s, got {args.t_fail}")
     params = make_params(args.quick, samples=args.samples,
                          spacecraft=args.spacecraft, t_fail=args.t_fail)
-    with _dask_client(args, local=not args.sync) as client:
+    with _dask_client(args, local=not args.sync) as client, \
+            warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", SweepCacheWarning)
         ds = run_sweep(study, params, client=client, out=out,
                        progress=not args.no_progress)
+    for w in caught:          # saved chunks recomputed: one line each
+        if issubclass(w.category, SweepCacheWarning):
+            print(f"adcs sweep {args.name}: {w.message}")
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename,
+                                   w.lineno)
     ds.to_netcdf(out / f"{args.name}.nc", engine="scipy")
     plot_sweep(args.name, ds, out / f"{args.name}.png")
     failed = int((ds["error"] != "").sum())
     print(f"adcs sweep {args.name}: {ds.sizes['case']} cases, {failed} "
-          f"failed; wrote {out / (args.name + '.nc')} and "
+          f"failed ({ds.attrs['chunks_loaded']} of {ds.attrs['chunks']} "
+          f"chunks resumed); wrote {out / (args.name + '.nc')} and "
           f"{out / (args.name + '.png')}")
     return 0
 

@@ -1,7 +1,8 @@
 """Design-space sweeps and Monte Carlo campaigns on Dask."""
 
 from .builtin import SWEEPS
-from .engine import SweepError, connect, local_cluster, run_chunk, run_sweep
+from .engine import (SweepCacheWarning, SweepError, connect, local_cluster,
+                     run_chunk, run_sweep)
 
-__all__ = ["SWEEPS", "SweepError", "connect", "local_cluster", "run_chunk",
-           "run_sweep"]
+__all__ = ["SWEEPS", "SweepCacheWarning", "SweepError", "connect",
+           "local_cluster", "run_chunk", "run_sweep"]

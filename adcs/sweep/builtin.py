@@ -4,19 +4,26 @@ Each study is a module-level function (picklable: it runs on Dask
 workers) of one case's parameters returning a dict of numbers; solvers it
 builds are cached per worker process (the slews' solver cache, the
 functions' own caches), not rebuilt per case.
+
+A spacecraft parameter (a built-in name or a TOML file) is read again for
+every case and the cached craft and MPC are keyed by its text, so a
+worker never reuses the craft of an edited file; the studies that take
+one carry ``sweep_inputs`` (the SHA-256 of that text), which keys their
+saved chunks (`adcs.sweep.chunks`).
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
 
 import numpy as np
 
 from allocation import WheelArray, envelope, torque_reach
 from allocation import min_norm_law
 
-__all__ = ["SWEEPS", "accuracy_case", "agility_case", "failure_case",
-           "geometry_case"]
+__all__ = ["SWEEPS", "accuracy_case", "agility_case", "craft_inputs",
+           "failure_case", "geometry_case"]
 
 
 def geometry_case(delta_deg: float, gamma_deg: float,
@@ -51,11 +58,29 @@ def accuracy_case(seed: int, n_samples: int, mount_tol_deg: float,
                 np.abs(r.magnitude_error), 95))}
 
 
-@functools.lru_cache(maxsize=8)
-def _craft(spacecraft: str):
-    from ocp.spacecraft import load_spacecraft
+def _craft_text(spacecraft: str) -> str:
+    """Return the TOML text of a built-in name or a file, read now."""
+    from ocp.spacecraft import spacecraft_toml
 
-    return load_spacecraft(spacecraft)
+    return spacecraft_toml(spacecraft)
+
+
+def _craft(spacecraft: str):
+    """Return the `Spacecraft` of a built-in name or a TOML file now."""
+    return _craft_of(_craft_text(spacecraft), str(spacecraft))
+
+
+@functools.lru_cache(maxsize=8)
+def _craft_of(text: str, source: str):
+    from ocp.spacecraft import spacecraft_from_toml
+
+    return spacecraft_from_toml(text, source)
+
+
+def craft_inputs(row: dict) -> dict:
+    """``{"spacecraft": SHA-256 of its TOML text}``: keys saved chunks."""
+    text = _craft_text(row["spacecraft"])
+    return {"spacecraft": hashlib.sha256(text.encode()).hexdigest()}
 
 
 def agility_case(spacecraft: str, axis: int, angle_deg: float,
@@ -86,16 +111,19 @@ def failure_case(spacecraft: str, wheel: int, t_fail: float,
     from ocp import quat_from_axis_angle
     from ocp.mpc import simulate_mpc
 
-    sc = _craft(spacecraft)
+    text = _craft_text(spacecraft)          # read once: one craft per case
+    sc = _craft_of(text, str(spacecraft))
     qf = quat_from_axis_angle([1.0, 1.0, 1.0], np.deg2rad(angle_deg))
     q0 = np.array([1.0, 0.0, 0.0, 0.0])
     from ocp import eigenaxis_slew
 
     T = eigenaxis_slew(sc, q0, qf).T
     dt = float(np.clip(T / 30.0, 0.1, 10.0))
-    before = simulate_mpc(_mpc(spacecraft, -1, dt), q0, qf, t_final=t_fail)
+    before = simulate_mpc(_mpc(text, str(spacecraft), -1, dt), q0, qf,
+                          t_final=t_fail)
     tr = before.trajectory
-    after = simulate_mpc(_mpc(spacecraft, wheel - 1, dt), tr.q[-1], qf,
+    after = simulate_mpc(_mpc(text, str(spacecraft), wheel - 1, dt),
+                         tr.q[-1], qf,
                          t_final=2.0 * T, w0=tr.w[-1],
                          h0=tr.wheel_momentum[-1], hold=0.3 * T)
     return {"settle_time": t_fail + after.settle_time,
@@ -106,16 +134,18 @@ def failure_case(spacecraft: str, wheel: int, t_fail: float,
 
 
 @functools.lru_cache(maxsize=16)
-def _mpc(spacecraft: str, failed: int, dt: float):
+def _mpc(text: str, source: str, failed: int, dt: float):
     """Build (once per worker) an RTI MPC, wheel ``failed`` out (-1: none).
 
-    Built once per worker process and reused: `simulate_mpc` resets it
-    (and so takes it over in the calling thread) before every run.
+    ``text`` is the craft's TOML text (the cache key: an edited file gets
+    a new MPC). Built once per worker process and reused: `simulate_mpc`
+    resets it (and so takes it over in the calling thread) before every
+    run.
     """
     from ocp import rigid_spacecraft
     from ocp.mpc import AttitudeMPC
 
-    sc = _craft(spacecraft)
+    sc = _craft_of(text, source)
     wheels = sc.wheels if failed < 0 else sc.wheels.with_failed(failed)
     return AttitudeMPC(rigid_spacecraft(sc.inertia, wheels), dt=dt,
                        rti=True)
@@ -151,6 +181,9 @@ def _failures(quick: bool, spacecraft: str = "demo",
              "angle_deg": 30.0 if quick else 90.0}
             for w in range(1, n + 1)]
 
+
+agility_case.sweep_inputs = craft_inputs
+failure_case.sweep_inputs = craft_inputs
 
 #: name -> (study, parameter generator, what it shows)
 SWEEPS = {

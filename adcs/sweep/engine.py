@@ -7,7 +7,11 @@ Dask task (`distributed`, processes: CasADi holds the GIL), and gathers
 one `xarray.Dataset` along the dimension ``case``: the parameters as
 coordinates, the study's outputs as variables, and ``error`` (empty, or
 the exception a case raised: the sweep goes on). With ``out`` each
-finished chunk is saved at once and a rerun skips it (resume).
+finished chunk is saved at once and a rerun loads it (resume) when it
+passes verification: chunks are keyed by the study's code, the content
+its cases read (a spacecraft file) and the parameters, and saved with a
+digest (`adcs.sweep.chunks`); one that fails is recomputed, with a
+`SweepCacheWarning`.
 
 Where it runs: `local_cluster` starts workers on this machine, listening
 on the loopback address only (a Dask scheduler runs whatever a client
@@ -18,8 +22,7 @@ untrusted network.
 
 from __future__ import annotations
 
-import hashlib
-import json
+import warnings
 from pathlib import Path
 from typing import Any, Callable, TYPE_CHECKING
 
@@ -28,12 +31,16 @@ import numpy as np
 from adcs_common.exceptions import AdcsError, InvalidValueError
 from adcs_common.paths import output_folder
 
+from .chunks import (SweepCacheWarning, chunk_inputs, chunk_key,
+                     chunk_path, code_version, load_chunk, plain,
+                     save_chunk, study_name)
+
 if TYPE_CHECKING:
     import xarray as xr
 
 
-__all__ = ["SweepError", "connect", "local_cluster", "run_chunk",
-           "run_sweep"]
+__all__ = ["SweepCacheWarning", "SweepError", "connect", "local_cluster",
+           "run_chunk", "run_sweep"]
 
 #: Where a local cluster and its dashboard listen unless told otherwise.
 LOOPBACK = "127.0.0.1"
@@ -121,12 +128,6 @@ def _chunks(rows: list[dict], size: int) -> list[list[dict]]:
     return [rows[i:i + size] for i in range(0, len(rows), size)]
 
 
-def _key(study: Callable, chunk: list[dict]) -> str:
-    name = f"{getattr(study, '__module__', '')}.{study.__qualname__}"
-    text = json.dumps([name, chunk], sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
 def run_sweep(study: Callable[..., dict], params: list[dict], *,
               client: Any = None, chunk_size: int | None = None,
               out: str | Path | None = None, retries: int = 2,
@@ -137,7 +138,11 @@ def run_sweep(study: Callable[..., dict], params: list[dict], *,
     ----------
     study : callable
         ``study(**row) -> dict`` of numbers; picklable (a module-level
-        function) to run on workers.
+        function) to run on workers. Optional attributes, read for the
+        chunk keys: ``sweep_inputs(row) -> dict`` (JSON-able: digests of
+        content a case reads beyond its parameters, e.g. a spacecraft
+        file's text) and ``sweep_version`` (bump it when code outside the
+        study's module changes its numbers).
     params : list of dict
         One dict of parameters per case.
     client : distributed.Client, optional
@@ -146,8 +151,11 @@ def run_sweep(study: Callable[..., dict], params: list[dict], *,
     chunk_size : int, optional
         Cases per task (default: about 4 tasks per worker).
     out : path, optional
-        Folder for the finished chunks (``chunks/``); a rerun with the
-        same study and parameters loads them instead of recomputing.
+        Folder for the finished chunks (``chunks/``, JSON with a
+        SHA-256 digest); a rerun with the same study code, inputs and
+        parameters loads them instead of recomputing. A saved chunk that
+        fails verification (truncated, edited, not JSON) is recomputed
+        and rewritten, and a `SweepCacheWarning` says how many.
     retries : int
         Times Dask retries a task whose worker died.
     progress : bool
@@ -160,7 +168,17 @@ def run_sweep(study: Callable[..., dict], params: list[dict], *,
         ``error`` the exception text of a failed case ("" otherwise). An
         output that is a 1-D array (the same length in every case, e.g.
         the samples of a Monte Carlo block) becomes a variable of
-        dimensions ``(case, <name>_index)``.
+        dimensions ``(case, <name>_index)``. ``attrs``: ``chunks``,
+        ``chunks_loaded`` (verified, from ``out``), ``chunks_computed``
+        and ``chunks_failed_verification`` (counts).
+
+    Raises
+    ------
+    InvalidValueError
+        ``study`` or ``params`` malformed, ``out`` not a writable folder.
+    SweepError
+        A finished chunk cannot be saved in ``out`` (e.g. a folder in
+        its place), or array outputs of different lengths.
     """
     import pandas as pd
     import xarray as xr
@@ -178,32 +196,75 @@ def run_sweep(study: Callable[..., dict], params: list[dict], *,
     chunks = _chunks(params, int(size))
     folder = None if out is None else output_folder(
         Path(out) / "chunks", "out")
-    done: dict[int, list[dict]] = {}
-    todo = []
-    for i, chunk in enumerate(chunks):
-        path = (None if folder is None
-                else folder / f"{_key(study, chunk)}.json")
-        if path is not None and path.exists():
-            done[i] = json.loads(path.read_text())
-        else:
-            todo.append((i, chunk, path))
-    bar = tqdm(total=len(chunks), initial=len(done), disable=not progress,
+    done, todo, failed = _saved(study, chunks, folder)
+    if failed:
+        warnings.warn(f"{_failed_text(len(failed))} ({'; '.join(failed)})",
+                      SweepCacheWarning, stacklevel=2)
+    loaded = len(done)
+    bar = tqdm(total=len(chunks), initial=loaded, disable=not progress,
                desc=getattr(study, "__name__", "sweep"), unit="task")
     if client is None:
-        for i, chunk, path in todo:
-            done[i] = _keep(run_chunk(study, chunk), path)
+        for i, chunk, path, key in todo:
+            done[i] = _keep(run_chunk(study, chunk), path, key, chunk)
             bar.update()
     else:
         distributed = _distributed()
         futures = {client.submit(run_chunk, study, chunk, retries=retries,
-                                 pure=False): (i, path)
-                   for i, chunk, path in todo}
+                                 pure=False): (i, chunk, path, key)
+                   for i, chunk, path, key in todo}
         for fut in distributed.as_completed(futures):
-            i, path = futures[fut]
-            done[i] = _keep(fut.result(), path)
+            i, chunk, path, key = futures[fut]
+            done[i] = _keep(fut.result(), path, key, chunk)
             bar.update()
     bar.close()
-    return _dataset([r for i in sorted(done) for r in done[i]], pd, xr)
+    ds = _dataset([r for i in sorted(done) for r in done[i]], pd, xr)
+    ds.attrs.update(chunks=len(chunks), chunks_loaded=loaded,
+                    chunks_computed=len(todo),
+                    chunks_failed_verification=len(failed))
+    return ds
+
+
+def _saved(study: Callable, chunks: list[list[dict]], folder: Path | None):
+    """Split chunks into those saved and verified, and those to compute.
+
+    Returns ``done`` ({index: rows}), ``todo`` ([(index, chunk, path,
+    key)], path None without a folder) and ``failed`` (one "file:
+    reason" per saved chunk that failed verification).
+    """
+    if folder is None:
+        return {}, [(i, c, None, "") for i, c in enumerate(chunks)], []
+    done: dict[int, list[dict]] = {}
+    todo, failed = [], []
+    name, code, memo = study_name(study), code_version(study), {}
+    for i, chunk in enumerate(chunks):
+        key = chunk_key(name, code, chunk_inputs(study, chunk, memo), chunk)
+        path = chunk_path(folder, key)
+        rows, reason = load_chunk(path, key, chunk)
+        if rows is not None:
+            done[i] = rows
+            continue
+        if reason:
+            failed.append(f"{path.name}: {reason}")
+        todo.append((i, chunk, path, key))
+    return done, todo, failed
+
+
+def _failed_text(n: int) -> str:
+    """``"2 chunks failed verification, recomputed"``."""
+    return (f"{n} saved chunk{'s' if n != 1 else ''} failed verification, "
+            "recomputed")
+
+
+def _keep(rows: list[dict], path: Path | None, key: str,
+          chunk: list[dict]) -> list[dict]:
+    """Save a finished chunk (with ``out``) and return its rows, as saved."""
+    if path is None:
+        return [{k: plain(v) for k, v in r.items()} for r in rows]
+    try:
+        return save_chunk(path, key, chunk, rows)
+    except OSError as exc:
+        raise SweepError(f"cannot save the chunk {path}: "
+                         f"{exc.strerror or exc}") from None
 
 
 def _dataset(rows: list[dict], pd, xr):
@@ -230,22 +291,3 @@ def _dataset(rows: list[dict], pd, xr):
                          for v in values], dtype=float)
         ds[key] = (("case", f"{key}_index"), data)
     return ds
-
-
-def _plain(value):
-    """Return a JSON-able copy of a value (numpy numbers and arrays)."""
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return value
-
-
-def _keep(rows: list[dict], path: Path | None) -> list[dict]:
-    """Save a finished chunk (JSON: data, never code) and return it."""
-    rows = [{k: _plain(v) for k, v in r.items()} for r in rows]
-    if path is not None:
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(rows))
-        tmp.replace(path)
-    return rows

@@ -1,5 +1,8 @@
 """Sweeps on Dask: loopback-only cluster, same answers, faults, resume."""
 
+import json
+import warnings
+
 import numpy as np
 import pytest
 
@@ -181,3 +184,200 @@ def test_sweep_argument_mistakes(argv, message, capsys, tmp_path):
     assert main(argv + ["--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+# -- saved chunks: keyed by content and code, verified, recomputed -------
+
+def _craft_file(path, scale=1.0):
+    """meteor-m as a user's TOML file, its inertia times ``scale``."""
+    from ocp.spacecraft import spacecraft_toml
+
+    text = spacecraft_toml("meteor-m")
+    old = "inertia = [3000.0, 2700.0, 2000.0]"
+    assert old in text
+    path.write_text(text.replace(old, "inertia = [{}, {}, {}]".format(
+        *(scale * np.array([3000.0, 2700.0, 2000.0])))))
+    return path
+
+
+def test_an_edited_craft_file_is_computed_not_resumed(tmp_path, capsys):
+    craft = _craft_file(tmp_path / "craft.toml")
+    argv = ["sweep", "agility", "--quick", "--sync", "--spacecraft",
+            str(craft), "--out", str(tmp_path / "o"), "--no-progress"]
+    assert main(argv) == 0
+    light = xr.load_dataset(tmp_path / "o" / "agility.nc")
+    _craft_file(craft, scale=10.0)          # the same path, 10x the inertia
+    assert main(argv) == 0
+    heavy = xr.load_dataset(tmp_path / "o" / "agility.nc")
+    assert (heavy["error"].values == "").all()
+    # a heavier craft is slower (the stale chunks gave the light times)
+    assert (heavy["eigenaxis_T"].values
+            > 2.0 * light["eigenaxis_T"].values).all()
+    assert "(0 of 4 chunks resumed)" in capsys.readouterr().out
+    fresh = tmp_path / "fresh"
+    assert main(argv[:-3] + ["--out", str(fresh), "--no-progress"]) == 0
+    np.testing.assert_allclose(
+        heavy["eigenaxis_T"].values,
+        xr.load_dataset(fresh / "agility.nc")["eigenaxis_T"].values,
+        rtol=1e-12)
+    # unchanged since: resumed
+    assert main(argv) == 0
+    assert "(4 of 4 chunks resumed)" in capsys.readouterr().out
+
+
+STUDY_SOURCE = '''
+FACTOR = {factor}
+CALLS = []
+
+
+def study(x):
+    CALLS.append(x)
+    return {{"y": FACTOR * x}}
+'''
+
+
+def test_an_edited_study_is_computed_not_resumed(tmp_path, monkeypatch):
+    import importlib
+    import sys
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    module = tmp_path / "edited_study.py"
+    params = [{"x": 1.0}, {"x": 2.0}]
+    runs = []
+    for factor in (2.0, 3.0, 3.0):
+        module.write_text(STUDY_SOURCE.format(factor=factor))
+        sys.modules.pop("edited_study", None)
+        importlib.invalidate_caches()
+        mod = importlib.import_module("edited_study")
+        ds = run_sweep(mod.study, params, out=tmp_path / "o",
+                       progress=False)
+        runs.append((list(ds["y"].values), list(mod.CALLS)))
+    sys.modules.pop("edited_study", None)
+    assert runs[0] == ([2.0, 4.0], [1.0, 2.0])
+    assert runs[1] == ([3.0, 6.0], [1.0, 2.0])       # new source: computed
+    assert runs[2] == ([3.0, 6.0], [])               # same source: resumed
+
+
+def versioned(x: float) -> dict:
+    CALLS.append(x)
+    return {"y": x}
+
+
+def test_a_study_version_bump_is_computed_not_resumed(tmp_path,
+                                                      monkeypatch):
+    CALLS.clear()
+    run_sweep(versioned, [{"x": 1.0}], out=tmp_path, progress=False)
+    run_sweep(versioned, [{"x": 1.0}], out=tmp_path, progress=False)
+    assert CALLS == [1.0]
+    monkeypatch.setattr(versioned, "sweep_version", "2", raising=False)
+    run_sweep(versioned, [{"x": 1.0}], out=tmp_path, progress=False)
+    assert CALLS == [1.0, 1.0]
+
+
+def _edit_rows(edit):
+    """Tamper with a saved chunk's rows, keeping it valid JSON."""
+    def tamper(text):
+        data = json.loads(text)
+        edit(data["rows"])
+        return json.dumps(data)
+    return tamper
+
+
+TAMPERS = {
+    "empty list": lambda text: "[]",
+    "empty object": lambda text: "{}",
+    "truncated": lambda text: text[:len(text) // 2],
+    "garbage text": lambda text: "not json at all {",
+    "garbage bytes": lambda text: b"\xff\xfe\x00\x81PK\x03\x04",
+    "empty file": lambda text: "",
+    "row removed": _edit_rows(lambda rows: rows.pop()),
+    "value changed": _edit_rows(lambda rows: rows[0].update(square=99.0)),
+    "NaN written": _edit_rows(
+        lambda rows: rows[1].update(square=float("nan"))),
+    "error cleared": _edit_rows(lambda rows: rows[0].update(error="x")),
+    "parameter changed": _edit_rows(lambda rows: rows[0].update(x=7.0)),
+    "digest removed": lambda text: text.replace('"digest"', '"digestx"'),
+}
+
+
+@pytest.mark.parametrize("how", list(TAMPERS))
+def test_a_tampered_chunk_is_detected_and_recomputed(how, tmp_path):
+    from adcs.sweep import SweepCacheWarning
+
+    CALLS.clear()
+    params = [{"x": float(x)} for x in (0, 1, 3, 4)]
+    first = run_sweep(flaky, params, chunk_size=2, out=tmp_path,
+                      progress=False)
+    assert first.attrs["chunks_computed"] == 2
+    chunk = sorted((tmp_path / "chunks").glob("*.json"),
+                   key=lambda p: p.read_text())[0]
+    rows = json.loads(chunk.read_text())["rows"]
+    new = TAMPERS[how](chunk.read_text())
+    if isinstance(new, bytes):
+        chunk.write_bytes(new)
+    else:
+        chunk.write_text(new)
+    CALLS.clear()
+    with pytest.warns(SweepCacheWarning,
+                      match="1 saved chunk failed verification, "
+                      f"recomputed .*{chunk.name}"):
+        again = run_sweep(flaky, params, chunk_size=2, out=tmp_path,
+                          progress=False)
+    assert CALLS == [r["x"] for r in rows]             # that chunk only
+    assert again.attrs["chunks_failed_verification"] == 1
+    assert again.attrs["chunks_loaded"] == 1
+    for name in ("x", "square", "error"):
+        np.testing.assert_array_equal(again[name].values,
+                                      first[name].values)
+    # rewritten: the next run resumes everything
+    CALLS.clear()
+    third = run_sweep(flaky, params, chunk_size=2, out=tmp_path,
+                      progress=False)
+    assert CALLS == [] and third.attrs["chunks_loaded"] == 2
+    assert third.attrs["chunks_failed_verification"] == 0
+
+
+def test_a_chunk_that_cannot_be_saved_is_one_error(tmp_path, capsys):
+    from adcs.sweep import SweepError
+
+    run_sweep(versioned, [{"x": 1.0}], out=tmp_path, progress=False)
+    (chunk,) = (tmp_path / "chunks").glob("*.json")
+    chunk.unlink()
+    chunk.mkdir()                  # a folder where the chunk was: unusable
+    with pytest.warns(match="unreadable"), \
+            pytest.raises(SweepError, match="cannot save the chunk"):
+        run_sweep(versioned, [{"x": 1.0}], out=tmp_path, progress=False)
+
+
+def test_a_study_nan_is_saved_and_resumed(tmp_path):
+    def nan_study(x):
+        return {"y": float("nan") if x else 1.0}
+
+    params = [{"x": 0}, {"x": 1}]
+    run_sweep(nan_study, params, chunk_size=1, out=tmp_path,
+              progress=False)
+    with warnings.catch_warnings():           # a NaN of the study verifies
+        warnings.simplefilter("error")
+        again = run_sweep(nan_study, params, chunk_size=1, out=tmp_path,
+                          progress=False)
+    assert again.attrs["chunks_loaded"] == 2
+    assert again["y"].values[0] == 1.0 and np.isnan(again["y"].values[1])
+
+
+def test_cli_says_which_chunks_failed_verification(tmp_path, capsys):
+    argv = ["sweep", "accuracy", "--quick", "--sync", "--samples",
+            "200000", "--out", str(tmp_path), "--no-progress"]
+    assert main(argv) == 0
+    before = xr.load_dataset(tmp_path / "accuracy.nc")
+    first, second = sorted((tmp_path / "chunks").glob("*.json"))
+    first.write_text("[]")
+    second.write_text(second.read_text()[:50])
+    capsys.readouterr()
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert "2 saved chunks failed verification, recomputed" in out
+    assert "2 cases, 0 failed (0 of 2 chunks resumed)" in out
+    assert "Traceback" not in out + err
+    after = xr.load_dataset(tmp_path / "accuracy.nc")
+    np.testing.assert_array_equal(after["angle_p95_deg"].values,
+                                  before["angle_p95_deg"].values)
