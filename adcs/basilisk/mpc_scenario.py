@@ -69,6 +69,30 @@ class MPCComparison(ResultMixin):
         }
 
 
+def mpc_controller(*, spacecraft: Any = None,
+                   wheels: WheelArray | None = None, inertia: Any = None,
+                   dt: float = 0.5, rti: bool = True) -> tuple[Any, Any]:
+    """`mpc_slew`'s controller: ``(AttitudeMPC, J (3, 3) [kg·m²])``.
+
+    On the inertia, wheels and rate limit [rad/s] of ``spacecraft`` (a
+    `Spacecraft`, a catalogue name or a TOML file), else on ``wheels``
+    and ``inertia`` (default: the report's small craft, no rate limit).
+    """
+    from ocp import rigid_spacecraft
+    from ocp.mpc import AttitudeMPC
+
+    rate_max = None
+    if spacecraft is not None:
+        from ocp.spacecraft import load_spacecraft
+
+        sc = load_spacecraft(spacecraft)
+        wheels, inertia, rate_max = sc.wheels, sc.inertia, sc.rate_max
+    wheels = wheels or WheelArray.pyramid(h_max=0.2, m_max=0.05)
+    J = np.diag([3.0, 2.5, 3.5]) if inertia is None else np.asarray(inertia)
+    return AttitudeMPC(rigid_spacecraft(J, wheels), rti=rti, dt=dt,
+                       rate_max=rate_max), J
+
+
 def mpc_slew(*, spacecraft: Any = None, wheels: WheelArray | None = None,
              inertia: Any = None, angle: float = np.deg2rad(150.0),
              axis: Any = (1.0, -2.0, 3.0), t_final: float = 60.0,
@@ -81,8 +105,9 @@ def mpc_slew(*, spacecraft: Any = None, wheels: WheelArray | None = None,
     `AttitudeMPCModule` writing the wheel torques every ``dt`` [s]. Ours:
     `ocp.mpc.simulate_mpc` (CVODES). The two MPCs are built alike and
     start from rest. ``spacecraft`` (a `Spacecraft`, a catalogue name or
-    a TOML file) gives the wheels and the inertia; otherwise ``wheels``
-    and ``inertia`` (default: the report's small craft). At
+    a TOML file) gives the wheels, the inertia and the rate limit
+    (`mpc_controller`); otherwise ``wheels`` and ``inertia`` (default: the
+    report's small craft). At
     ``dt_dynamics = 0.1`` s the two runs agree to
     about 1e-6° and 2e-8 N·m; at 0.05 s a single RTI step takes its
     full-SQP fallback in one run and not the other (the fallback is a
@@ -96,29 +121,23 @@ def mpc_slew(*, spacecraft: Any = None, wheels: WheelArray | None = None,
     require_basilisk()
     from Basilisk.utilities import SimulationBaseClass, macros
 
-    from ocp import rigid_spacecraft
-    from ocp.mpc import AttitudeMPC, simulate_mpc
+    from ocp.mpc import simulate_mpc
 
     from .modules import AttitudeMPCModule
     from .scenarios import spacecraft_task
 
-    if spacecraft is not None:
-        from ocp.spacecraft import load_spacecraft
-
-        sc = load_spacecraft(spacecraft)
-        wheels, inertia = sc.wheels, sc.inertia
-    wheels = wheels or WheelArray.pyramid(h_max=0.2, m_max=0.05)
-    J = np.diag([3.0, 2.5, 3.5]) if inertia is None else np.asarray(inertia)
-    model = rigid_spacecraft(J, wheels)
     q0 = np.array([1.0, 0.0, 0.0, 0.0])
     qf = quat_from_axis_angle(axis, angle)
-    ours = simulate_mpc(AttitudeMPC(model, rti=rti, dt=dt), q0, qf,
-                        t_final=t_final)
+    kw = dict(spacecraft=spacecraft, wheels=wheels, inertia=inertia, dt=dt,
+              rti=rti)
+    mpc, J = mpc_controller(**kw)
+    wheels = mpc.wheels
+    ours = simulate_mpc(mpc, q0, qf, t_final=t_final)
     sim = SimulationBaseClass.SimBaseClass()
     sc, rw, nav = spacecraft_task(sim, J, wheels, Js, dt_dynamics)
     proc = sim.CreateNewProcess("fsw", 1)
     proc.addTask(sim.CreateNewTask("fsw", macros.sec2nano(dt)))
-    ctl = AttitudeMPCModule(AttitudeMPC(model, rti=rti, dt=dt), qf, Js)
+    ctl = AttitudeMPCModule(mpc_controller(**kw)[0], qf, Js)
     ctl.ModelTag = "mpc"
     ctl.attNavInMsg.subscribeTo(nav.attOutMsg)
     ctl.rwSpeedsInMsg.subscribeTo(rw.rwSpeedOutMsg)
@@ -149,6 +168,6 @@ def mpc_slew(*, spacecraft: Any = None, wheels: WheelArray | None = None,
         h_max=np.asarray(wheels.h_max, float))
 
 
-__all__ = ["MPCComparison", "mpc_slew"]
+__all__ = ["MPCComparison", "mpc_controller", "mpc_slew"]
 
 

@@ -181,6 +181,76 @@ def _fsw_task(sim: Any, sc_def: Any, nav: Any, rw: Any, allocator: str,
     return err, ctrl, alloc
 
 
+@dataclass(eq=False)
+class LoopSetup:
+    """A closed loop of `run_loop`, built and not yet run.
+
+    Attributes
+    ----------
+    sim : Basilisk SimBaseClass
+    spacecraft : ocp.spacecraft.Spacecraft
+        The craft.
+    hub, wheels, err, ctrl, alloc : Basilisk modules
+        The hub, the wheel effector, attTrackingError, mrpFeedback and the
+        allocator under test.
+    availability : RWAvailabilityMsgPayload or None
+        The availability written to both allocators: the craft's failed
+        wheels unavailable from the start (None when all work and none
+        fails during the run).
+    keep : list
+        Messages kept alive for the run.
+    """
+
+    sim: Any
+    spacecraft: Any
+    hub: Any
+    wheels: Any
+    err: Any
+    ctrl: Any
+    alloc: Any
+    availability: Any
+    availability_msg: Any
+    keep: list
+
+
+def build_loop(allocator: str, spacecraft: Any = "meteor-m", *,
+               angle: float = np.deg2rad(40.0),
+               axis=(1.0, -0.5, 0.3), dt: float = 0.5,
+               dt_dynamics: float = 0.1,
+               gains: tuple[float, float] = (20.0, 500.0), Js: float = 0.1,
+               fail_wheel: int | None = None) -> LoopSetup:
+    """Build `run_loop`'s simulation (same arguments) without running it."""
+    require_basilisk()
+    from Basilisk.architecture import messaging
+
+    if allocator not in ALLOCATORS:
+        raise InvalidValueError(
+            f"allocator must be one of {ALLOCATORS}, got {allocator!r}")
+    sc_def = load_spacecraft(spacecraft)
+    angle = as_angle(angle, "angle")
+    sigma_target = quaternion_to_mrp(quat_from_axis_angle(axis, angle))
+    from Basilisk.utilities import SimulationBaseClass
+
+    sim = SimulationBaseClass.SimBaseClass()
+    keep: list = []
+    sc, rw, nav = spacecraft_task(sim, sc_def.inertia, sc_def.wheels, Js,
+                                  dt_dynamics)
+    err, ctrl, alloc = _fsw_task(sim, sc_def, nav, rw, allocator,
+                                 sigma_target, gains, Js, dt, keep)
+    n = sc_def.wheels.n_wheels
+    avail = avail_msg = None
+    if fail_wheel is not None or sc_def.wheels.failed:
+        # the craft's failed wheels are unavailable to both allocators
+        avail = messaging.RWAvailabilityMsgPayload()
+        avail.wheelAvailability = [
+            messaging.UNAVAILABLE if i in sc_def.wheels.failed
+            else messaging.AVAILABLE for i in range(n)]
+        avail_msg = messaging.RWAvailabilityMsg().write(avail)
+        alloc.rwAvailInMsg.subscribeTo(avail_msg)
+    return LoopSetup(sim, sc_def, sc, rw, err, ctrl, alloc, avail,
+                     avail_msg, keep)
+
+
 def run_loop(allocator: str, spacecraft: Any = "meteor-m", *,
              angle: float = np.deg2rad(40.0),
              axis=(1.0, -0.5, 0.3), t_final: float = 400.0,
@@ -195,8 +265,10 @@ def run_loop(allocator: str, spacecraft: Any = "meteor-m", *,
     slew by ``angle`` [rad] about ``axis`` under ``mrpFeedback`` (gains
     ``K`` [N·m], ``P`` [N·m·s]): with the defaults on Meteor-M the
     commanded torque exceeds what the wheels give, for most of the slew.
-    With ``fail_wheel`` (0-based) the wheel is reported unavailable at
-    ``t_fail`` [s] to both allocators (Basilisk's availability message).
+    The craft's failed wheels are reported unavailable to both allocators
+    from the start (Basilisk's availability message); with ``fail_wheel``
+    (0-based) that wheel too from ``t_fail`` [s]. `build_loop` builds
+    the same simulation without running it.
 
     Returns
     -------
@@ -204,32 +276,24 @@ def run_loop(allocator: str, spacecraft: Any = "meteor-m", *,
     """
     require_basilisk()
     from Basilisk.architecture import messaging
-    from Basilisk.utilities import SimulationBaseClass, macros
+    from Basilisk.utilities import macros
 
     if allocator not in ALLOCATORS:
         raise InvalidValueError(
             f"allocator must be one of {ALLOCATORS}, got {allocator!r}")
-    sc_def = load_spacecraft(spacecraft)
     angle = as_angle(angle, "angle")
     t_final = as_finite_scalar(t_final, "t_final")
     if t_final <= 0 or (fail_wheel is not None and (
             t_fail is None or not 0 < t_fail < t_final)):
         raise InvalidValueError(
             "t_final must be positive and t_fail within (0, t_final)")
-    sigma_target = quaternion_to_mrp(quat_from_axis_angle(axis, angle))
-    sim = SimulationBaseClass.SimBaseClass()
-    keep: list = []
-    sc, rw, nav = spacecraft_task(sim, sc_def.inertia, sc_def.wheels, Js,
-                                  dt_dynamics)
-    err, ctrl, alloc = _fsw_task(sim, sc_def, nav, rw, allocator,
-                                 sigma_target, gains, Js, dt, keep)
+    setup = build_loop(allocator, spacecraft, angle=angle, axis=axis,
+                       dt=dt, dt_dynamics=dt_dynamics, gains=gains, Js=Js,
+                       fail_wheel=fail_wheel)
+    sim, sc_def, rw = setup.sim, setup.spacecraft, setup.wheels
+    err, ctrl = setup.err, setup.ctrl
+    avail, avail_msg = setup.availability, setup.availability_msg
     n = sc_def.wheels.n_wheels
-    avail_msg = None
-    if fail_wheel is not None:
-        avail = messaging.RWAvailabilityMsgPayload()
-        avail.wheelAvailability = [messaging.AVAILABLE] * n
-        avail_msg = messaging.RWAvailabilityMsg().write(avail)
-        alloc.rwAvailInMsg.subscribeTo(avail_msg)
     period = macros.sec2nano(dt)
     recs = [err.attGuidOutMsg.recorder(period),
             ctrl.cmdTorqueOutMsg.recorder(period),
@@ -243,6 +307,7 @@ def run_loop(allocator: str, spacecraft: Any = "meteor-m", *,
         if k == 1:
             avail.wheelAvailability = [
                 messaging.UNAVAILABLE if i == fail_wheel
+                or i in sc_def.wheels.failed
                 else messaging.AVAILABLE for i in range(n)]
             avail_msg.write(avail)
         sim.ConfigureStopTime(macros.sec2nano(stop))

@@ -131,6 +131,52 @@ def reorientation(chain: str, *, spacecraft: Any = None,
     ThrusterRun
     """
     require_basilisk()
+    from Basilisk.utilities import macros
+
+    t_final = as_finite_scalar(t_final, "t_final")
+    sim, parts = build_reorientation(
+        chain, spacecraft=spacecraft, angle=angle, axis=axis, cycle=cycle,
+        gains=gains, dt_dynamics=dt_dynamics)
+    err, ctrl, out, sc, unit = (parts[k] for k in (
+        "err", "ctrl", "out", "hub", "unit"))
+    period = macros.sec2nano(cycle)
+    recs = [err.attGuidOutMsg.recorder(period),
+            ctrl.cmdTorqueOutMsg.recorder(period), out.recorder(period),
+            sc.scStateOutMsg.recorder(period)]
+    for r in recs:
+        sim.AddModelToTask("fsw", r)
+    sim.InitializeSimulation()
+    sim.ConfigureStopTime(macros.sec2nano(t_final))
+    sim.ExecuteSimulation()
+    v = np.asarray(recs[3].v_BN_N)
+    return ThrusterRun(
+        chain=chain, t=recs[0].times() * macros.NANO2SEC,
+        pointing_error=np.array([mrp_angle(s)
+                                 for s in np.asarray(recs[0].sigma_BR)]),
+        commanded=np.asarray(recs[1].torqueRequestBody),
+        on_time=np.asarray(recs[2].OnTimeRequest)[:, :unit.n],
+        delta_v=v - v[0],
+        extras={"angle": parts["angle"], "axis": tuple(axis),
+                "cycle": cycle, "gains": gains})
+
+
+def build_reorientation(chain: str, *, spacecraft: Any = None,
+                        angle: float = np.deg2rad(30.0),
+                        axis: Any = (1.0, 0.0, 0.3), cycle: float = 2.0,
+                        gains: tuple[float, float] = (0.3, 1.5),
+                        dt_dynamics: float = 0.02) -> tuple[Any, dict]:
+    """Build `reorientation`'s simulation (same arguments), not run.
+
+    Returns
+    -------
+    sim : Basilisk SimBaseClass
+    parts : dict
+        ``"hub"``, ``"thrusters"`` (effector), ``"factory"`` (its
+        thruster configurations), ``"err"``, ``"ctrl"``, ``"chain"`` (the
+        chain's modules), ``"out"`` (on-time message), ``"unit"``,
+        ``"inertia"`` (3, 3) [kg·m²], ``"angle"`` [rad], ``"keep"``.
+    """
+    require_basilisk()
     from Basilisk.architecture import messaging
     from Basilisk.fswAlgorithms import (attTrackingError, inertial3D,
                                         mrpFeedback)
@@ -145,7 +191,6 @@ def reorientation(chain: str, *, spacecraft: Any = None,
         raise InvalidValueError(
             f"chain must be one of {THRUSTER_CHAINS}, got {chain!r}")
     angle = as_angle(angle, "angle")
-    t_final = as_finite_scalar(t_final, "t_final")
     unit, J = six_thruster_unit(), np.diag([3.0, 2.5, 3.5])
     if spacecraft is not None:
         from ocp.spacecraft import load_spacecraft
@@ -190,25 +235,10 @@ def reorientation(chain: str, *, spacecraft: Any = None,
     for prio, model in enumerate(reversed(models)):
         model.ModelTag = type(model).__name__ + str(prio)
         sim.AddModelToTask("fsw", model, None, prio + 1)
-    period = macros.sec2nano(cycle)
-    recs = [err.attGuidOutMsg.recorder(period),
-            ctrl.cmdTorqueOutMsg.recorder(period), out.recorder(period),
-            sc.scStateOutMsg.recorder(period)]
-    for r in recs:
-        sim.AddModelToTask("fsw", r)
-    sim.InitializeSimulation()
-    sim.ConfigureStopTime(macros.sec2nano(t_final))
-    sim.ExecuteSimulation()
-    v = np.asarray(recs[3].v_BN_N)
-    return ThrusterRun(
-        chain=chain, t=recs[0].times() * macros.NANO2SEC,
-        pointing_error=np.array([mrp_angle(s)
-                                 for s in np.asarray(recs[0].sigma_BR)]),
-        commanded=np.asarray(recs[1].torqueRequestBody),
-        on_time=np.asarray(recs[2].OnTimeRequest)[:, :unit.n],
-        delta_v=v - v[0],
-        extras={"angle": angle, "axis": tuple(axis), "cycle": cycle,
-                "gains": gains})
+    return sim, {"hub": sc, "thrusters": eff, "factory": factory,
+                 "err": err, "ctrl": ctrl, "chain": chain_models,
+                 "out": out, "unit": unit, "inertia": J, "angle": angle,
+                 "keep": keep}
 
 
 def compare_reorientation(**kwargs: Any) -> dict[str, ThrusterRun]:

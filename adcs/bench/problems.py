@@ -26,6 +26,26 @@ BUDGET = 8.0
 
 
 # -------------------------------------------------------------------- wheels
+def wheel_problem(spacecraft: Any | None = None, reps: int = 200,
+                  seed: int = 0) -> tuple[Any, list[np.ndarray]]:
+    """The wheel bench's array and demands (``(WheelArray, [M (3,)])``).
+
+    The spacecraft's wheels (axes, ``m_max``, failed wheels; default the
+    pyramid δ = 55°, γ = 45°, 0.2 N·m); ``reps`` demands ``M = A m`` [N·m]
+    with ``m`` uniform in ``0.97 · [-m_max, m_max]`` (0 for a failed
+    wheel).
+    """
+    from allocation import WheelArray
+
+    arr = (WheelArray.pyramid(h_max=4.0, m_max=0.2) if spacecraft is None
+           else load_spacecraft(spacecraft).wheels)
+    A = np.asarray(arr.axes)
+    m_cap = arr.m_max * arr.active
+    rng = np.random.default_rng(seed)
+    return arr, [A @ (0.97 * m_cap * rng.uniform(-1, 1, arr.n_wheels))
+                 for _ in range(reps)]
+
+
 def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
                  seed: int = 0, progress: Progress | None = None,
                  spacecraft: Any | None = None,
@@ -38,17 +58,13 @@ def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
     most leave the minimum-norm law's reach, so bounds are active).
     Reference: the first certified backend among quadprog, daqp, clarabel.
     """
-    from allocation import QPAllocator, WheelArray, available_solvers
+    from allocation import QPAllocator, available_solvers
 
     bar = progress or quiet()
-    arr = (WheelArray.pyramid(h_max=4.0, m_max=0.2) if spacecraft is None
-           else load_spacecraft(spacecraft).wheels)
+    arr, demands = wheel_problem(spacecraft, reps, seed)
     A = np.asarray(arr.axes)
     n = arr.n_wheels
     m_cap = arr.m_max * arr.active
-    rng = np.random.default_rng(seed)
-    demands = [A @ (0.97 * m_cap * rng.uniform(-1, 1, n))
-               for _ in range(reps)]
     names = (list(backends) if backends
              else list(available_solvers()) + list(CONTROLS))
     P = 2.0 * np.eye(n)
@@ -102,6 +118,33 @@ def _backend_rows(problem: str, names: list[str], build: Any,
 
 
 # ----------------------------------------------------------------- thrusters
+#: Momentum bound of the thruster bench's duty QP [N·m·s].
+THRUSTER_H_MAX = 0.012
+
+
+def thruster_problem(spacecraft: Any | None = None, reps: int = 200,
+                     seed: int = 0) -> tuple[Any, list[tuple]]:
+    """The thruster bench's unit and cycles: ``(ThrusterSet or None, cases)``.
+
+    The spacecraft's thruster set (None when it has none; default the
+    six-thruster unit of [4]); ``reps`` cycles ``(P_T [N], M (2,) [N·m],
+    H (3,) [N·m·s], τ (3,) [N·m])``.
+    """
+    from thrusters import six_thruster_unit
+
+    unit = (six_thruster_unit() if spacecraft is None
+            else load_spacecraft(spacecraft).thrusters)
+    h_max = THRUSTER_H_MAX
+    rng = np.random.default_rng(seed)
+    cases = [(rng.choice([0.0, rng.uniform(0.0, 0.739)]),
+              rng.uniform(-0.05, 0.05, 2),
+              np.r_[rng.uniform(-1, 1) * h_max, 0.0,
+                    rng.uniform(-1, 1) * h_max],
+              np.r_[rng.normal(scale=5e-4), 0.0, rng.normal(scale=5e-4)])
+             for _ in range(reps)]
+    return unit, cases
+
+
 def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
                     seed: int = 0, progress: Progress | None = None,
                     spacecraft: Any | None = None, budget: float = BUDGET
@@ -115,24 +158,15 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
     Each answer (duties and slack) is KKT-certified on the canonical QP
     and compared with the reference backend (quadprog, else clarabel).
     """
-    from thrusters import (DutyCycleAllocator, available_solvers,
-                           six_thruster_unit)
+    from thrusters import DutyCycleAllocator, available_solvers
     from thrusters.qp.problem import INF
 
     bar = progress or quiet()
-    unit = (six_thruster_unit() if spacecraft is None
-            else load_spacecraft(spacecraft).thrusters)
+    unit, cases = thruster_problem(spacecraft, reps, seed)
     if unit is None:
         bar.say("[thrusters] skipped: the spacecraft has no thrusters")
         return []
-    h_max = 0.012
-    rng = np.random.default_rng(seed)
-    cases = [(rng.choice([0.0, rng.uniform(0.0, 0.739)]),
-              rng.uniform(-0.05, 0.05, 2),
-              np.r_[rng.uniform(-1, 1) * h_max, 0.0,
-                    rng.uniform(-1, 1) * h_max],
-              np.r_[rng.normal(scale=5e-4), 0.0, rng.normal(scale=5e-4)])
-             for _ in range(reps)]
+    h_max = THRUSTER_H_MAX
     names = (list(backends) if backends
              else list(available_solvers()) + list(CONTROLS))
     kw = dict(tracking="weighted", bound="box")
@@ -177,13 +211,34 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
 
 
 # ---------------------------------------------------------------------- slew
+def slew_controller(spacecraft: Any | None = None, **options: Any
+                    ) -> tuple[Any, np.ndarray, np.ndarray]:
+    """The slew bench's MPC and its case: ``(AttitudeMPC, x0, qf)``.
+
+    The spacecraft's inertia, wheels and ``rate_max`` [rad/s] (default:
+    the ``demo`` craft); from rest (``x0`` (7 + N,)) to 90° about
+    (1, 1, 0) (``qf`` (4,)); ``options`` go to `ocp.mpc.AttitudeMPC`
+    (solver, qp_solver, max_iter, solver_options).
+    """
+    from adcs_common.quaternion import quat_from_axis_angle
+    from ocp.models.rigid import rigid_spacecraft
+    from ocp.mpc import AttitudeMPC
+
+    sc = load_spacecraft("demo" if spacecraft is None else spacecraft)
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    x0 = model.state([1.0, 0.0, 0.0, 0.0])
+    qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
+    return AttitudeMPC(model, rate_max=sc.rate_max, **options), x0, qf
+
+
 def bench_slew(backends: Sequence[str] | None = None, reps: int = 5,
                progress: Progress | None = None, quick: bool = False,
                spacecraft: Any | None = None,
                budget: float = BUDGET) -> list[BenchRow]:
     """Time the MPC slew NLP (horizon 20, 90° from rest), cold-started.
 
-    On the spacecraft's inertia and wheels (default: the ``demo`` craft).
+    On the spacecraft's inertia, wheels and rate limit (default: the
+    ``demo`` craft; `slew_controller`).
 
     Backends: ``"ipopt"``, ``"sqpmethod"`` (Gauss–Newton + qrqp),
     ``"sqpmethod-daqp"`` (dense: ~10 s per cold solve, left out with
@@ -192,17 +247,13 @@ def bench_slew(backends: Sequence[str] | None = None, reps: int = 5,
     bound violation of the plan). Each backend stops when ``budget``
     [s] is spent (a cold ``sqpmethod-daqp`` solve alone takes ~10 s).
     """
-    from adcs_common.quaternion import quat_from_axis_angle
-    from ocp.models.rigid import rigid_spacecraft
-    from ocp.mpc import AttitudeMPC, available_mpc_solvers
+    from ocp.mpc import available_mpc_solvers
 
     bar = progress or quiet()
-    sc = load_spacecraft("demo" if spacecraft is None else spacecraft)
-    model = rigid_spacecraft(sc.inertia, sc.wheels)
-    x0 = model.state([1.0, 0.0, 0.0, 0.0])
-    qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
-    ref = AttitudeMPC(model, solver="ipopt", max_iter=3000,
-                      solver_options={"ipopt": {"tol": 1e-12}}).step(x0, qf)
+    ref_mpc, x0, qf = slew_controller(
+        spacecraft, solver="ipopt", max_iter=3000,
+        solver_options={"ipopt": {"tol": 1e-12}})
+    ref = ref_mpc.step(x0, qf)
     avail = available_mpc_solvers()
     default = [s for s in ("ipopt", "sqpmethod", "sqpmethod-daqp",
                            "fatrop") if s.split("-")[0] in avail
@@ -213,8 +264,9 @@ def bench_slew(backends: Sequence[str] | None = None, reps: int = 5,
     for name in names:
         solver, _, qp = name.partition("-")
         try:
-            mpc = AttitudeMPC(model, solver=solver,
-                              **({"qp_solver": qp} if qp else {}))
+            mpc, _, _ = slew_controller(
+                spacecraft, solver=solver, **({"qp_solver": qp} if qp
+                                              else {}))
         except AdcsError as exc:
             bar.say(f"[slew] {name}: not available ({exc})")
             bar.skip(reps)

@@ -25,13 +25,14 @@ def craft_table(sc: Spacecraft) -> Table:
     """Tabulate the craft: wheels, limits, thrusters, inertia."""
     w = sc.wheels
     rows = [["wheels", w.n_wheels],
+            ["wheel names", ", ".join(w.names)],
             ["failed wheels", ", ".join(str(i + 1) for i in w.failed)
              or "none"],
             ["h_max per wheel [N·m·s]", ", ".join(f"{v:g}" for v in
                                                  w.h_max)],
             ["m_max per wheel [N·m]", ", ".join(f"{v:g}" for v in w.m_max)],
-            ["thrusters", sc.thrusters.n if sc.thrusters is not None
-             else "none"],
+            ["thrusters", f"{sc.thrusters.n} ({', '.join(sc.thrusters.names)})"
+             if sc.thrusters is not None else "none"],
             ["inertia eigenvalues [kg·m²]", ", ".join(
                 f"{v:.6g}" for v in np.linalg.eigvalsh(sc.inertia))],
             ["rate limit [deg/s]", float(np.rad2deg(sc.rate_max))
@@ -79,25 +80,38 @@ def reach_rows(sc: Spacecraft, n_directions: int) -> Table:
                  "demanded direction and reaches the whole set.", digits=4)
 
 
-def slew_table(sc: Spacecraft, quick: bool) -> tuple[Table, list[str]]:
-    """90° slew: eigenaxis law, time-optimal NLP and MPC in closed loop."""
+def slew_setup(sc: Spacecraft) -> tuple:
+    """The study's slew: ``(q0, qf, eigenaxis slew, MPC, dt [s])``.
+
+    90° about `SLEW_AXIS` from rest; the eigenaxis law and the RTI MPC
+    (horizon 20, dt = T/30 clipped to [0.1, 10] s) on the craft's inertia,
+    wheels and rate limit.
+    """
     from adcs_common.quaternion import quat_from_axis_angle
     from ocp.guidance import eigenaxis_slew
     from ocp.models import rigid_spacecraft
-    from ocp.mpc import AttitudeMPC, simulate_mpc
-    from ocp.slews import time_optimal_slew
+    from ocp.mpc import AttitudeMPC
 
     q0 = np.array([1.0, 0.0, 0.0, 0.0])
     qf = quat_from_axis_angle(SLEW_AXIS, np.pi / 2)
     eig = eigenaxis_slew(sc, q0, qf)
+    dt = float(np.clip(eig.T / 30.0, 0.1, 10.0))
+    ctl = AttitudeMPC(rigid_spacecraft(sc.inertia, sc.wheels), dt=dt,
+                      rti=True, rate_max=sc.rate_max)
+    return q0, qf, eig, ctl, dt
+
+
+def slew_table(sc: Spacecraft, quick: bool) -> tuple[Table, list[str]]:
+    """90° slew: eigenaxis law, time-optimal NLP and MPC in closed loop."""
+    from ocp.mpc import simulate_mpc
+    from ocp.slews import time_optimal_slew
+
+    q0, qf, eig, ctl, dt = slew_setup(sc)
     opt = time_optimal_slew(sc, q0, qf, N=30 if quick else 60)
     err = np.rad2deg(opt.extras.get("simulated_final_error", np.nan))
     rows = [["eigenaxis (bang–coast–bang)", eig.T, "closed form", ""],
             ["time-optimal NLP", opt.T, opt.status,
              f"simulated final error {err:.2g}°"]]
-    dt = float(np.clip(eig.T / 30.0, 0.1, 10.0))
-    ctl = AttitudeMPC(rigid_spacecraft(sc.inertia, sc.wheels), dt=dt,
-                      rti=True, rate_max=sc.rate_max)
     mpc = simulate_mpc(ctl, q0, qf, t_final=1.6 * eig.T, hold=0.3 * eig.T)
     rows.append([f"MPC, RTI (horizon 20, dt {dt:.3g} s)", mpc.settle_time,
                  "closed loop",

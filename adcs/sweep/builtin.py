@@ -105,20 +105,35 @@ def fibonacci_axes(n: int = 12) -> np.ndarray:
     return fibonacci_directions(n).T
 
 
-def failure_case(spacecraft: str, wheel: int, t_fail: float,
-                 angle_deg: float) -> dict:
-    """MPC slew about (1, 1, 1) with wheel ``wheel`` (1..N) failing."""
-    from ocp import quat_from_axis_angle
-    from ocp.mpc import simulate_mpc
+def failure_setup(spacecraft: str, angle_deg: float,
+                  text: str | None = None) -> tuple:
+    """``(q0, qf, T [s], dt [s])`` of the failure sweep's slew.
 
-    text = _craft_text(spacecraft)          # read once: one craft per case
+    ``angle_deg`` about (1, 1, 1) from rest; ``T`` the craft's eigenaxis
+    slew time (its wheels and rate limit), ``dt = T/30`` clipped to
+    [0.1, 10] s the MPC's sample time. ``text``: the craft's TOML text,
+    when the caller has read it already.
+    """
+    from ocp import eigenaxis_slew, quat_from_axis_angle
+
+    text = _craft_text(spacecraft) if text is None else text
     sc = _craft_of(text, str(spacecraft))
     qf = quat_from_axis_angle([1.0, 1.0, 1.0], np.deg2rad(angle_deg))
     q0 = np.array([1.0, 0.0, 0.0, 0.0])
-    from ocp import eigenaxis_slew
-
     T = eigenaxis_slew(sc, q0, qf).T
-    dt = float(np.clip(T / 30.0, 0.1, 10.0))
+    return q0, qf, T, float(np.clip(T / 30.0, 0.1, 10.0))
+
+
+def failure_case(spacecraft: str, wheel: int, t_fail: float,
+                 angle_deg: float) -> dict:
+    """MPC slew about (1, 1, 1) with wheel ``wheel`` (1..N) failing.
+
+    The craft's own failed wheels stay failed throughout.
+    """
+    from ocp.mpc import simulate_mpc
+
+    text = _craft_text(spacecraft)          # read once: one craft per case
+    q0, qf, T, dt = failure_setup(spacecraft, angle_deg, text)
     before = simulate_mpc(_mpc(text, str(spacecraft), -1, dt), q0, qf,
                           t_final=t_fail)
     tr = before.trajectory
@@ -137,10 +152,11 @@ def failure_case(spacecraft: str, wheel: int, t_fail: float,
 def _mpc(text: str, source: str, failed: int, dt: float):
     """Build (once per worker) an RTI MPC, wheel ``failed`` out (-1: none).
 
-    ``text`` is the craft's TOML text (the cache key: an edited file gets
-    a new MPC). Built once per worker process and reused: `simulate_mpc`
-    resets it (and so takes it over in the calling thread) before every
-    run.
+    The craft's inertia, wheels (its own failed wheels stay failed) and
+    rate limit. ``text`` is the craft's TOML text (the cache key: an
+    edited file gets a new MPC). Built once per worker process and
+    reused: `simulate_mpc` resets it (and so takes it over in the calling
+    thread) before every run.
     """
     from ocp import rigid_spacecraft
     from ocp.mpc import AttitudeMPC
@@ -148,7 +164,7 @@ def _mpc(text: str, source: str, failed: int, dt: float):
     sc = _craft_of(text, source)
     wheels = sc.wheels if failed < 0 else sc.wheels.with_failed(failed)
     return AttitudeMPC(rigid_spacecraft(sc.inertia, wheels), dt=dt,
-                       rti=True)
+                       rti=True, rate_max=sc.rate_max)
 
 
 def _geometry(quick: bool, **_) -> list[dict]:
@@ -175,11 +191,13 @@ def _agility(quick: bool, spacecraft: str = "demo", **_) -> list[dict]:
 
 def _failures(quick: bool, spacecraft: str = "demo",
               t_fail: float | None = None, **_) -> list[dict]:
-    n = _craft(spacecraft).wheels.n_wheels
+    wheels = _craft(spacecraft).wheels
     t_fail = (5.0 if quick else 10.0) if t_fail is None else float(t_fail)
+    # a wheel the craft has already lost cannot fail again
     return [{"spacecraft": spacecraft, "wheel": w, "t_fail": t_fail,
              "angle_deg": 30.0 if quick else 90.0}
-            for w in range(1, n + 1)]
+            for w in range(1, wheels.n_wheels + 1)
+            if w - 1 not in wheels.failed]
 
 
 agility_case.sweep_inputs = craft_inputs

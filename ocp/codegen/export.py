@@ -184,7 +184,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                                           "mpc_cond_rti_step"),
                       wheel_qp_plugin: str | None = "qrqp",
                       wheel_qp_fast_path: bool = True,
-                      duty_qp_plugin: str | None = "qrqp"
+                      duty_qp_plugin: str | None = "qrqp",
+                      rate_max: float | None = None
                       ) -> tuple[dict[str, ca.Function],
                                  dict[str, list[np.ndarray]],
                                  SpacecraftModel]:
@@ -263,7 +264,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                   if "cond" in name else {"solver": "sqpmethod",
                                           "expand": False})
             ctl = AttitudeMPC(model, horizon=horizon, dt=dt, rti=rti,
-                              max_iter=mpc_max_iter, **kw)
+                              max_iter=mpc_max_iter, rate_max=rate_max,
+                              **kw)
             fns[name] = _renamed(ctl.step_function, name)
             samples[name] = [x0, qf, np.zeros(3), ctl.initial_guess(x0),
                              np.zeros(ctl.nz), np.zeros(ctl.ng)]
@@ -308,6 +310,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              wheel_qp_fast_path: bool = True,
              duty_qp_plugin: str | None = None,
              qrqp_reuse_factorization: bool = True,
+             rate_max: float | None = None,
              build: bool = False,
              cc: str = "gcc", repeats: int = 1000,
              progress: bool = False) -> ExportResult:
@@ -365,6 +368,10 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         Edit the generated qrqp to reuse its KKT factorization when the
         active set recurs within a solve (`patch_qrqp`: same results bit
         for bit, ≈ 30 % off an MPC step).
+    rate_max : float, optional
+        Body-rate limit [rad/s] of the MPC steps (``|ω_i| <= rate_max``
+        on every planned state, as `ocp.mpc.AttitudeMPC`); default: the
+        spacecraft's ``rate_max`` (none without a spacecraft).
     build : bool
         Compile the driver and a shared library with ``cc``.
     cc : str
@@ -390,6 +397,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
                 "give spacecraft= or wheels=/thrusters=/inertia=, not both")
         sc = load_spacecraft(spacecraft)
         wheels, thrusters, inertia = sc.wheels, sc.thrusters, sc.inertia
+        if rate_max is None:
+            rate_max = sc.rate_max
     elif wheels is None:
         raise InvalidValueError("give spacecraft= or wheels= (a WheelArray)")
     out = output_folder(out_dir, "out_dir")
@@ -410,7 +419,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
         mpc_max_iter=mpc_max_iter,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
-        wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin)
+        wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
+        rate_max=rate_max)
     cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True})
     for f in fns.values():
         cg.add(f)
@@ -443,6 +453,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
                                "wheel_qp_method": method,
                                "qrqp_patched": patched,
                                "daqp_patched": daqp_patched,
+                               "rate_max": rate_max,
                                "cflags": cflags, "ldflags": ldflags})
     if build:
         return build_exported(res, cc=cc, progress=progress)

@@ -263,3 +263,108 @@ def test_scenarios_take_the_users_spacecraft(tmp_path):
     assert np.all(run.on_time >= 0.0)
     with pytest.raises(InvalidValueError, match="no thrusters"):
         reorientation("DutyCycleAllocator", spacecraft="meteor-m")
+
+
+# ------------------------------------------- faults of the modules (#23.12)
+def test_module_constructors_refuse_bad_arguments():
+    from adcs.basilisk.modules import AttitudeMPCModule, ThrusterDutyModule
+    from adcs_common.exceptions import (
+        AdcsError,
+        InvalidValueError,
+        SolverNotFound,
+    )
+
+    for kw, name in (({"dt": 0.0}, "dt"), ({"dt": -0.5}, "dt"),
+                     ({"dt": float("nan")}, "dt"), ({"Js": -0.1}, "Js"),
+                     ({"Js": [0.1, 0.1]}, "Js")):
+        with pytest.raises(AdcsError, match=name):
+            WheelQPAllocatorModule(ARRAY, **kw)
+    with pytest.raises(SolverNotFound, match="bogus"):
+        WheelQPAllocatorModule(ARRAY, solver="bogus")
+    with pytest.raises(InvalidValueError, match="mpc"):
+        AttitudeMPCModule(None, [1.0, 0.0, 0.0, 0.0], 1e-3)
+    with pytest.raises(InvalidValueError, match="allocator"):
+        ThrusterDutyModule(None)
+
+
+def _kept(factory, subscribe=True):
+    """A `one_step` module builder that keeps the module in ``mods``."""
+    mods = []
+
+    def build(cmd_msg):
+        mod = factory()
+        mod.ModelTag = "under_test"
+        if subscribe:
+            getattr(mod, "vehControlInMsg", getattr(
+                mod, "cmdTorqueInMsg", None)).subscribeTo(cmd_msg)
+        mods.append(mod)
+        return mod, []
+    return build, mods
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf")])
+def test_a_nan_or_inf_request_gives_zero_torques_and_a_status(bad):
+    """Before: RuntimeError: SWIG director method error."""
+    from adcs.basilisk.modules import INVALID_INPUT, OK
+
+    build, mods = _kept(lambda: WheelQPAllocatorModule(ARRAY))
+    m = one_step(build, [0.01, bad, 0.0])
+    assert np.all(m == 0.0)
+    assert mods[0].status == INVALID_INPUT and mods[0].last is None
+    assert "torqueRequestBody" in mods[0].fault and mods[0].faults >= 1
+    build, mods = _kept(lambda: WheelQPAllocatorModule(ARRAY))
+    assert np.any(one_step(build, [0.01, -0.02, 0.0]) != 0.0)
+    assert mods[0].status == OK
+
+
+def test_every_wheel_unavailable_gives_zero_torques_and_a_status():
+    from adcs.basilisk.modules import NO_WHEELS
+
+    build, mods = _kept(lambda: WheelQPAllocatorModule(ARRAY))
+    m = one_step(build, [0.01, -0.02, 0.0], avail=[False] * 4)
+    assert np.all(m == 0.0) and mods[0].status == NO_WHEELS
+    build, mods = _kept(lambda: WheelQPAllocatorModule(ARRAY))
+    m = one_step(build, [0.01, -0.02, 0.0],     # two left: no 3-D span
+                 avail=[True, False, True, False])
+    assert np.all(m == 0.0) and mods[0].status == NO_WHEELS
+
+
+def test_an_unsubscribed_reader_gives_zero_torques_and_a_status():
+    from adcs.basilisk.modules import UNSUBSCRIBED
+
+    build, mods = _kept(lambda: WheelQPAllocatorModule(ARRAY),
+                        subscribe=False)
+    m = one_step(build, [0.01, -0.02, 0.0])
+    assert np.all(m == 0.0) and mods[0].status == UNSUBSCRIBED
+    assert "vehControlInMsg" in mods[0].fault
+
+
+def test_the_thruster_module_answers_nan_with_zero_on_times():
+    from adcs.basilisk.modules import INVALID_INPUT, UNSUBSCRIBED
+    from adcs.basilisk.modules import ThrusterDutyModule
+    from thrusters import DutyCycleAllocator, six_thruster_unit
+
+    def make():
+        return ThrusterDutyModule(DutyCycleAllocator(
+            six_thruster_unit(), 2.0, 1e3, tracking="weighted"))
+
+    for subscribe, L, status in ((True, [float("nan"), 0.0, 0.01],
+                                  INVALID_INPUT),
+                                 (False, [0.01, 0.0, 0.01], UNSUBSCRIBED)):
+        build, mods = _kept(make, subscribe)
+        on = one_step(build, L, period=2.0,
+                      output=("onTimeOutMsg", "OnTimeRequest", 6))
+        assert np.all(on == 0.0) and mods[0].status == status
+
+
+def test_the_mpc_module_without_navigation_writes_zero_torques():
+    from adcs.basilisk.modules import UNSUBSCRIBED, AttitudeMPCModule
+    from ocp.mpc import AttitudeMPC
+
+    craft = load_spacecraft("demo")
+    build, mods = _kept(lambda: AttitudeMPCModule(
+        AttitudeMPC(craft, horizon=4, rti=True), [0.0, 1.0, 0.0, 0.0],
+        1e-3), subscribe=False)
+    m = one_step(build, [0.0, 0.0, 0.0])
+    assert np.all(m == 0.0) and mods[0].status == UNSUBSCRIBED
+    assert "attNavInMsg" in mods[0].fault and mods[0].steps == []
