@@ -171,7 +171,8 @@ class DutyCycleAllocator:
     torque_weight, propellant_weight, regularization, slack_weight : float
         Cost weights (see `build_qp`).
     solver_options : dict, optional
-        Forwarded untouched to the backend (override the defaults).
+        Backend options over the defaults; names the backend does not
+        take raise `InvalidValueError` (`adcs_common.solver_options`).
     """
 
     def __init__(self, unit: ThrusterSet, cycle: float, h_max: float, *,
