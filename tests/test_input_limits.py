@@ -5,6 +5,8 @@ error, a hang, silent acceptance or exhausted memory; now the toolbox's
 own error comes quickly.
 """
 
+import os
+
 import numpy as np
 import pytest
 
@@ -96,3 +98,81 @@ def test_mpc_nested_qpsol_option_refused():
     with pytest.raises(InvalidValueError, match="must be a dict"):
         AttitudeMPC(load_spacecraft("meteor-m"), horizon=3,
                     solver_options=[("max_iter", 3)])
+
+
+# ------------------------------------------------------------ item 15
+def _axes_toml(n, seed=0):
+    ax = np.random.default_rng(seed).normal(size=(n, 3))
+    rows = ",".join("[%r,%r,%r]" % tuple(map(float, a)) for a in ax)
+    return ("name = 'many'\ninertia = [1.0, 1.0, 1.0]\n[wheels]\n"
+            f"h_max = 1.0\nm_max = 0.1\naxes = [{rows}]\n")
+
+
+def test_ten_thousand_wheels_are_refused_quickly(tmp_path):
+    """It loaded, then QPAllocator, export_c and bench needed 1.1 GiB
+    (MemoryError), envelope/report/sweep ran past 150 s, AttitudeMPC
+    raised std::bad_alloc."""
+    import time
+
+    from allocation import WheelArray
+    from allocation.arrays import MAX_WHEELS
+    from ocp.spacecraft import SpacecraftFileError, load_spacecraft
+
+    path = tmp_path / "many.toml"
+    path.write_text(_axes_toml(10_000))
+    t0 = time.perf_counter()
+    with pytest.raises(SpacecraftFileError, match="at most 64 wheels"):
+        load_spacecraft(path)
+    axes = np.random.default_rng(1).normal(size=(3, 10_000))
+    with pytest.raises(InvalidValueError, match="at most 64 wheels"):
+        WheelArray.from_axes(axes, h_max=1.0, m_max=0.1, normalize=True)
+    assert time.perf_counter() - t0 < 2.0
+    assert MAX_WHEELS == 64
+    path.write_text(_axes_toml(MAX_WHEELS))
+    assert load_spacecraft(path).wheels.n_wheels == MAX_WHEELS
+    path.write_text(_axes_toml(MAX_WHEELS + 1))
+    with pytest.raises(SpacecraftFileError, match="got 65"):
+        load_spacecraft(path)
+
+
+@pytest.mark.parametrize("kind", ["fifo", "devzero", "link-devzero",
+                                  "too-big"])
+def test_only_regular_files_under_the_cap_are_read(tmp_path, kind):
+    """A FIFO named x.toml hung load_spacecraft; /dev/zero exhausted
+    memory."""
+    from ocp.spacecraft import SpacecraftFileError, load_spacecraft
+    from ocp.spacecraft.toml_io import MAX_FILE_BYTES
+
+    path = tmp_path / "x.toml"
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "devzero":
+        path = "/dev/zero"
+    elif kind == "link-devzero":
+        path.symlink_to("/dev/zero")
+    else:
+        path.write_text("# padding\n" * (MAX_FILE_BYTES // 10 + 1))
+    match = "at most" if kind == "too-big" else "not a regular file"
+    with pytest.raises(SpacecraftFileError, match=match):
+        load_spacecraft(path)
+
+
+def test_a_huge_integer_and_deep_nesting_are_file_errors():
+    """10**400 gave OverflowError; 5,000 nested brackets RecursionError."""
+    from ocp.spacecraft import SpacecraftFileError
+    from ocp.spacecraft.toml_io import spacecraft_from_toml
+
+    base = "name = 'a'\n[wheels]\nh_max = 1.0\nm_max = 0.1\n" \
+           "orthogonal_pairs = {}\n"
+    with pytest.raises(SpacecraftFileError, match=r"inertia.*finite"):
+        spacecraft_from_toml(f"inertia = [1{'0' * 400}, 1, 1]\n" + base)
+    with pytest.raises(SpacecraftFileError, match=r"h_max.*finite"):
+        spacecraft_from_toml("inertia = [1, 1, 1]\n"
+                             + base.replace("1.0", "1" + "0" * 400, 1))
+    deep = "[" * 5000 + "1" + "]" * 5000
+    with pytest.raises(SpacecraftFileError, match="nested too deeply"):
+        spacecraft_from_toml(f"inertia = {deep}\n" + base)
+    with pytest.raises(SpacecraftFileError, match="at most two deep"):
+        spacecraft_from_toml("inertia = [[[1.0]]]\n" + base)
+    with pytest.raises(SpacecraftFileError, match="at most"):
+        spacecraft_from_toml("# x\n" * (1 << 19))
