@@ -176,3 +176,59 @@ def test_a_huge_integer_and_deep_nesting_are_file_errors():
         spacecraft_from_toml("inertia = [[[1.0]]]\n" + base)
     with pytest.raises(SpacecraftFileError, match="at most"):
         spacecraft_from_toml("# x\n" * (1 << 19))
+
+
+# ------------------------------------------------------------ item 16
+def test_printing_to_a_full_disk_is_one_line_and_status_2():
+    """`adcs spacecraft demo > /dev/full` gave an OSError traceback."""
+    import subprocess
+    import sys
+
+    if not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full here")
+    with open("/dev/full", "w") as full:
+        run = subprocess.run(
+            [sys.executable, "-c", "import sys; from adcs.cli import main; "
+             "sys.exit(main(['spacecraft', 'meteor-m']))"],
+            stdout=full, stderr=subprocess.PIPE, text=True, timeout=60)
+    assert run.returncode == 2
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("adcs: error:")
+    assert "Traceback" not in run.stderr
+
+
+NASTY = "sat\x00\x01\t\n\r\x1b[31m\x7f\"\\ ü"
+
+
+def test_names_with_control_characters_round_trip(tmp_path):
+    """Spacecraft.save wrote files it could not read back."""
+    from allocation import WheelArray
+    from ocp.spacecraft import Spacecraft, load_spacecraft
+    from thrusters import six_thruster_unit
+
+    import dataclasses
+
+    wheels = dataclasses.replace(
+        WheelArray.pyramid(*ARR_ARGS, h_max=1.0, m_max=0.1),
+        names=("a\x00", "b\n", "c\x7f", "d\\\""))
+    unit = six_thruster_unit(names=tuple(f"T{i}\x1b" for i in range(6)))
+    sc = Spacecraft(NASTY, np.diag([3.0, 2.5, 3.5]), wheels, unit,
+                    description=NASTY[::-1])
+    path = tmp_path / "nasty.toml"
+    sc.save(path)
+    back = load_spacecraft(path)
+    assert back.name == sc.name and back.description == sc.description
+    assert back.wheels.names == wheels.names
+    assert back.thrusters.names == unit.names
+
+
+def test_a_name_no_file_can_hold_is_refused(tmp_path):
+    from adcs_common.exceptions import AdcsError
+    from allocation import WheelArray
+    from ocp.spacecraft import Spacecraft
+
+    sc = Spacecraft("bad\ud800", np.eye(3),
+                    WheelArray.pyramid(*ARR_ARGS, h_max=1.0, m_max=0.1))
+    with pytest.raises(AdcsError, match="surrogate"):
+        sc.save(tmp_path / "bad.toml")
+    assert not (tmp_path / "bad.toml").exists()

@@ -21,7 +21,7 @@ except ModuleNotFoundError:  # Python 3.10
 
 import numpy as np
 
-from adcs_common.exceptions import AdcsError
+from adcs_common.exceptions import AdcsError, InvalidValueError
 from allocation import WheelArray
 from thrusters import ThrusterSet, six_thruster_unit
 
@@ -303,9 +303,27 @@ def _vec(v) -> str:
 
 
 def _string(text: str) -> str:
-    """Quote ``text`` as a TOML basic string (\\, " and newlines escaped)."""
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace(
-        "\n", "\\n") + '"'
+    """Quote ``text`` as a TOML basic string that reads back the same.
+
+    ``\\`` and ``"`` are escaped, and every control character (U+0000 to
+    U+001F, U+007F, which TOML forbids raw) as ``\\uXXXX``; a lone
+    surrogate (no Unicode scalar value, not writable as UTF-8) raises
+    `InvalidValueError`.
+    """
+    out = []
+    for ch in text:
+        code = ord(ch)
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif code < 0x20 or code == 0x7F:
+            out.append(f"\\u{code:04X}")
+        elif 0xD800 <= code <= 0xDFFF:
+            raise InvalidValueError(
+                f"cannot write {text!r}: it holds a lone surrogate "
+                f"(U+{code:04X}), which no UTF-8 file can hold")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
 
 
 def _strings(names) -> str:
@@ -365,5 +383,9 @@ def write_text(path, text: str) -> Path:
         raise SpacecraftFileError(str(p), "", "its folder does not exist")
     if not os.access(p.parent, os.W_OK):
         raise SpacecraftFileError(str(p), "", "its folder is not writable")
-    p.write_text(text)
+    try:
+        p.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise SpacecraftFileError(str(p), "", f"cannot be written "
+                                  f"({exc.strerror or exc})") from None
     return p
