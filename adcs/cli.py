@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
+import os
 import sys
 import warnings
 from typing import Sequence
@@ -307,14 +309,39 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: errors of writing the output (full disk, closed pipe): a user's
+#: redirection, answered with one line and status 2
+_OUTPUT_ERRNOS = {errno.ENOSPC, errno.EPIPE, errno.EDQUOT, errno.EFBIG,
+                  errno.EIO}
+
+
+def _drop_stdout() -> None:
+    """Point stdout at /dev/null: the exit-time flush must not fail again."""
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+        os.close(null)
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``adcs`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return args.func(args)
+        code = args.func(args)
+        sys.stdout.flush()         # a full disk shows here, not at exit
+        return code
     except AdcsError as exc:
         print(f"adcs: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        if exc.errno not in _OUTPUT_ERRNOS:
+            raise
+        print(f"adcs: error: cannot write the output "
+              f"({exc.strerror or exc})", file=sys.stderr)
+        _drop_stdout()
         return 2
     except KeyboardInterrupt as exc:
         note = f": {exc}" if str(exc) else ""

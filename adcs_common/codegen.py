@@ -16,6 +16,7 @@ import threading
 
 import hashlib
 import os
+import re
 import shutil
 import stat
 import subprocess
@@ -25,7 +26,7 @@ from typing import Callable, Sequence
 
 import casadi as ca
 
-from .exceptions import AdcsError
+from .exceptions import AdcsError, InvalidValueError
 
 __all__ = [
     "CompileError",
@@ -167,7 +168,45 @@ def private_folder(path) -> Path:
 
 
 def _digest(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    """SHA-256 of a regular file, opened without following a link
+    (a FIFO or device gives '', and is never read)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0)
+                     | getattr(os, "O_NONBLOCK", 0))
+    except OSError:
+        return ""
+    with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return ""
+        h = hashlib.sha256()
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+        return h.hexdigest()
+
+
+#: A cache stem: letters, digits, ``_``, ``-``, ``.``; no leading dot.
+_STEM = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,127}")
+
+
+def _regular(path: Path) -> bool:
+    """True for a regular file that is no link (never opens ``path``)."""
+    try:
+        return stat.S_ISREG(os.lstat(path).st_mode)
+    except OSError:
+        return False
+
+
+def _recorded_digest(record: Path) -> str:
+    """The digest in ``record`` (at most 128 bytes read), else ''."""
+    try:
+        fd = os.open(record, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0)
+                     | getattr(os, "O_NONBLOCK", 0))
+    except OSError:
+        return ""
+    with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return ""
+        return fh.read(128).decode("ascii", "replace").strip()
 
 
 def cached_library(folder, stem: str,
@@ -180,16 +219,28 @@ def cached_library(folder, stem: str,
     temporary file of the cache, which is made owner-only and moved into
     place atomically, with its digest.
 
+    Only regular files are read: a library or record that is a link, a
+    FIFO or a device is never opened, and is replaced by a new build.
+
     Raises
     ------
     UnsafeCacheError
         ``folder`` is not private to the user (`private_folder`).
+    InvalidValueError
+        ``stem`` is not a plain file name (letters, digits, ``_ - .``, no
+        leading dot, at most 128 characters): ``../x`` would write
+        outside the cache.
     """
+    if not isinstance(stem, str) or not _STEM.fullmatch(stem):
+        raise InvalidValueError(
+            f"cache stem must be a plain file name (letters, digits, _ - ."
+            f", no leading dot, at most 128 characters), got {stem!r}")
     cache = private_folder(folder)
     lib = cache / f"{stem}.so"
     record = cache / f"{stem}.sha256"
-    if lib.exists() and record.exists():
-        if record.read_text().strip() == _digest(lib):
+    if _regular(lib) and _regular(record):
+        digest = _recorded_digest(record)
+        if digest and digest == _digest(lib):
             return lib
     fd, tmp = tempfile.mkstemp(suffix=".so", dir=cache)
     os.close(fd)

@@ -21,6 +21,11 @@ class InvalidValueError(AdcsError, ValueError):
     """An argument has a forbidden value (NaN, inf, negative weight...)."""
 
 
+class UnknownArgumentError(InvalidValueError, TypeError):
+    """A keyword argument the function does not take (message: which ones
+    it takes). Also a `TypeError`, as Python's own unknown keyword is."""
+
+
 class RankError(AdcsError, ValueError):
     """An actuator matrix cannot span the demanded space (rank too low).
 

@@ -23,6 +23,10 @@ from adcs_common.validation import (
 PYRAMID_SIGN_Y = np.array([1.0, -1.0, -1.0, 1.0])
 PYRAMID_SIGN_Z = np.array([-1.0, -1.0, 1.0, 1.0])
 
+#: Most wheels a `WheelArray` (and a spacecraft file) may hold: the
+#: attainable-set geometry grows as N³ facets (10,000 wheels needed
+#: 1.1 GiB before any answer), and no attitude system flies more.
+MAX_WHEELS = 64
 _UNIT_TOL = 1e-9
 _RANK_TOL = 1e-9
 
@@ -76,7 +80,8 @@ class WheelArray:
     Attributes
     ----------
     axes : numpy.ndarray, shape (3, N)
-        Unit spin axes (body frame), the matrix A.
+        Unit spin axes (body frame), the matrix A; 1 <= N <= `MAX_WHEELS`
+        (64).
     h_max : numpy.ndarray, shape (N,)
         Momentum capacity of each wheel [N·m·s].
     m_max : numpy.ndarray, shape (N,)
@@ -103,6 +108,10 @@ class WheelArray:
         n = axes.shape[1]
         if n == 0:
             raise ShapeError("axes must have at least one column, got 0")
+        if n > MAX_WHEELS:
+            raise InvalidValueError(
+                f"a WheelArray holds at most {MAX_WHEELS} wheels "
+                f"(MAX_WHEELS), got {n}")
         norms = np.linalg.norm(axes, axis=0)
         if np.any(norms < 1e-12):
             bad = [int(i) + 1 for i in np.flatnonzero(norms < 1e-12)]

@@ -13,6 +13,7 @@ from adcs_common.exceptions import InvalidValueError, RankError
 from adcs_common.validation import (
     as_finite_array,
     as_finite_scalar,
+    check_instance,
     check_nonnegative,
 )
 
@@ -167,6 +168,7 @@ def unloading_law(unit: ThrusterSet, P_T: float, H: ArrayLike, T_T: float,
         coefficients are clipped and ``error`` reports the thrust and
         torque errors [N, N·m].
     """
+    check_instance(unit, ThrusterSet, "unit")
     P_T = as_finite_scalar(P_T, "P_T")
     if P_T == 0.0:
         raise InvalidValueError(
@@ -210,6 +212,7 @@ def pair_forces(unit: ThrusterSet, P_T: float, M: ArrayLike) -> np.ndarray:
     where the arms are the Table 1 torques per newton of the group-1
     engine of pair i (``unit.pairs[i][0]``), F_i > 0 along +Y.
     """
+    check_instance(unit, ThrusterSet, "unit")
     if len(unit.pairs) != 3:
         raise InvalidValueError(
             f"unit: eq. (8) needs three opposed engine pairs, got "
@@ -258,6 +261,7 @@ def reorientation_law(unit: ThrusterSet, P_T: float,
         Clipping (k > 1) is reported with ``status == "clipped"`` and the
         resulting thrust/torque error.
     """
+    check_instance(unit, ThrusterSet, "unit")
     F = pair_forces(unit, P_T, M)
     P_T = float(P_T)
     Mv = np.asarray(M, dtype=float)

@@ -8,7 +8,8 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from adcs_common.exceptions import InvalidValueError, ShapeError
+from adcs_common.exceptions import (InvalidValueError, ShapeError,
+                                    UnknownArgumentError)
 from adcs_common.validation import (
     as_finite_array,
     as_finite_scalar,
@@ -445,9 +446,11 @@ def six_thruster_unit(R: float = 0.25, L: float = 0.3, thrust: float = 0.5,
     unknown = set(kwargs) - {"min_on_time", "open_delay", "close_delay",
                              "rise_time", "tail_time", "isp", "names"}
     if unknown:
-        raise TypeError(
-            f"six_thruster_unit() got unexpected keyword argument(s) "
-            f"{sorted(unknown)}")
+        raise UnknownArgumentError(
+            f"six_thruster_unit() got unknown keyword argument(s) "
+            f"{sorted(unknown)}; it takes min_on_time, open_delay, "
+            f"close_delay, rise_time, tail_time, isp, names")
+    com = as_finite_array(center_of_mass, "center_of_mass", (3,))
     th = SIX_UNIT_ANGLES
     x, z = R * np.cos(th), R * np.sin(th)
     # D1, D2, D3 (group 1, y = -L) then D4 (=D1), D5 (=D3), D6 (=D2)
@@ -460,6 +463,6 @@ def six_thruster_unit(R: float = 0.25, L: float = 0.3, thrust: float = 0.5,
     pos = positions
     return ThrusterSet(
         positions=pos, directions=directions,
-        center_of_mass=np.asarray(center_of_mass, dtype=float),
+        center_of_mass=com,
         pressure_slope=(P - b) / p, thrust_offset=b, pressure=p,
         correction=correction, pairs=SIX_UNIT_PAIRS, **kwargs)

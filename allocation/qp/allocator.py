@@ -125,7 +125,8 @@ class QPAllocator:
     power_weight : float
         w_p [1/(W)] multiplying the power.
     solver_options : dict, optional
-        Passed untouched to the backend.
+        Backend options; names it does not take raise `InvalidValueError`
+        (`adcs_common.solver_options`).
     check_tol : float
         Relative tolerance of the checks applied to every solver answer.
     """

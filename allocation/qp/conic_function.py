@@ -7,7 +7,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError, SolverNotFound
-from adcs_common.validation import as_finite_scalar, as_vector, check_positive
+from adcs_common.validation import (as_finite_array, as_finite_scalar,
+                                   as_vector, check_instance, check_positive)
 
 from ..arrays import WheelArray
 from adcs_common.qp import INSTALL_HINT
@@ -120,8 +121,14 @@ def conic_allocator_function(array: WheelArray,
         violation of ``A m = α M`` or of the bounds (check it against
         your tolerance: the conic's own success flag is not an output; on
         an infeasible QP the closed forms return a point with a positive
-        violation).
+        violation). Called from Python with numbers, it refuses NaN, inf
+        or a wrong shape (`InvalidValueError` / `ShapeError`); through a
+        buffer, ``call``, ``map`` or generated C (which cannot raise), NaN
+        or inf in ``M`` or ``h`` give NaN torques and a NaN
+        ``violation``: that output is the status, and ``violation <= tol``
+        is then false.
     """
+    check_instance(array, WheelArray, "array")
     array.require_full_rank()
     if f"casadi:{plugin}" not in available_solvers():
         raise SolverNotFound(f"casadi:{plugin}", available_solvers(),
@@ -183,8 +190,31 @@ def conic_allocator_function(array: WheelArray,
     finite = ca.mmin(ca.fabs(ca.vertcat(m, *inputs)) < np.inf)
     violation = ca.if_else(finite, ca.mmax(ca.vertcat(
         ca.fabs(ca.DM(A) @ m - target), lo - m, m - hi)), np.nan)
-    return ca.Function(name, inputs, [m, alpha, violation], names,
-                       ["m", "alpha", "violation"])
+    return WheelQPFunction(ca.Function(name, inputs, [m, alpha, violation],
+                                       names, ["m", "alpha", "violation"]))
+
+
+class WheelQPFunction(ca.Function):
+    """A `casadi.Function` whose numeric Python calls check their input.
+
+    Symbolic calls (SX/MX), buffers, ``call``, ``map`` and generated C
+    are the plain Function's (NaN in gives a NaN ``violation``).
+    """
+
+    def __call__(self, *args, **kwargs):
+        """Evaluate; numeric ``M`` (3,) and ``h`` (N,) must be finite."""
+        values = list(args) + [kwargs[k] for k in self.name_in()
+                               if k in kwargs]
+        if len(values) == self.n_in() and not any(
+                isinstance(v, (ca.SX, ca.MX)) for v in values):
+            for i, v in enumerate(values):
+                if isinstance(v, ca.DM):
+                    v = v.full()
+                arr = np.asarray(v, dtype=object)
+                if arr.ndim == 2 and 1 in arr.shape:
+                    v = arr.reshape(-1)
+                as_finite_array(v, self.name_in(i), (self.size1_in(i),))
+        return super().__call__(*args, **kwargs)
 
 
 def _segment_step(direction: np.ndarray, m0, lo, hi):

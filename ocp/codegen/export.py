@@ -57,6 +57,7 @@ from adcs_common.paths import output_folder
 from adcs_common.validation import as_finite_scalar, check_positive
 from allocation import WheelArray, conic_allocator_function, min_norm_function
 from allocation.qp.conic_function import conic_c_flags, wheel_qp_method
+from thrusters import ThrusterSet
 
 from ocp.models.rigid import SpacecraftModel, rigid_spacecraft
 from ocp.spacecraft import load_spacecraft
@@ -399,8 +400,13 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         wheels, thrusters, inertia = sc.wheels, sc.thrusters, sc.inertia
         if rate_max is None:
             rate_max = sc.rate_max
-    elif wheels is None:
-        raise InvalidValueError("give spacecraft= or wheels= (a WheelArray)")
+    elif not isinstance(wheels, WheelArray):
+        raise InvalidValueError(
+            f"give spacecraft= or wheels= (a WheelArray), got wheels of "
+            f"type {type(wheels).__name__}")
+    if thrusters is not None and not isinstance(thrusters, ThrusterSet):
+        raise InvalidValueError(
+            f"thrusters must be a ThrusterSet, got {type(thrusters).__name__}")
     out = output_folder(out_dir, "out_dir")
     if int(repeats) < 1:
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")

@@ -54,6 +54,7 @@ from adcs_common.buffers import BoundCall
 from adcs_common.quaternion import as_unit_quaternion
 from adcs_common.validation import (
     as_count,
+    as_options,
     as_finite_array,
     as_finite_scalar,
     as_vector,
@@ -63,6 +64,7 @@ from adcs_common.validation import (
 from ocp.models.rigid import SpacecraftModel
 from ocp.spacecraft.definition import Spacecraft
 from adcs_common.options import merge_options
+from adcs_common.solver_options import check_nlpsol_options
 from adcs_common.threads import new_lock, synchronized
 from .certificate import default_mpc_solver, qp_kkt_function
 from .condensed import condensed_qp_plugin, condensed_step_functions
@@ -158,7 +160,8 @@ class AttitudeMPC:
     SolverNotFound
         Unknown ``solver`` or ``qp_solver``, or its plugin is missing.
     InvalidValueError
-        Bad horizon, dt, rate bound or a model without wheels.
+        Bad horizon, dt, rate bound, a model without wheels, or an
+        unknown solver option (the message lists the allowed ones).
     """
 
     def __init__(self, model: SpacecraftModel, *, horizon: int = 20,
@@ -232,7 +235,9 @@ class AttitudeMPC:
         #: then declares convergence on points violating the QP constraints.
         self.regularization = 1e-4
         t0 = time.perf_counter()
-        self._build(dict(solver_options or {}))
+        self._build(as_options(solver_options) if solver == "condensed" else
+                    check_nlpsol_options(NLP_PLUGINS[solver], solver_options,
+                                         self.qp_solver or "qrqp"))
         self.build_time = time.perf_counter() - t0
         self._plan: np.ndarray | None = None
         self._lam_x = np.zeros(self.nz)

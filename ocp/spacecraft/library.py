@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import os
+import stat
 from importlib import resources
 from pathlib import Path
 
 from .definition import Spacecraft, SpacecraftFileError
-from .toml_io import spacecraft_from_toml
+from .toml_io import MAX_FILE_BYTES, spacecraft_from_toml
 
 __all__ = ["list_spacecraft", "load_spacecraft", "spacecraft_toml"]
 
@@ -31,7 +33,8 @@ def spacecraft_toml(name_or_path) -> str:
     Raises
     ------
     SpacecraftFileError
-        Neither a built-in name nor a readable file.
+        Neither a built-in name nor a readable file: not a regular file
+        (a FIFO or device) or over `MAX_FILE_BYTES` (1 MiB) is refused.
     """
     if isinstance(name_or_path, Spacecraft):
         return name_or_path.to_toml()
@@ -47,10 +50,38 @@ def spacecraft_toml(name_or_path) -> str:
             "no built-in spacecraft of that name and no such file; "
             f"built-ins: {', '.join(sorted(_catalogue()))}"))
     try:
-        return p.read_text(encoding="utf-8")
+        return _read_regular(p).decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise SpacecraftFileError(str(p), "", f"cannot be read ({exc})") \
             from None
+
+
+def _read_regular(p: Path) -> bytes:
+    """The bytes of ``p``: a regular file of at most `MAX_FILE_BYTES`.
+
+    Opened without blocking (a FIFO would wait for a writer) and checked
+    on the open descriptor, so a file swapped after a check is caught; a
+    device (``/dev/zero``) or FIFO is refused, and never more than the
+    cap plus one byte is read.
+    """
+    fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0)
+                 | getattr(os, "O_NOCTTY", 0))
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise SpacecraftFileError(str(p), "", (
+                "is not a regular file (a FIFO, device or socket); a "
+                "spacecraft is read from a regular TOML file"))
+        if st.st_size > MAX_FILE_BYTES:
+            raise SpacecraftFileError(str(p), "", (
+                f"is {st.st_size} bytes; a spacecraft file holds at most "
+                f"{MAX_FILE_BYTES} bytes"))
+        data = fh.read(MAX_FILE_BYTES + 1)
+    if len(data) > MAX_FILE_BYTES:
+        raise SpacecraftFileError(str(p), "", (
+            f"holds more than {MAX_FILE_BYTES} bytes (the limit of a "
+            "spacecraft file)"))
+    return data
 
 
 def load_spacecraft(name_or_path) -> Spacecraft:

@@ -21,13 +21,18 @@ except ModuleNotFoundError:  # Python 3.10
 
 import numpy as np
 
-from adcs_common.exceptions import AdcsError
+from adcs_common.exceptions import AdcsError, InvalidValueError
 from allocation import WheelArray
 from thrusters import ThrusterSet, six_thruster_unit
 
 from .definition import Spacecraft, SpacecraftFileError
 
-__all__ = ["spacecraft_from_toml", "spacecraft_to_toml", "write_text"]
+__all__ = ["MAX_FILE_BYTES", "spacecraft_from_toml", "spacecraft_to_toml",
+           "write_text"]
+
+#: Largest spacecraft file read [bytes] (the catalogue's are ~1-2 kB;
+#: 64 wheels written out take ~10 kB).
+MAX_FILE_BYTES = 1 << 20
 
 _TOP = {"name", "description", "inertia", "rate_max_deg", "wheels",
         "thrusters"}
@@ -43,6 +48,16 @@ _THRUSTERS = {"six_thruster_unit": {"kind", "R", "L", "thrust",
                                     *_THRUSTER_COMMON},
               "custom": {"kind", "positions", "directions", "thrust",
                          "pairs", *_THRUSTER_COMMON}}
+
+
+def _short(value: Any) -> str:
+    """``repr(value)`` cut to 80 characters (a huge integer has no repr:
+    Python refuses to print more than 4300 digits)."""
+    if isinstance(value, int) and not isinstance(value, bool) and \
+            value.bit_length() > 256:
+        return f"an integer of {value.bit_length()} bits"
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 class _Reader:
@@ -61,18 +76,27 @@ class _Reader:
                             f"{sorted(allowed)}")
 
     def number(self, value: Any, key: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                or not math.isfinite(value):
-            raise self.fail(key, f"must be a finite number, got {value!r}")
-        return float(value)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(key, f"must be a finite number, got "
+                            f"{_short(value)}")
+        try:
+            out = float(value)        # an integer past 1e308 overflows
+        except OverflowError:
+            out = math.inf
+        if not math.isfinite(out):
+            raise self.fail(key, f"must be a finite number, got "
+                            f"{_short(value)}")
+        return out
 
-    def numbers(self, value: Any, key: str) -> np.ndarray:
+    def numbers(self, value: Any, key: str, depth: int = 0) -> np.ndarray:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             return np.array(self.number(value, key))
         if not isinstance(value, list) or not value:
             raise self.fail(key, f"must be a number or a list of numbers, "
-                            f"got {value!r}")
-        rows = [self.numbers(v, key) if isinstance(v, list)
+                            f"got {_short(value)}")
+        if depth >= 2:
+            raise self.fail(key, "lists nest at most two deep (a matrix)")
+        rows = [self.numbers(v, key, depth + 1) if isinstance(v, list)
                 else self.number(v, key) for v in value]
         try:
             return np.array(rows, dtype=float)
@@ -232,10 +256,16 @@ def spacecraft_from_toml(text: str, source: str = "<string>") -> Spacecraft:
         rejects; the message names ``source`` and the key.
     """
     r = _Reader(source)
+    if len(text) > MAX_FILE_BYTES:
+        raise r.fail("", f"is {len(text)} characters long; a spacecraft "
+                     f"file holds at most {MAX_FILE_BYTES} bytes")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise r.fail("", f"not valid TOML: {exc}") from None
+    except RecursionError:
+        raise r.fail("", "not valid here: arrays or tables nested too "
+                     "deeply") from None
     r.known(data, _TOP, "")
     for key in ("name", "inertia", "wheels"):
         if key not in data:
@@ -273,9 +303,27 @@ def _vec(v) -> str:
 
 
 def _string(text: str) -> str:
-    """Quote ``text`` as a TOML basic string (\\, " and newlines escaped)."""
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace(
-        "\n", "\\n") + '"'
+    """Quote ``text`` as a TOML basic string that reads back the same.
+
+    ``\\`` and ``"`` are escaped, and every control character (U+0000 to
+    U+001F, U+007F, which TOML forbids raw) as ``\\uXXXX``; a lone
+    surrogate (no Unicode scalar value, not writable as UTF-8) raises
+    `InvalidValueError`.
+    """
+    out = []
+    for ch in text:
+        code = ord(ch)
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif code < 0x20 or code == 0x7F:
+            out.append(f"\\u{code:04X}")
+        elif 0xD800 <= code <= 0xDFFF:
+            raise InvalidValueError(
+                f"cannot write {text!r}: it holds a lone surrogate "
+                f"(U+{code:04X}), which no UTF-8 file can hold")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
 
 
 def _strings(names) -> str:
@@ -335,5 +383,9 @@ def write_text(path, text: str) -> Path:
         raise SpacecraftFileError(str(p), "", "its folder does not exist")
     if not os.access(p.parent, os.W_OK):
         raise SpacecraftFileError(str(p), "", "its folder is not writable")
-    p.write_text(text)
+    try:
+        p.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise SpacecraftFileError(str(p), "", f"cannot be written "
+                                  f"({exc.strerror or exc})") from None
     return p

@@ -1,6 +1,7 @@
 """Compiling generated C: one path, a private cache, checked libraries."""
 
 import os
+from pathlib import Path
 import shutil
 import threading
 
@@ -100,3 +101,48 @@ def test_compile_progress_wraps_a_blocking_build():
     with compile_progress("compiling") as bar:
         time.sleep(0.6)          # the helper thread refreshes meanwhile
     assert bar.disable or bar.n == 0
+
+
+def _fake_build(out):
+    """A stand-in build (no compiler): the cache logic only."""
+    Path(out).write_bytes(b"library bytes")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "devzero", "link"])
+def test_a_library_that_is_no_regular_file_is_never_read(tmp_path, kind):
+    """Issue #23 item 15: the cache followed a FIFO (hang) or a link to
+    /dev/zero (memory exhausted) when hashing it."""
+    cache = tmp_path / "cache"
+    cached_library(cache, "f", _fake_build)
+    lib = cache / "f.so"
+    lib.unlink()
+    if kind == "fifo":
+        os.mkfifo(lib)
+    elif kind == "devzero":
+        lib.symlink_to("/dev/zero")
+    else:
+        (tmp_path / "elsewhere.so").write_bytes(b"library bytes")
+        lib.symlink_to(tmp_path / "elsewhere.so")
+    again = cached_library(cache, "f", _fake_build)
+    assert again == lib and not lib.is_symlink()
+    assert lib.read_bytes() == b"library bytes"
+
+
+def test_a_record_that_is_a_fifo_is_never_read(tmp_path):
+    cache = tmp_path / "cache"
+    cached_library(cache, "f", _fake_build)
+    (cache / "f.sha256").unlink()
+    os.mkfifo(cache / "f.sha256")
+    assert cached_library(cache, "f", _fake_build).read_bytes() \
+        == b"library bytes"
+
+
+@pytest.mark.parametrize("stem", ["../evil", "a/b", ".hidden", "", "x" * 200,
+                                  None, "a\nb"])
+def test_a_stem_that_leaves_the_cache_is_refused(tmp_path, stem):
+    from adcs_common.exceptions import InvalidValueError
+
+    with pytest.raises(InvalidValueError, match="plain file name"):
+        cached_library(tmp_path / "cache", stem, _fake_build)
+    assert not (tmp_path / "evil.so").exists()
+    assert list(tmp_path.rglob("*.so")) == []

@@ -47,11 +47,17 @@ def test_allocate_fast_refuses_what_allocate_refuses(array, torque,
 
 
 def test_the_conic_function_flags_nan_instead_of_passing_it():
+    """Where the Function cannot raise (``call``, buffers, C) NaN gives a
+    NaN violation; a numeric Python call refuses NaN outright."""
     f = conic_allocator_function(SIX, dt=0.5)
-    m, alpha, viol = f([np.nan, 0.0, 0.0], np.zeros(6))
+    m, alpha, viol = f.call([[np.nan, 0.0, 0.0], np.zeros(6)])
     assert np.isnan(float(viol))
-    m, alpha, viol = f([0.01, 0.0, 0.0], [np.nan] + [0.0] * 5)
+    m, alpha, viol = f.call([[0.01, 0.0, 0.0], [np.nan] + [0.0] * 5])
     assert np.isnan(float(viol))
+    with pytest.raises(AdcsError, match="finite"):
+        f([np.nan, 0.0, 0.0], np.zeros(6))
+    with pytest.raises(AdcsError, match="finite"):
+        f([0.01, 0.0, 0.0], [np.nan] + [0.0] * 5)
     m, alpha, viol = f([0.01, 0.0, 0.0], np.zeros(6))
     assert 0.0 <= float(viol) < 1e-12
 

@@ -127,6 +127,35 @@ PROBES = {
     "compare_slews(angles_deg)": (
         lambda v: ocp.compare_slews(np.eye(3), ARR, [1, 0, 0], v),
         [None, "abc", [np.nan], -1.0]),
+    # issue #23 item 14: the building blocks
+    "conic_allocator_function(array)": (
+        al.conic_allocator_function, [None, "abc", np.eye(3)]),
+    "conic_allocator_function(...)(M)": (
+        lambda v: al.conic_allocator_function(ARR)(v),
+        [None, "abc", [np.nan, 0, 0], [np.inf, 0, 0], [0.1], 0.1]),
+    "conic_allocator_function(dt)(h)": (
+        lambda v: al.conic_allocator_function(ARR, dt=0.5)([0.1, 0, 0], v),
+        [None, [np.nan, 0, 0, 0], [0.0]]),
+    "unloading_law(unit)": (
+        lambda v: th.unloading_law(v, 0.5, [0.0, 0.0, 0.0], 2.0),
+        [None, "abc", ARR]),
+    "reorientation_law(unit)": (
+        lambda v: th.reorientation_law(v, 0.0, [0.0, 0.0]),
+        [None, "abc"]),
+    "DutyCycleAllocator(unit)": (
+        lambda v: th.DutyCycleAllocator(v, 2.0, 0.01), [None, "abc", ARR]),
+    "export_c(wheels)": (
+        lambda v: export_c("/tmp/adcs-probe-export", wheels=v),
+        [np.eye(3), "abc", UNIT]),
+    "export_c(thrusters)": (
+        lambda v: export_c("/tmp/adcs-probe-export", wheels=ARR,
+                           thrusters=v),
+        [np.eye(3), "abc", ARR]),
+    "six_thruster_unit(center_of_mass)": (
+        lambda v: th.six_thruster_unit(center_of_mass=v),
+        [None, "abc", [np.nan, 0, 0], [1.0]]),
+    "six_thruster_unit(**kwargs)": (
+        lambda v: th.six_thruster_unit(**{v: 1}), ["bogus", "R0"]),
 }
 CASES = [(name, i) for name, (_, bad) in PROBES.items()
          for i in range(len(bad))]
@@ -164,3 +193,17 @@ def test_tiny_capacities_and_huge_axes_are_valid_arrays():
         al.envelope(ARR, "torque").inscribed_radius * 1e-9, rel=1e-9)
     big = al.WheelArray.from_axes(np.eye(3) * 1e200, normalize=True)
     np.testing.assert_array_equal(big.axes, np.eye(3))
+
+
+def test_the_wheel_function_reports_nan_as_its_status():
+    """Where it cannot raise (buffer, ``call``, C), NaN in gives NaN out
+    and a NaN violation: ``violation <= tol`` is false (documented)."""
+    import casadi as ca
+
+    f = al.conic_allocator_function(ARR)
+    m, alpha, violation = f.call([ca.DM([np.nan, 0.0, 0.0])])
+    assert np.isnan(float(violation))
+    assert not float(violation) <= 1e-9
+    assert np.all(np.isnan(np.asarray(m)))
+    m, _, violation = f([0.01, 0.0, 0.0])          # a finite demand answers
+    assert float(violation) <= 1e-9

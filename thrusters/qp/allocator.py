@@ -16,6 +16,7 @@ from adcs_common.validation import (
     as_finite_array,
     as_finite_scalar,
     as_options,
+    check_instance,
     check_positive,
 )
 
@@ -171,7 +172,8 @@ class DutyCycleAllocator:
     torque_weight, propellant_weight, regularization, slack_weight : float
         Cost weights (see `build_qp`).
     solver_options : dict, optional
-        Forwarded untouched to the backend (override the defaults).
+        Backend options over the defaults; names the backend does not
+        take raise `InvalidValueError` (`adcs_common.solver_options`).
     """
 
     def __init__(self, unit: ThrusterSet, cycle: float, h_max: float, *,
@@ -180,6 +182,7 @@ class DutyCycleAllocator:
                  torque_weight: float = 1e3, propellant_weight: float = 1.0,
                  regularization: float = 1e-4, slack_weight: float = 1e4,
                  solver_options: dict | None = None) -> None:
+        check_instance(unit, ThrusterSet, "unit")
         self._lock = new_lock()
         t0 = time.perf_counter()
         self.unit = unit

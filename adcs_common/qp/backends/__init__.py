@@ -24,6 +24,7 @@ from typing import Any, Protocol
 import casadi as ca
 
 from ...exceptions import SolverNotFound
+from ...solver_options import check_backend_options
 from ..certificate import CERTIFY_TOL, certify
 from ..problem import QP
 from ..solution import QPSolution
@@ -167,18 +168,19 @@ def make_backend(name: str, n: int, k: int, n_eq: int,
     ------
     SolverNotFound
         ``name`` is not offered here; the message lists what is.
+    InvalidValueError
+        ``options`` is not a dict or names an option the backend does
+        not take (`adcs_common.solver_options`; the message lists those
+        it takes).
     """
     offered = available_solvers() if offered is None else offered
     name = canonical_name(name, offered)
     if not isinstance(name, str) or name not in offered:
         raise SolverNotFound(repr(name) if not isinstance(name, str)
                              else name, offered, hint)
-    if options is not None and not isinstance(options, dict):
-        from ...exceptions import InvalidValueError
-
-        raise InvalidValueError(
-            f"solver_options must be a dict, got {type(options).__name__}")
     family, plugin = resolve(name)
+    # unknown names refused here, not ignored or failing at the first call
+    options = check_backend_options(family, plugin, options)
     module = importlib.import_module(f"{__name__}.{FAMILIES[family]}")
-    backend = module.Backend(plugin, n, k, n_eq, dict(options or {}))
+    backend = module.Backend(plugin, n, k, n_eq, options)
     return CertifiedBackend(backend) if certified else backend
