@@ -37,6 +37,7 @@ from allocation import WheelArray
 from ocp.models.trajectory import SlewTrajectory
 from .build import clear_solver_cache
 from .setup import KeepOut, check_common, setup_slew
+from .keepout import solve_clear_of_cones
 from .solve import solve_slew
 from .solvers import NLP_SOLVERS, solver_entry, available_nlp_solvers
 from .transcription import TRANSCRIPTIONS
@@ -60,7 +61,7 @@ MAX_DURATION = 3.2e7
 def _guarded(s, **kwargs) -> SlewTrajectory:
     """`solve_slew`, its numerical breakdowns as the toolbox's error."""
     try:
-        return solve_slew(s, **kwargs)
+        return solve_clear_of_cones(solve_slew, s, **kwargs)
     except (RuntimeError, OverflowError, ZeroDivisionError) as exc:
         raise SolverError(
             f"the slew NLP broke down numerically ({type(exc).__name__}: "

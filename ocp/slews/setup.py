@@ -33,9 +33,11 @@ class KeepOut:
     telescope's) keeps an angle of at least ``half_angle`` from the
     direction ``s`` (reference frame, e.g. the Sun):
     :math:`s^T R(q)\\, b \\le \\cos(\\text{half\\_angle})`, with R(q)
-    body to reference. The slews impose it at every node of the grid
-    (between nodes the motion is smooth; ``extras["keep_out_margin"]``
-    reports the smallest angular margin on the simulated trajectory).
+    body to reference. The slews impose it at every node of the grid and
+    check the continuous path (`ocp.slews.keepout`): a path entering the
+    cone between nodes is solved again with the cone widened at the
+    nodes; ``extras["keep_out_path_margin"]`` is the path's smallest
+    margin [rad], >= 0 on every successful slew.
 
     Attributes
     ----------

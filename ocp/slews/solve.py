@@ -28,6 +28,7 @@ from .build import (
 )
 from adcs_common.options import merge_options
 
+from .keepout import path_margin
 from .setup import SlewSetup, initial_guess_states
 from .solvers import (
     COARSE_OPTIONS,
@@ -350,7 +351,8 @@ def verify_trajectory(model: SpacecraftModel, x0: np.ndarray, t: np.ndarray,
     """Simulate the controls with CVODES; store final error and rate.
 
     With keep-out cones the grid is refined 8 times (controls held) and
-    the smallest angular margin on it is stored too [rad].
+    the smallest angular margin on it is stored too [rad], with the
+    continuous path's (`keepout.path_margin`).
     """
     opts = {"abstol": 1e-9, "reltol": 1e-9}
     if keep_out:
@@ -360,6 +362,14 @@ def verify_trajectory(model: SpacecraftModel, x0: np.ndarray, t: np.ndarray,
                             options=opts)
         extras["keep_out_margin"] = float(min(
             np.min(k.margin(Xf[:, :4])) for k in keep_out))
+        # how far the margin can dip between two fine samples
+        h = float(np.max(np.diff(tf)))
+        w = Xf[:, 4:7]
+        extras["keep_out_path_margin_padded"] = path_margin(
+            extras["keep_out_margin"],
+            float(np.linalg.norm(w, axis=1).max()),
+            float(np.linalg.norm(np.diff(w, axis=0), axis=1).max()) / h, h,
+            min(min(k.half_angle, np.pi - k.half_angle) for k in keep_out))
         Xs = Xf[::sub]
     else:
         Xs = model.simulate(x0, t, Uv.T, options=opts)

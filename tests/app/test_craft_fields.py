@@ -197,9 +197,11 @@ def probe_sweep(path):
 
     rows = builtin._failures(True, spacecraft=path)
     q0, qf, T, dt = builtin.failure_setup(path, rows[0]["angle_deg"])
+    text = builtin._craft_text(path)
     out = [[r["wheel"] for r in rows], T, dt,
-           _mpc_print(builtin._mpc(path, -1, dt))]
-    out.append(_mpc_print(builtin._mpc(path, rows[0]["wheel"] - 1, dt)))
+           _mpc_print(builtin._mpc(text, str(path), -1, dt))]
+    out.append(_mpc_print(builtin._mpc(text, str(path),
+                                       rows[0]["wheel"] - 1, dt)))
     ag = builtin._agility(True, spacecraft=path)[0]
     sc = builtin._craft(path)
     from ocp import eigenaxis_slew, quat_from_axis_angle

@@ -243,3 +243,37 @@ def test_buffered_rti_step_equals_the_step_function(model):
         x = np.asarray(F(x0=x, p=np.r_[s.u, 0, 0, 0])["xf"]).ravel()
     r = simulate_mpc(mpc, Q0, QF, t_final=4.0)
     assert r.extras["step_call_median"] > 0.0
+
+
+def test_every_rti_step_is_its_qps_certified_solution(model):
+    """sqpmethod + qrqp: some single steps are not their QP's solution
+    (KKT residual far above 1e-6, though the applied command keeps its
+    bounds); `step` certifies each one and sends those to the full SQP.
+    The default (condensed) is certified at every step."""
+    qf = quat_from_axis_angle([1.0, -2.0, 3.0], np.deg2rad(150.0))
+    rk4 = model.rk4_step(1)
+    sqp = AttitudeMPC(model, solver="sqpmethod", horizon=20, dt=0.5,
+                      rti=True)
+    cond = AttitudeMPC(model, horizon=20, dt=0.5, rti=True)
+    for mpc in (sqp, cond):
+        x = model.state(Q0)
+        raw, statuses = [], []
+        for _ in range(40):
+            z_prev = mpc._plan if mpc._plan is not None else \
+                mpc.initial_guess(x)
+            out = mpc.rti_function(x, qf, np.zeros(3), z_prev, mpc._lam_x,
+                                   mpc._lam_g)
+            raw.append(float(out[-1]))
+            s = mpc.step(x, qf)
+            statuses.append(s.status)
+            if s.status == "rti_step":
+                assert s.qp_kkt <= 1e-6
+            x = np.array(rk4(x, s.u, np.zeros(3), 0.5)).ravel()
+        if mpc is sqp:
+            bad = [k for k, v in enumerate(raw) if v > 1e-6]
+            assert bad and max(raw) > 1e-4          # the finding
+            assert all(statuses[k].startswith("rti_fallback")
+                       for k in bad)
+        else:
+            assert max(raw) <= 1e-9
+            assert set(statuses) == {"rti_step"}

@@ -369,8 +369,10 @@ def test_time_optimal_slew_goes_around_a_keep_out_cone(solver):
     # the detour costs time (local optima: 3.277-3.286 by solver/guess)
     assert BW_FREE_T + 0.02 < r.T < 3.4
     assert r.extras["keep_out_node_margin"] >= -1e-7
-    # between nodes (simulated at 8 points per interval) it stays out too
-    assert r.extras["keep_out_margin"] >= -1e-4
+    # between nodes (simulated at 8 points per interval, less the turn
+    # between samples) it stays out too: the continuous path is clear
+    assert r.extras["keep_out_margin"] >= 0.0
+    assert r.extras["keep_out_path_margin"] >= 0.0
     assert r.extras["simulated_final_error"] < 1e-5
 
 
@@ -383,8 +385,29 @@ def test_min_energy_slew_goes_around_a_keep_out_cone():
                         keep_out=[BW_CONE])
     assert r.success
     assert r.extras["keep_out_node_margin"] >= -1e-7
-    assert r.extras["keep_out_margin"] >= -1e-4
+    assert r.extras["keep_out_path_margin"] >= 0.0
     assert r.energy > free.energy
+
+
+def test_a_slew_entering_a_cone_between_nodes_is_not_a_success(
+        monkeypatch):
+    """Cones imposed at the nodes only: the path dips into the cone
+    between nodes (the finding: 17 of 18 slews, up to 0.147°, reported
+    as successes). Without the widened re-solves the slew now says so;
+    with them (the default) it clears the cone on the continuous path."""
+    import ocp.slews.keepout as keepout
+
+    kw = dict(torque_max=1.0, keep_out=BW_CONE, N=30)
+    monkeypatch.setattr(keepout, "KEEP_OUT_PASSES", 0)
+    bare = time_optimal_slew(np.eye(3), [1, 0, 0, 0], [0, 1, 0, 0], **kw)
+    assert bare.extras["keep_out_node_margin"] >= -1e-7
+    assert bare.extras["keep_out_path_margin"] < 0.0
+    assert not bare.success and "between nodes" in bare.status
+    monkeypatch.setattr(keepout, "KEEP_OUT_PASSES", 3)
+    r = time_optimal_slew(np.eye(3), [1, 0, 0, 0], [0, 1, 0, 0], **kw)
+    assert r.success and r.extras["keep_out_path_margin"] >= 0.0
+    assert r.extras["keep_out_widening"] > 0.0
+    assert r.T >= bare.T - 1e-9
 
 
 def test_bad_keep_outs_are_rejected():

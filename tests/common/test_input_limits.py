@@ -76,8 +76,10 @@ def test_duty_cycle_allocator_checks_options():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    ({}, "nlpsol 'sqpmethod'.*allowed: .*max_iter"),
+    ({"solver": "sqpmethod"}, "nlpsol 'sqpmethod'.*allowed: .*max_iter"),
     ({"solver": "ipopt"}, "nlpsol 'ipopt'"),
+    ({}, "solver='condensed' takes solver_options 'step_tol' and "
+         "'anderson' only"),
 ])
 def test_mpc_unknown_option_refused(kwargs, match):
     from ocp.mpc import AttitudeMPC
@@ -94,6 +96,7 @@ def test_mpc_nested_qpsol_option_refused():
 
     with pytest.raises(InvalidValueError, match="qpsol 'qrqp'.*allowed"):
         AttitudeMPC(load_spacecraft("meteor-m"), horizon=3,
+                    solver="sqpmethod",
                     solver_options={"qpsol_options": {"bogus": 1}})
     with pytest.raises(InvalidValueError, match="must be a dict"):
         AttitudeMPC(load_spacecraft("meteor-m"), horizon=3,
