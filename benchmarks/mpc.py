@@ -54,14 +54,16 @@ def run(quick: bool = False, with_c: bool = True, daqp: bool = False,
     qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
     t_final = 20.0 if quick else 40.0
     configs = [("ipopt", {"solver": "ipopt"}),
-               ("sqpmethod+qrqp", {}),
-               ("sqpmethod+qrqp (RTI)", {"rti": True}),
+               ("sqpmethod+qrqp", {"solver": "sqpmethod"}),
+               ("sqpmethod+qrqp (RTI)", {"solver": "sqpmethod",
+                                         "rti": True}),
                ("condensed", {"solver": "condensed"}),
                ("condensed (RTI)", {"solver": "condensed", "rti": True})]
     if "fatrop" in available_mpc_solvers():
         configs.append(("fatrop", {"solver": "fatrop"}))
     if daqp:
-        configs.append(("sqpmethod+daqp", {"qp_solver": "daqp"}))
+        configs.append(("sqpmethod+daqp", {"solver": "sqpmethod",
+                                           "qp_solver": "daqp"}))
     rows = []
     for label, kw in configs:
         mpc = AttitudeMPC(model, horizon=20, dt=0.5, **kw)

@@ -246,7 +246,7 @@ def mpc_closed_loops(steps: int = 80) -> list[tuple]:
     rows = []
     ctrls = {"ours: AttitudeMPC ipopt": AttitudeMPC(model, solver="ipopt"),
              "ours: AttitudeMPC sqpmethod+qrqp (RTI)":
-                 AttitudeMPC(model, rti=True)}
+                 AttitudeMPC(model, solver="sqpmethod", rti=True)}
     if importlib.util.find_spec("do_mpc") is not None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
