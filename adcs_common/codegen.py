@@ -170,18 +170,32 @@ def private_folder(path) -> Path:
 def _digest(path: Path) -> str:
     """SHA-256 of a regular file, opened without following a link
     (a FIFO or device gives '', and is never read)."""
-    try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0)
-                     | getattr(os, "O_NONBLOCK", 0))
-    except OSError:
+    fh = _open_regular(path)
+    if fh is None:
         return ""
-    with os.fdopen(fd, "rb") as fh:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return ""
+    with fh:
         h = hashlib.sha256()
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
         return h.hexdigest()
+
+
+def _open_regular(path: Path):
+    """``path`` opened for reading if it is a regular file, else None.
+
+    Opened without following a link and without blocking, and checked on
+    the open file, so a FIFO or a device is never read.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0)
+                     | getattr(os, "O_NONBLOCK", 0))
+    except OSError:
+        return None
+    fh = os.fdopen(fd, "rb")
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        fh.close()
+        return None
+    return fh
 
 
 #: A cache stem: letters, digits, ``_``, ``-``, ``.``; no leading dot.
@@ -198,14 +212,10 @@ def _regular(path: Path) -> bool:
 
 def _recorded_digest(record: Path) -> str:
     """The digest in ``record`` (at most 128 bytes read), else ''."""
-    try:
-        fd = os.open(record, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0)
-                     | getattr(os, "O_NONBLOCK", 0))
-    except OSError:
+    fh = _open_regular(record)
+    if fh is None:
         return ""
-    with os.fdopen(fd, "rb") as fh:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return ""
+    with fh:
         return fh.read(128).decode("ascii", "replace").strip()
 
 
