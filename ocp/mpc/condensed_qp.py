@@ -15,6 +15,12 @@ import casadi as ca
 #: Largest excess of a momentum or rate row [N·m·s, rad/s] at which the
 #: QP without those rows answers the QP with them.
 ROW_TOL = 1e-10
+#: DAQP iterations allowed per QP solve: with at most three solves per SQP
+#: iteration (the bounds alone, the rows, a cold restart) and the SQP's
+#: iteration limit, the step's worst case is bounded by construction. The
+#: cold first step of the 90° slew takes 107 iterations; a QP stopped by
+#: the limit fails its certificate (``qp_kkt``), never silently.
+QP_ITER_LIMIT = 1000
 
 
 def _independent_rows(N: int, nu: int, nw: int, na: int) -> ca.Function:
@@ -132,5 +138,7 @@ def qp_kkt(y, lam_u, lam_a, g, W, R, lbu, ubu, lba, uba):
 def _qp_options(plugin: str) -> dict:
     if plugin == "qrqp":
         return {"print_iter": False, "print_header": False,
-                "print_info": False, "error_on_fail": False}
-    return {"error_on_fail": False}
+                "print_info": False, "error_on_fail": False,
+                "max_iter": QP_ITER_LIMIT}
+    return {"error_on_fail": False,
+            "daqp": {"iter_limit": QP_ITER_LIMIT}}
