@@ -124,6 +124,9 @@ def compile_c(sources: Sequence, output, *, cc: str | None = None,
         Extra compiler flags (before the sources) and libraries (after).
     log : list of str, optional
         Receives the compiler's messages (warnings) of a successful build.
+    timeout : float
+        Seconds the compilation may take; beyond them it is stopped with
+        every process it started, and `CompileError` says so.
 
     Raises
     ------
@@ -132,14 +135,38 @@ def compile_c(sources: Sequence, output, *, cc: str | None = None,
     cmd = [find_compiler(cc), opt, *(["-shared", "-fPIC"] if shared
                                      else []), *flags,
            *[str(s) for s in sources], "-o", str(output), *libs]
-    run = subprocess.run(cmd, capture_output=True, text=True,
-                         timeout=timeout)
-    if run.returncode != 0:
+    # its own process group: on a timeout the compiler proper (cc1), not
+    # only the gcc driver, is stopped
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    try:
+        _, stderr = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        _kill_group(proc)
+        raise CompileError(
+            f"compilation took longer than {timeout:g} s and was stopped "
+            f"(every process of it): {' '.join(cmd)[:300]}") from None
+    except BaseException:          # Ctrl-C: no compiler left running
+        _kill_group(proc)
+        raise
+    if proc.returncode != 0:
         raise CompileError(f"compilation failed: {' '.join(cmd)}\n"
-                           f"{run.stderr.strip()[-2000:]}")
-    if log is not None and run.stderr.strip():
-        log.append(run.stderr)
+                           f"{stderr.strip()[-2000:]}")
+    if log is not None and stderr.strip():
+        log.append(stderr)
     return Path(output)
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    """Stop ``proc`` and every process of its group, and reap it."""
+    import signal
+
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError, AttributeError):
+        proc.kill()
+    proc.communicate()
 
 
 def private_folder(path) -> Path:

@@ -146,3 +146,39 @@ def test_a_stem_that_leaves_the_cache_is_refused(tmp_path, stem):
         cached_library(tmp_path / "cache", stem, _fake_build)
     assert not (tmp_path / "evil.so").exists()
     assert list(tmp_path.rglob("*.so")) == []
+
+
+def test_a_compilation_past_its_timeout_is_stopped_with_its_children(
+        tmp_path):
+    """#27: the export's compile timeout raised an uncaught TimeoutExpired
+    and left the compiler proper running. Now: CompileError, and no
+    process of the build survives."""
+    import os
+    import stat as st_mod
+    import subprocess
+    import time
+
+    from adcs_common.codegen import CompileError, compile_c
+
+    # a "compiler" that starts a long-lived child, as gcc starts cc1
+    cc = tmp_path / "slowcc"
+    marker = tmp_path / "child.pid"
+    cc.write_text("#!/bin/sh\nsleep 60 &\necho $! > " + str(marker)
+                  + "\nwait\n")
+    cc.chmod(cc.stat().st_mode | st_mod.S_IEXEC)
+    src = tmp_path / "a.c"
+    src.write_text("int f(void) { return 1; }\n")
+    t0 = time.perf_counter()
+    with pytest.raises(CompileError, match="longer than 0.5 s"):
+        compile_c([src], tmp_path / "a.so", cc=str(cc), timeout=0.5)
+    assert time.perf_counter() - t0 < 10.0
+    pid = int(marker.read_text())
+    time.sleep(0.2)
+    try:
+        os.kill(pid, 0)
+        # a zombie is dead: only a running child would be a leak
+        state = subprocess.run(["ps", "-o", "stat=", "-p", str(pid)],
+                               capture_output=True, text=True).stdout
+        assert state.strip().startswith("Z") or not state.strip()
+    except ProcessLookupError:
+        pass
