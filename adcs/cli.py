@@ -12,6 +12,7 @@ from typing import Sequence
 
 from adcs.provenance import version
 from adcs_common.exceptions import AdcsError, InvalidValueError
+from adcs_common.interrupts import install_handler, interrupted
 
 
 def _report(args: argparse.Namespace) -> int:
@@ -329,11 +330,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``adcs`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    install_handler()
     try:
         code = args.func(args)
         sys.stdout.flush()         # a full disk shows here, not at exit
         return code
     except AdcsError as exc:
+        if interrupted(exc):           # a failure the Ctrl-C caused
+            print("adcs: interrupted", file=sys.stderr)
+            return 130
         print(f"adcs: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:
@@ -343,8 +348,11 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"({exc.strerror or exc})", file=sys.stderr)
         _drop_stdout()
         return 2
-    except KeyboardInterrupt as exc:
-        note = f": {exc}" if str(exc) else ""
+    except (KeyboardInterrupt, RuntimeError) as exc:
+        if not interrupted(exc):
+            raise
+        note = f": {exc}" if isinstance(exc, KeyboardInterrupt) and str(
+            exc) else ""
         print(f"adcs: interrupted{note}", file=sys.stderr)
         return 130
 

@@ -16,6 +16,8 @@ from jinja2 import Environment, PackageLoader, select_autoescape
 from markupsafe import Markup, escape
 
 from adcs_common.exceptions import InvalidValueError
+from adcs_common.interrupts import check as check_interrupt
+from adcs_common.interrupts import interrupted
 from adcs_common.paths import output_folder
 from adcs.provenance import provenance
 from ocp.spacecraft import load_spacecraft
@@ -340,8 +342,12 @@ def run_report(out: str | Path = "adcs-report", *, quick: bool = False,
         t0 = time.perf_counter()
         try:
             study = importlib.import_module(f"adcs.studies.{module}")
+            check_interrupt()
             section = study.run(ctx)
-        except KeyboardInterrupt:
+            check_interrupt()          # a solver that swallowed Ctrl-C
+        except BaseException as exc:
+            if not interrupted(exc):       # CasADi wraps Ctrl-C
+                raise
             stopped = title
             break
         section.seconds = time.perf_counter() - t0

@@ -322,14 +322,19 @@ def acados_closed_loop(rti: bool = True, steps: int = 80) -> tuple:
     o.model = am
     o.dims.N = N
     o.cost.cost_type = o.cost.cost_type_e = "NONLINEAR_LS"
-    o.cost.W = np.eye(am.cost_y_expr.shape[0])
-    o.cost.W_e = np.eye(am.cost_y_expr_e.shape[0])
+    # acados's stage cost is ½|y|²_W times the interval dt, its terminal
+    # cost ½|y_e|²_We; ours is the plain sum of squares: W = 2/dt, We = 2
+    o.cost.W = (2.0 / dt) * np.eye(am.cost_y_expr.shape[0])
+    o.cost.W_e = 2.0 * np.eye(am.cost_y_expr_e.shape[0])
     o.cost.yref = np.zeros(am.cost_y_expr.shape[0])
     o.cost.yref_e = np.zeros(am.cost_y_expr_e.shape[0])
     o.constraints.lbu, o.constraints.ubu = -mm, mm
     o.constraints.idxbu = np.arange(model.nu)
     o.constraints.lbx, o.constraints.ubx = -hm, hm
     o.constraints.idxbx = np.arange(7, model.nx)
+    # ours bounds the last state's wheel momenta too
+    o.constraints.lbx_e, o.constraints.ubx_e = -hm, hm
+    o.constraints.idxbx_e = np.arange(7, model.nx)
     o.constraints.x0 = model.state([1.0, 0.0, 0.0, 0.0])
     opts = o.solver_options
     opts.tf = N * dt
@@ -338,6 +343,9 @@ def acados_closed_loop(rti: bool = True, steps: int = 80) -> tuple:
     opts.integrator_type = "ERK"
     opts.sim_method_num_stages, opts.sim_method_num_steps = 4, 1
     opts.nlp_solver_type = "SQP_RTI" if rti else "SQP"
+    # our Gauss–Newton Hessian's Levenberg–Marquardt term (1e-4), in
+    # acados's per-interval scaling
+    opts.levenberg_marquardt = 1e-4 / dt
     if not rti:
         opts.nlp_solver_max_iter, opts.tol = 50, 1e-8
     tag = "rti" if rti else "sqp"

@@ -31,6 +31,7 @@ import os
 from typing import Any, Sequence
 
 from adcs_common.exceptions import InvalidValueError
+from adcs_common.interrupts import interrupted
 from adcs_common.paths import output_folder
 from ocp.spacecraft import load_spacecraft
 from adcs.provenance import provenance
@@ -147,8 +148,11 @@ def run_bench(out_dir: str | os.PathLike[str] | None = None, *,
             rows += bench_slew(backends, max(reps // 5, 2) if not quick
                                else 2, bar, quick, spacecraft, budget)
         stopped = None
-    except KeyboardInterrupt:
-        pass
+    except BaseException as exc:       # Ctrl-C, however it surfaced
+        if not interrupted(exc):
+            raise
+        # the rows of the backends the problem had finished
+        rows += getattr(exc, "partial", None) or []
     finally:
         bar.close()
     print(format_table(rows))

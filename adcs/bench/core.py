@@ -11,6 +11,7 @@ from typing import Callable, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from adcs_common.interrupts import check as check_interrupt
 from adcs_common.exceptions import (
     AdcsError,
     InvalidValueError,
@@ -264,12 +265,14 @@ def timed_row(problem: str, name: str, cases: list, refs: list,
     times, err, kkt, fails, wrong, done = [], 0.0, 0.0, 0, 0, 0
     start = time.perf_counter()
     for case, ref in zip(cases, refs):
+        check_interrupt()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             t0 = time.perf_counter()
             try:
                 x = solve(case)
             except AdcsError:
+                check_interrupt()       # a failure Ctrl-C caused
                 x = None
             dt = time.perf_counter() - t0
         done += 1

@@ -6,6 +6,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from adcs_common.interrupts import Interrupted, interrupted
 from adcs_common.exceptions import AdcsError
 from ocp.spacecraft import load_spacecraft
 
@@ -108,12 +109,19 @@ def _backend_rows(problem: str, names: list[str], build: Any,
         base, opts = _split(name)
         try:
             alloc = build(base, opts)
-        except (AdcsError, TypeError, ValueError) as exc:
-            bar.say(f"[{problem}] {name}: not available ({exc})")
-            bar.skip(len(cases))
-            continue
-        rows.append(timed_row(problem, name, cases, refs, solver_of(alloc),
-                              certify, bar, budget))
+            row = timed_row(problem, name, cases, refs, solver_of(alloc),
+                            certify, bar, budget)
+        except (KeyboardInterrupt, RuntimeError, AdcsError, TypeError,
+                ValueError) as exc:
+            if not interrupted(exc):
+                if isinstance(exc, (KeyboardInterrupt, RuntimeError)):
+                    raise
+                bar.say(f"[{problem}] {name}: not available ({exc})")
+                bar.skip(len(cases))
+                continue
+            # Ctrl-C: the backends finished so far are kept
+            raise Interrupted(str(problem), partial=rows) from None
+        rows.append(row)
     return rows
 
 
@@ -255,8 +263,9 @@ def bench_slew(backends: Sequence[str] | None = None, reps: int = 5,
         solver_options={"ipopt": {"tol": 1e-12}})
     ref = ref_mpc.step(x0, qf)
     avail = available_mpc_solvers()
-    default = [s for s in ("ipopt", "sqpmethod", "sqpmethod-daqp",
-                           "fatrop") if s.split("-")[0] in avail
+    default = [s for s in ("ipopt", "condensed", "sqpmethod",
+                           "sqpmethod-daqp", "fatrop")
+               if s.split("-")[0] in avail
                and not (quick and s == "sqpmethod-daqp")]
     names = list(backends) if backends else default
     rows = []
@@ -278,8 +287,14 @@ def bench_slew(backends: Sequence[str] | None = None, reps: int = 5,
             return np.array([max(abs(s.cost - ref.cost) / ref.cost,
                                  s.violation, s.defect)])
 
-        rows.append(timed_row("slew", name, [None] * reps,
-                              [np.zeros(1)] * reps, solve,
-                              lambda _c, x: float("nan"), bar, budget))
+        try:
+            row = timed_row("slew", name, [None] * reps,
+                            [np.zeros(1)] * reps, solve,
+                            lambda _c, x: float("nan"), bar, budget)
+        except (KeyboardInterrupt, RuntimeError) as exc:
+            if not interrupted(exc):
+                raise
+            raise Interrupted("slew", partial=rows) from None
+        rows.append(row)
     return [BenchRow(**{**r.__dict__, "max_kkt": float("nan")})
             for r in rows]
