@@ -297,6 +297,22 @@ def _check_variants(variants) -> tuple[str, ...]:
     return tuple(variants)
 
 
+def _target_plugins(target: str, out: Path, wheel: str | None,
+                    duty: str | None
+                    ) -> tuple[str | None, str | None, str | None]:
+    """QP plugins of a target export: qrqp for every QP on a Cortex-M
+    until the folder carries DAQP's C (the casadi wheel's
+    ``libdaqpstat.a`` is x86); ``"daqp"`` asked for is then an error."""
+    if target == "host" or daqp_c_sources(out)[0]:
+        return wheel, duty, None
+    for name, p in (("wheel_qp_plugin", wheel), ("duty_qp_plugin", duty)):
+        if p == "daqp":
+            raise InvalidValueError(
+                f"{name}='daqp' with target={target!r} needs DAQP's C "
+                "sources in the export folder; use 'qrqp'")
+    return "qrqp", "qrqp", "qrqp"
+
+
 def _renamed(f: ca.Function, name: str) -> ca.Function:
     """``f`` wrapped under a new name (C symbol)."""
     args = f.mx_in()
@@ -429,18 +445,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
     mpc_variants = _check_variants(mpc_variants)
     cortex_m = check_target(target) != "host"
-    if cortex_m and not daqp_c_sources(out)[0]:
-        # the casadi wheel's libdaqpstat.a is x86: qrqp until the folder
-        # carries DAQP's C
-        for name, p in (("wheel_qp_plugin", wheel_qp_plugin),
-                        ("duty_qp_plugin", duty_qp_plugin)):
-            if p == "daqp":
-                raise InvalidValueError(
-                    f"{name}='daqp' with target={target!r} needs DAQP's C "
-                    "sources in the export folder; use 'qrqp'")
-        wheel_qp_plugin = duty_qp_plugin = condensed = "qrqp"
-    else:
-        condensed = None
+    wheel_qp_plugin, duty_qp_plugin, condensed = _target_plugins(
+        target, out, wheel_qp_plugin, duty_qp_plugin)
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
     method = wheel_qp_method(wheels, wheel_qp_fast_path)
     duty_plugin = _resolve_wheel_qp_plugin(duty_qp_plugin, "duty_qp_plugin")
