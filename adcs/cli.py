@@ -90,15 +90,37 @@ def _export(args: argparse.Namespace) -> int:
           flush=True)
     res = export_c(args.out, sc, dt=args.dt, horizon=args.horizon,
                    mpc_variants=variants, build=args.build or args.run,
-                   cc=args.cc, progress=args.build or args.run)
+                   cc=args.cc, progress=args.build or args.run,
+                   target=args.target)
     for p in (res.source, res.header, res.driver, res.makefile,
               res.readme):
         print(f"  wrote {p}")
+    if args.target != "host":
+        return _export_target(args, res)
     if "warnings" in res.extras:
         print(f"  built with {args.cc} (-Wall -Wextra): "
               f"{res.extras['warnings']} warnings")
     if args.run:
         _print_driver(run_driver(res))
+    return 0
+
+
+def _export_target(args: argparse.Namespace, res) -> int:
+    """The Cortex-M part of ``adcs export``: files, build, run, tables."""
+    from ocp.codegen.memory import format_memory
+    from ocp.codegen.target import format_counts, run_target
+
+    for name in ("startup_cortex_m.c", "cortex_m.ld", "main_cortex_m.c"):
+        print(f"  wrote {res.out_dir / name}")
+    if res.executable is None:
+        return 0
+    print(f"  built {res.executable} (arm-none-eabi-gcc -Wall -Wextra "
+          f"-Werror): {res.extras['warnings']} warnings")
+    print(f"  wrote {res.out_dir / f'memory_{args.target}.json'}")
+    if args.run:
+        times = run_target(res)
+        print(format_counts(times, args.target))
+        print(format_memory(res.extras["memory"], times))
     return 0
 
 
@@ -294,6 +316,16 @@ def build_parser() -> argparse.ArgumentParser:
                      help="build and run the driver, print timings")
     exp.add_argument("--cc", default="gcc",
                      help="C compiler of --build/--run (default gcc)")
+    exp.add_argument("--target", default="host",
+                     choices=("host", "cortex-m7", "cortex-m4f"),
+                     help="where the driver runs: host (--cc), or a "
+                     "Cortex-M7 (double FPU) / Cortex-M4F (single FPU, "
+                     "double in software): cross-compiled with "
+                     "arm-none-eabi-gcc (-Wall -Wextra -Werror), --run on "
+                     "qemu-system-arm (mps2-an500 / mps2-an386, -icount "
+                     "shift=0): instruction counts, not cycles, and a "
+                     "memory report (memory_<target>.json); QPs by qrqp "
+                     "until the export carries DAQP's C sources")
     exp.set_defaults(func=_export)
 
     _add_bench(sub)

@@ -25,13 +25,18 @@ def _c_array(name: str, values) -> str:
 
 def _driver_source(fns: dict[str, ca.Function],
                    samples: dict[str, list[np.ndarray]], repeats: int,
-                   model: SpacecraftModel, dt: float) -> str:
-    lines = [_DRIVER_HEAD]
+                   model: SpacecraftModel, dt: float,
+                   head: str | None = None) -> str:
+    """Text of a driver: ``head`` (the host's by default, or a target's
+    from `ocp.codegen.target`), the shared body, the calls, the loops."""
+    lines = [_DRIVER_HEAD if head is None else head, _DRIVER_BODY]
     calls = []
     for name, f in fns.items():
         for j in range(f.n_out()):
             lines.append(f"static casadi_real {name}_out{j}"
                          f"[{max(f.nnz_out(j), 1)}];")
+        nnz = ", ".join(str(f.nnz_out(j)) for j in range(f.n_out()))
+        lines.append(f"static const int {name}_nnz_out[] = {{{nnz}}};")
         res = ", ".join(f"{name}_out{j}" for j in range(f.n_out()))
         reps = repeats if not name.startswith("mpc") else max(
             repeats // 100, 3)
@@ -48,7 +53,7 @@ def _driver_source(fns: dict[str, ca.Function],
                 f"    casadi_real* r[] = {{{res}}};\n"
                 f"    time_call(\"{case}\", {name}, {name}_work, "
                 f"{name}_checkout, {name}_release, a, {len(ins)}, r, "
-                f"{f.n_out()}, {reps}, {f.nnz_out(0)}); }}")
+                f"{f.n_out()}, {name}_nnz_out, {reps}, {f.nnz_out(0)}); }}")
     body = "\n".join(lines)
     loops = []
     for name in fns:
@@ -59,13 +64,16 @@ def _driver_source(fns: dict[str, ca.Function],
                 f"{name}_checkout, {name}_release, {name}_in0, {name}_in1,"
                 f" {f.nnz_in(0)}, {f.nnz_in(3)}, {f.nnz_in(5)}, "
                 f"{model.nu}, {dt!r}, 80);")
-    main = ("int main(void) {\n  realtime_heap();\n" + "\n".join(calls)
+    main = ("int main(void) {\n  driver_init();\n" + "\n".join(calls)
             + "\n"
             + "\n".join(loops) + "\n  return 0;\n}\n")
     return body + "\n" + (_CLOSED_LOOP if loops else "") + main
 
 
 _DRIVER_HEAD = _template("driver_head.c")
+
+
+_DRIVER_BODY = _template("driver_body.c")
 
 
 _CLOSED_LOOP = _template("closed_loop.c")

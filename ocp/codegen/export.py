@@ -71,6 +71,8 @@ from .patches import (
 )
 from .qrqp_patch import patch_qrqp
 from .result import ExportResult, OPT_FLAGS, SOURCE
+from .target import (build_target, check_target, daqp_c_sources,
+                     target_head, write_target_files)
 
 
 __all__ = [
@@ -186,7 +188,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                       wheel_qp_plugin: str | None = "qrqp",
                       wheel_qp_fast_path: bool = True,
                       duty_qp_plugin: str | None = "qrqp",
-                      rate_max: float | None = None
+                      rate_max: float | None = None,
+                      condensed_qp_plugin: str | None = None
                       ) -> tuple[dict[str, ca.Function],
                                  dict[str, list[np.ndarray]],
                                  SpacecraftModel]:
@@ -256,7 +259,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
         qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
         x0 = model.state([1.0, 0.0, 0.0, 0.0])
         # the condensed QP links DAQP where the casadi wheel ships it
-        condensed_plugin = "daqp" if daqp_available() else "qrqp"
+        condensed_plugin = _resolve_wheel_qp_plugin(condensed_qp_plugin,
+                                                    "condensed_qp_plugin")
         for name in MPC_VARIANTS:
             if name not in mpc_variants:
                 continue
@@ -293,6 +297,22 @@ def _check_variants(variants) -> tuple[str, ...]:
     return tuple(variants)
 
 
+def _target_plugins(target: str, out: Path, wheel: str | None,
+                    duty: str | None
+                    ) -> tuple[str | None, str | None, str | None]:
+    """QP plugins of a target export: qrqp for every QP on a Cortex-M
+    until the folder carries DAQP's C (the casadi wheel's
+    ``libdaqpstat.a`` is x86); ``"daqp"`` asked for is then an error."""
+    if target == "host" or daqp_c_sources(out)[0]:
+        return wheel, duty, None
+    for name, p in (("wheel_qp_plugin", wheel), ("duty_qp_plugin", duty)):
+        if p == "daqp":
+            raise InvalidValueError(
+                f"{name}='daqp' with target={target!r} needs DAQP's C "
+                "sources in the export folder; use 'qrqp'")
+    return "qrqp", "qrqp", "qrqp"
+
+
 def _renamed(f: ca.Function, name: str) -> ca.Function:
     """``f`` wrapped under a new name (C symbol)."""
     args = f.mx_in()
@@ -312,6 +332,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              duty_qp_plugin: str | None = None,
              qrqp_reuse_factorization: bool = True,
              rate_max: float | None = None,
+             target: str = "host",
              build: bool = False,
              cc: str = "gcc", repeats: int = 1000,
              progress: bool = False) -> ExportResult:
@@ -373,12 +394,24 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         Body-rate limit [rad/s] of the MPC steps (``|ω_i| <= rate_max``
         on every planned state, as `ocp.mpc.AttitudeMPC`); default: the
         spacecraft's ``rate_max`` (none without a spacecraft).
+    target : {"host", "cortex-m7", "cortex-m4f"}
+        Where the driver runs (`ocp.codegen.target`): the host (``cc``),
+        or a Cortex-M7 (double-precision FPU) / Cortex-M4F (single
+        precision: double in software) on qemu: a bare-metal driver,
+        startup code and linker script are written too, built with
+        ``arm-none-eabi-gcc`` (``-Wall -Wextra -Werror``) and a memory
+        report is written. Without DAQP's C sources in the folder
+        (`ocp.codegen.target.daqp_c_sources`) every QP of a target export
+        is solved by qrqp (``"daqp"`` asked for is an error).
     build : bool
-        Compile the driver and a shared library with ``cc``.
+        Compile the driver and a shared library with ``cc`` (a target:
+        the ELF with ``arm-none-eabi-gcc``, `build_target`).
     cc : str
         C compiler.
     repeats : int
-        Calls per function timed by the driver.
+        Calls per function timed by the driver (a Cortex-M driver: a
+        tenth, at least 3; instruction counts do not vary between calls
+        on the same input).
     progress : bool
         Show a progress bar during the build.
 
@@ -411,14 +444,18 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     if int(repeats) < 1:
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
     mpc_variants = _check_variants(mpc_variants)
+    cortex_m = check_target(target) != "host"
+    wheel_qp_plugin, duty_qp_plugin, condensed = _target_plugins(
+        target, out, wheel_qp_plugin, duty_qp_plugin)
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
     method = wheel_qp_method(wheels, wheel_qp_fast_path)
     duty_plugin = _resolve_wheel_qp_plugin(duty_qp_plugin, "duty_qp_plugin")
     # a closed-form wheel_qp holds no conic: no solver library to link
     # unless the duty QP's fast path calls daqp
+    condensed = _resolve_wheel_qp_plugin(condensed, "condensed_qp_plugin")
     uses_daqp = (plugin == "daqp" and method != "closed form") or (
         thrusters is not None and duty_plugin == "daqp") or (
-        daqp_available() and any("cond" in v for v in mpc_variants))
+        condensed == "daqp" and any("cond" in v for v in mpc_variants))
     cflags, ldflags = c_flags("daqp" if uses_daqp else "")
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
@@ -426,7 +463,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         mpc_max_iter=mpc_max_iter,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
-        rate_max=rate_max)
+        rate_max=rate_max, condensed_qp_plugin=condensed)
     cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True})
     for f in fns.values():
         cg.add(f)
@@ -459,8 +496,14 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
                                "wheel_qp_method": method,
                                "qrqp_patched": patched,
                                "daqp_patched": daqp_patched,
+                               "condensed_qp_plugin": condensed,
                                "rate_max": rate_max,
                                "cflags": cflags, "ldflags": ldflags})
+    if cortex_m:
+        res = write_target_files(res, target, _driver_source(
+            fns, samples, max(int(repeats) // 10, 3), model, dt,
+            head=target_head()))
+        return build_target(res) if build else res
     if build:
         return build_exported(res, cc=cc, progress=progress)
     return res

@@ -43,7 +43,10 @@ class ExportResult(ResultMixin):
         form"``, ``"min-norm check + conic"`` or ``"conic"``), ``cflags``
         and ``ldflags`` (what the build adds for daqp: empty and ``-lm``
         for qrqp or a closed form), ``qrqp_patched`` (`patch_qrqp` was
-        applied).
+        applied); a Cortex-M export adds ``target``, ``c_sources`` /
+        ``c_include`` (extra C the target build compiles: DAQP's, when
+        the folder carries it) and, built, ``memory``
+        (`ocp.codegen.memory.memory_report`).
     """
 
     out_dir: Path

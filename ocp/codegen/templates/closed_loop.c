@@ -35,9 +35,9 @@ static void closed_loop(const char* name, eval_t f, work_t work,
     a[0] = x; a[1] = qf; a[2] = tau; a[3] = z; a[4] = lx; a[5] = lg;
     r[0] = u; r[1] = z; r[2] = lx; r[3] = lg; r[4] = &cost; r[5] = &viol;
     r[6] = &viol1; r[7] = &defect;
-    double t0 = now_us();
+    double t0 = clock_now();
     f(a, r, iw, w, mem);
-    t[k] = now_us() - t0;
+    t[k] = clock_now() - t0;
     if (viol1 > worst) worst = viol1;
     a[0] = x; a[1] = u; a[2] = tau; a[3] = &h;
     r[0] = xn;
@@ -56,9 +56,12 @@ static void closed_loop(const char* name, eval_t f, work_t work,
   /* the first step starts cold (x0 everywhere, no multipliers) */
   for (k = 1; k < steps; ++k) if (t[k] > twarm) twarm = t[k];
   qsort(t, steps, sizeof(double), cmp_double);
-  printf("TIME closed_loop:%s median_us=%.3f max_us=%.3f calls=%d "
-         "final_error_deg=%.3e max_warm_us=%.3f\n", name, t[steps / 2],
-         tmax, steps, err, twarm);
+  printf("TIME closed_loop:%s median_" TIME_UNIT "=%.3f max_" TIME_UNIT
+         "=%.3f calls=%d final_error_deg=%.3e max_warm_" TIME_UNIT
+         "=%.3f\n", name, t[steps / 2], tmax, steps, err, twarm);
+  printf("STATE closed_loop:%s:", name);
+  for (i = 0; i < nx; ++i) printf(" %.17g", x[i]);
+  printf("\n");
   printf("  closed_loop:%s worst applied-step violation %.3e\n", name,
          worst);
   free(a); free(r); free(iw); free(w); free(t);

@@ -33,45 +33,17 @@ typedef int (*work_t)(casadi_int*, casadi_int*, casadi_int*, casadi_int*);
 typedef int (*checkout_t)(void);
 typedef void (*release_t)(int);
 
-static double now_us(void) {
+/* the clock of time_call and closed_loop (driver_body.c) and its unit */
+#define TIME_UNIT "us"
+static double clock_now(void) {
   struct timespec t;
   clock_gettime(CLOCK_MONOTONIC, &t);
   return 1e6 * (double)t.tv_sec + 1e-3 * (double)t.tv_nsec;
 }
 
-static int cmp_double(const void* a, const void* b) {
-  double x = *(const double*)a, y = *(const double*)b;
-  return (x > y) - (x < y);
-}
+/* no stack painting on the host */
+static void stack_paint(void) {}
+static long stack_used(void) { return -1; }
 
-static void time_call(const char* name, eval_t f, work_t work,
-                      checkout_t checkout, release_t release,
-                      const casadi_real** arg, int n_in, casadi_real** res,
-                      int n_out, int reps,
-                      int n_show) {
-  casadi_int sz_arg, sz_res, sz_iw, sz_w;
-  work(&sz_arg, &sz_res, &sz_iw, &sz_w);
-  const casadi_real** a = malloc(sizeof(casadi_real*) * (sz_arg + n_in));
-  casadi_real** r = malloc(sizeof(casadi_real*) * (sz_res + n_out));
-  casadi_int* iw = malloc(sizeof(casadi_int) * (sz_iw + 1));
-  casadi_real* w = malloc(sizeof(casadi_real) * (sz_w + 1));
-  double* t = malloc(sizeof(double) * reps);
-  int i, mem = checkout(), flag = 0;
-  double first;
-  for (i = 0; i < n_in; ++i) a[i] = arg[i];
-  for (i = 0; i < n_out; ++i) r[i] = res[i];
-  for (i = 0; i < reps; ++i) {
-    double t0 = now_us();
-    flag |= f(a, r, iw, w, mem);
-    t[i] = now_us() - t0;
-  }
-  release(mem);
-  first = t[0];
-  qsort(t, reps, sizeof(double), cmp_double);
-  printf("TIME %s first_us=%.3f median_us=%.3f max_us=%.3f calls=%d "
-         "flag=%d\n", name, first, t[reps / 2], t[reps - 1], reps, flag);
-  printf("  %s first output:", name);
-  for (i = 0; i < n_show && i < 4; ++i) printf(" %.10g", res[0][i]);
-  printf("\n");
-  free(a); free(r); free(iw); free(w); free(t);
-}
+static void driver_init(void) { realtime_heap(); }
+

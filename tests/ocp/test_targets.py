@@ -1,0 +1,149 @@
+"""Cortex-M targets of the C export: counts, results, warnings, memory.
+
+Skipped without arm-none-eabi-gcc and qemu-system-arm (Debian:
+``apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi
+qemu-system-arm``; `.ci/run` installs them).
+"""
+
+import json
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from ocp.codegen.export import export_c
+from ocp.codegen.memory import FIELDS, call_graph, worst_stack
+from ocp.codegen.target import (
+    CORES,
+    CROSS_CC,
+    INSTRUCTIONS_PER_TICK,
+    QEMU,
+    STARTUP,
+    compile_flags,
+    link_flags,
+    parse_target_output,
+    run_target,
+    toolchain_missing,
+)
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(toolchain_missing() is not None,
+                       reason=str(toolchain_missing())),
+]
+
+
+@pytest.fixture(scope="module")
+def m7(tmp_path_factory):
+    out = tmp_path_factory.mktemp("m7")
+    res = export_c(out, "demo", mpc_variants=(), target="cortex-m7",
+                   build=True, repeats=50)
+    return res, run_target(res, timeout=120)
+
+
+def test_systick_counts_one_tick_per_40_instructions(m7, tmp_path):
+    """A known loop of 6 instructions: ticks = instructions / 40, the same
+    on every run (qemu -icount shift=0)."""
+    res, times = m7
+    cal = times["_calibration"]
+    assert cal["instructions"] == 24000
+    assert cal["ticks"] * INSTRUCTIONS_PER_TICK == cal["instructions"]
+    again = run_target(res, timeout=120)
+    for name in ("min_norm", "wheel_qp", "rk4"):
+        assert again[name]["median"] == times[name]["median"]
+    # a wrong rate is an error, not a silently wrong table
+    with pytest.raises(Exception, match="not one per 40"):
+        parse_target_output("CAL ticks=601 instructions=24000\n")
+
+
+@pytest.mark.parametrize("name", ["min_norm", "wheel_qp",
+                                  "wheel_qp:saturated", "dynamics", "rk4",
+                                  "duty_qp"])
+def test_m7_double_results_equal_the_host(m7, name):
+    res, times = m7
+    fn = res.functions[name.split(":")[0]]
+    ref = fn(*res.samples[name])
+    ref = [ref] if fn.n_out() == 1 else ref
+    got = times[name]["outputs"]
+    assert len(got) == fn.n_out()
+    for r, g in zip(ref, got):
+        np.testing.assert_allclose(g, np.asarray(r).ravel(order="F"),
+                                   rtol=0, atol=1e-9)
+    assert times[name]["flag"] == 0
+
+
+def test_target_builds_clean_under_werror(m7):
+    res, _ = m7
+    assert res.extras["warnings"] == 0, res.extras["warning_text"][:2000]
+    assert "-Werror" in compile_flags(res, CORES["cortex-m7"])
+    for name in ("startup_cortex_m.c", "cortex_m.ld", "main_cortex_m.c"):
+        assert (res.out_dir / name).is_file()
+
+
+def test_m4f_startup_and_driver_build_clean(m7, tmp_path):
+    """The M4F build of the same files (double in software) is clean."""
+    res, _ = m7
+    core = CORES["cortex-m4f"]
+    out = res.out_dir
+    proc = subprocess.run(
+        [CROSS_CC, *compile_flags(res, core), str(out / "main_cortex_m.c"),
+         str(out / STARTUP), str(out / "adcs_codegen.c"),
+         *link_flags(res, core), "-lm", "-o", str(tmp_path / "m4.elf")],
+        capture_output=True, text=True)
+    assert proc.returncode == 0 and "warning" not in proc.stderr, \
+        proc.stderr[-2000:]
+    assert shutil.which(QEMU)
+
+
+def test_memory_report_has_its_fields(m7):
+    res, times = m7
+    path = res.out_dir / "memory_cortex-m7.json"
+    rep = json.loads(path.read_text())
+    assert rep == res.extras["memory"]
+    for name in res.functions:
+        rec = rep["functions"][name]
+        assert set(FIELDS) <= set(rec), name
+        assert rec["flash"] > 0 and rec["heap"] is False
+        # the work sizes are those the generated *_work returns
+        assert tuple(rec[k] for k in ("sz_arg", "sz_res", "sz_iw",
+                                      "sz_w")) == times[name]["work"]
+        # the call-graph bound covers the painted stack (+ the clock's
+        # read, at most a few words)
+        assert rec["stack"] + 16 >= times[name]["stack_measured"] > 0
+    assert rep["functions"]["all"]["flash"] >= max(
+        r["flash"] for k, r in rep["functions"].items() if k != "all")
+
+
+def test_worst_stack_follows_the_call_graph():
+    ci = "\n".join([
+        'node: { title: "f" label: "f\\nx.c:1:1\\n16 bytes (static)" }',
+        'node: { title: "x.c:g" label: "g\\nx.c:2:1\\n32 bytes (static)" }',
+        'node: { title: "x.c:h" label: "h\\nx.c:3:1\\n8 bytes (static)" }',
+        'node: { title: "sqrt" label: "sqrt\\n<built-in>" shape : ellipse }',
+        'edge: { sourcename: "f" targetname: "x.c:g" }',
+        'edge: { sourcename: "f" targetname: "x.c:h" }',
+        'edge: { sourcename: "x.c:h" targetname: "sqrt" }'])
+    frames, edges = call_graph(ci)
+    assert worst_stack("f", frames, edges) == (48, True, ["sqrt"])
+
+
+def test_unknown_target_and_daqp_on_a_target_are_errors(tmp_path):
+    from adcs_common.exceptions import InvalidValueError
+
+    with pytest.raises(InvalidValueError, match="target must be"):
+        export_c(tmp_path, "demo", mpc_variants=(), target="avr")
+    with pytest.raises(InvalidValueError, match="DAQP's C"):
+        export_c(tmp_path, "demo", mpc_variants=(), target="cortex-m7",
+                 wheel_qp_plugin="daqp")
+
+
+def test_cli_export_target_run_prints_counts_and_memory(tmp_path, capsys):
+    from adcs.cli import main
+
+    assert main(["export", "--target", "cortex-m7", "--mpc", "",
+                 "--out", str(tmp_path), "--run"]) == 0
+    text = capsys.readouterr().out
+    assert "instruction counts, not cycles" in text
+    assert "memory on cortex-m7" in text and "min_norm" in text
+    assert (tmp_path / "memory_cortex-m7.json").is_file()
