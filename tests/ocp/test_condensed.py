@@ -282,3 +282,11 @@ def test_converged_plans_over_the_slew_equal_ipopts():
         assert a.qp_kkt <= 1e-9
         x = np.array(rk4(x, a.u, np.zeros(3), 0.5)).ravel()
     assert worst <= 1e-5
+
+
+def test_condensed_refuses_qrqp_which_fails_its_qp():
+    """qrqp on the condensed QP (Hessian I, the bounds as dense rows of
+    W⁻¹) returned a point 0.72 from optimality after 3.5 s; the certificate
+    showed it, and the condensed SQP now takes daqp only."""
+    with pytest.raises(SolverNotFound, match="condensed:qrqp"):
+        AttitudeMPC(MODEL, solver="condensed", qp_solver="qrqp")
