@@ -10,6 +10,7 @@ import sys
 import warnings
 from typing import Sequence
 
+from adcs.design_cli import add_design
 from adcs.provenance import version
 from adcs_common.exceptions import AdcsError, InvalidValueError
 from adcs_common.interrupts import install_handler, interrupted
@@ -331,6 +332,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_bench(sub)
 
     _add_sweep(sub)
+
+    add_design(sub)
 
     scp = sub.add_parser("spacecraft", help="list the built-in spacecraft "
                          "or print one's TOML")

@@ -20,6 +20,7 @@ from .accuracy import (
     torque_error,
 )
 from .arrays import WheelArray, pyramid_axes
+from .design import FAMILIES, ArrayDesign, certify_layout, design_array
 from .electrical import WheelMotor
 from .envelope import Envelope, Facets, envelope, envelope_frame
 from .exceptions import (
@@ -75,8 +76,10 @@ from .symbolic import (
 __all__ = [
     "AccuracyResult",
     "AdcsError",
+    "ArrayDesign",
     "BatchAllocation",
     "EQ9_GAINS",
+    "FAMILIES",
     "Envelope",
     "ErrorSummary",
     "Facets",
@@ -97,8 +100,10 @@ __all__ = [
     "actual_axes",
     "allocate_min_norm",
     "available_solvers",
+    "certify_layout",
     "compare_law_axes",
     "conic_allocator_function",
+    "design_array",
     "envelope",
     "envelope_frame",
     "fibonacci_directions",
