@@ -91,8 +91,12 @@ def _export(args: argparse.Namespace) -> int:
                    mpc_variants=variants, build=args.build or args.run,
                    cc=args.cc, progress=args.build or args.run)
     for p in (res.source, res.header, res.driver, res.makefile,
-              res.readme):
+              res.makefile.with_name("CMakeLists.txt"), res.readme):
         print(f"  wrote {p}")
+    if res.extras.get("solver_sources"):
+        print(f"  wrote {res.out_dir / 'daqp'}/ (DAQP's C sources, MIT "
+              f"licence; static workspace "
+              f"{res.extras['daqp_static_bytes']} bytes)")
     if "warnings" in res.extras:
         print(f"  built with {args.cc} (-Wall -Wextra): "
               f"{res.extras['warnings']} warnings")
