@@ -94,8 +94,12 @@ def _export(args: argparse.Namespace) -> int:
                    cc=args.cc, progress=args.build or args.run,
                    target=args.target)
     for p in (res.source, res.header, res.driver, res.makefile,
-              res.readme):
+              res.makefile.with_name("CMakeLists.txt"), res.readme):
         print(f"  wrote {p}")
+    if res.extras.get("solver_sources"):
+        print(f"  wrote {res.out_dir / 'daqp'}/ (DAQP's C sources, MIT "
+              f"licence; static workspace "
+              f"{res.extras['daqp_static_bytes']} bytes)")
     if args.target != "host":
         return _export_target(args, res)
     if "warnings" in res.extras:

@@ -9,18 +9,24 @@ from adcs_common.exceptions import AdcsError, InvalidValueError
 from .result import OPT_FLAGS, SOURCE, ExportResult
 
 
-#: Warnings the builds enable (flight builds add -Werror).
+#: Warnings the builds enable (the Makefile adds -Werror).
 WARNING_FLAGS = ("-Wall", "-Wextra")
+
+#: The C standard of the builds.
+STD_FLAGS = ("-std=c99",)
 
 
 def build_exported(res: ExportResult, cc: str = "gcc",
                    progress: bool = False) -> ExportResult:
-    """Compile the source once; link the driver and a shared library.
+    """Compile the sources once; link the driver and a shared library.
 
-    With ``-Wall -Wextra``: the compiler's warnings are counted in
-    ``extras["warnings"]`` (0 for the toolbox's exports; their text in
-    ``extras["warning_text"]``). ``progress`` shows a bar over the three
-    steps (the object takes most of the 20-30 s of an MPC export).
+    The generated source and the solver sources beside it
+    (``extras["solver_sources"]``: DAQP) are compiled to objects in the
+    export folder, C99, with ``-Wall -Wextra``: the compiler's warnings
+    are counted in ``extras["warnings"]`` (0 for the toolbox's exports;
+    their text in ``extras["warning_text"]``). ``progress`` shows a bar
+    over the three steps (the object takes most of the 20-30 s of an MPC
+    export).
 
     Raises
     ------
@@ -31,9 +37,10 @@ def build_exported(res: ExportResult, cc: str = "gcc",
     """
     from tqdm.auto import tqdm
 
-    cflags = list(res.extras.get("cflags", []))
     ldflags = list(res.extras.get("ldflags", ["-lm"]))
+    solver = list(res.extras.get("solver_sources", []))
     opt = " ".join(OPT_FLAGS)
+    flags = [*STD_FLAGS, *WARNING_FLAGS]
     log: list[str] = []
     # on a terminal only (None: tqdm's own test), not in logs or pipes
     steps = tqdm(total=3, desc=f"compiling {SOURCE}.c", unit="step",
@@ -41,24 +48,23 @@ def build_exported(res: ExportResult, cc: str = "gcc",
                  bar_format="{l_bar}{bar}| "
                  "{n}/{total} [{elapsed}]")
     with steps:
-        obj = compile_c([res.source], res.out_dir / f"{SOURCE}.o", cc=cc,
-                        opt=opt, shared=False,
-                        flags=["-fPIC", "-c", *WARNING_FLAGS, *cflags],
-                        libs=(), log=log)
+        objs = [compile_c([src], src.with_suffix(".o"), cc=cc, opt=opt,
+                          shared=False, flags=["-fPIC", "-c", *flags],
+                          libs=(), log=log)
+                for src in [res.source, *solver]]
         steps.set_description("linking the shared library")
         steps.update(1)
-        lib = compile_c([obj], res.out_dir / f"{SOURCE}.so", cc=cc,
+        lib = compile_c(objs, res.out_dir / f"{SOURCE}.so", cc=cc,
                         opt=opt, libs=ldflags, log=log)
         steps.set_description("building the driver")
         steps.update(1)
-        exe = compile_c([res.driver, obj], res.out_dir / "adcs_driver",
-                        cc=cc, opt=opt, shared=False,
-                        flags=[*WARNING_FLAGS, *cflags], libs=ldflags,
-                        log=log)
+        exe = compile_c([res.driver, *objs], res.out_dir / "adcs_driver",
+                        cc=cc, opt=opt, shared=False, flags=flags,
+                        libs=ldflags, log=log)
         steps.update(1)
     text = "".join(log)
     extras = {**res.extras, "warnings": text.count("warning:"),
-              "warning_text": text}
+              "warning_text": text, "objects": objs}
     return ExportResult(**{**res.__dict__, "executable": exe,
                            "shared_library": lib, "extras": extras})
 

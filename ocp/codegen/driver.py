@@ -23,13 +23,43 @@ def _c_array(name: str, values) -> str:
     return f"static casadi_real {name}[{max(v.size, 1)}] = {{{body}}};"
 
 
+def _driver_sizes(fns: dict[str, ca.Function], repeats: int,
+                  loop_steps: int) -> str:
+    """``#define``s of the driver's static arrays (no heap in the driver).
+
+    The largest ``*_work`` sizes of the exported functions (CasADi writes
+    the Functions' ``sz_arg`` ... ``sz_w`` there; the driver checks them
+    at run time), calls timed, and the closed loop's vectors.
+    """
+    def most(get, floor=1):
+        return max([floor] + [int(get(f)) for f in fns.values()])
+    loop = max([1] + [max(f.nnz_in(i) for i in (0, 3, 5))
+                      for n, f in fns.items() if n.startswith("mpc")]
+               + [f.nnz_out(0) for n, f in fns.items()
+                  if n.startswith("mpc")])
+    return "\n".join([
+        f"#define ADCS_SZ_ARG {most(lambda f: max(f.sz_arg(), f.n_in()), 8)}",
+        f"#define ADCS_SZ_RES {most(lambda f: max(f.sz_res(), f.n_out()), 8)}",
+        f"#define ADCS_SZ_IW {most(lambda f: f.sz_iw())}",
+        f"#define ADCS_SZ_W {most(lambda f: f.sz_w())}",
+        f"#define ADCS_MAX_CALLS {max(repeats, loop_steps, 3)}",
+        f"#define ADCS_LOOP_N {loop}"])
+
+
+#: Steps of the driver's closed loops.
+LOOP_STEPS = 80
+
+
 def _driver_source(fns: dict[str, ca.Function],
                    samples: dict[str, list[np.ndarray]], repeats: int,
                    model: SpacecraftModel, dt: float,
                    head: str | None = None) -> str:
     """Text of a driver: ``head`` (the host's by default, or a target's
-    from `ocp.codegen.target`), the shared body, the calls, the loops."""
-    lines = [_DRIVER_HEAD if head is None else head, _DRIVER_BODY]
+    from `ocp.codegen.target`), the shared body with its static arrays,
+    the calls, the loops."""
+    lines = [_DRIVER_HEAD if head is None else head,
+             _DRIVER_BODY.replace("/* @SIZES@ */", _driver_sizes(
+                 fns, repeats, LOOP_STEPS))]
     calls = []
     for name, f in fns.items():
         for j in range(f.n_out()):
@@ -51,7 +81,7 @@ def _driver_source(fns: dict[str, ca.Function],
             calls.append(
                 f"  {{ const casadi_real* a[] = {{{arg}}};\n"
                 f"    casadi_real* r[] = {{{res}}};\n"
-                f"    time_call(\"{case}\", {name}, {name}_work, "
+                f"    bad |= time_call(\"{case}\", {name}, {name}_work, "
                 f"{name}_checkout, {name}_release, a, {len(ins)}, r, "
                 f"{f.n_out()}, {name}_nnz_out, {reps}, {f.nnz_out(0)}); }}")
     body = "\n".join(lines)
@@ -60,13 +90,13 @@ def _driver_source(fns: dict[str, ca.Function],
         if name.startswith("mpc"):
             f = fns[name]
             loops.append(
-                f"  closed_loop(\"{name}\", {name}, {name}_work, "
+                f"  bad |= closed_loop(\"{name}\", {name}, {name}_work, "
                 f"{name}_checkout, {name}_release, {name}_in0, {name}_in1,"
                 f" {f.nnz_in(0)}, {f.nnz_in(3)}, {f.nnz_in(5)}, "
-                f"{model.nu}, {dt!r}, 80);")
-    main = ("int main(void) {\n  driver_init();\n" + "\n".join(calls)
-            + "\n"
-            + "\n".join(loops) + "\n  return 0;\n}\n")
+                f"{model.nu}, {dt!r}, {LOOP_STEPS});")
+    main = ("int main(void) {\n  int bad = 0;\n  driver_init();\n"
+            + "\n".join(calls) + "\n" + "\n".join(loops)
+            + "\n  fflush(stdout);\n  return bad;\n}\n")
     return body + "\n" + (_CLOSED_LOOP if loops else "") + main
 
 
@@ -82,10 +112,62 @@ _CLOSED_LOOP = _template("closed_loop.c")
 _MAKEFILE = _template("Makefile.in")
 
 
+_CMAKELISTS = _template("CMakeLists.txt.in")
+
+
+def _solver_text(fns, plugin, method, patched, duty_plugin) -> str:
+    """The README's sentences on the QP solvers in the source."""
+    daqp = ("DAQP (its C sources and MIT licence are in `daqp/`, "
+            "compiled with the rest)")
+    if method == "closed form":
+        solver_text = ("`wheel_qp` solves its QP exactly in closed form "
+                       "(3 or 4 working wheels: the equality leaves a "
+                       "point or a segment).")
+    elif plugin == "daqp":
+        solver_text = f"`wheel_qp` calls {daqp} when its fast path cannot."
+    else:
+        solver_text = ("`wheel_qp` calls CasADi's qrqp, generated inline, "
+                       "when its fast path cannot.")
+    if duty_plugin is not None and "duty_qp" in fns:
+        solver_text += (
+            " `duty_qp` solves the duty QP reduced to its free directions "
+            "with " + (daqp if duty_plugin == "daqp" else
+                       "qrqp (generated inline)") + " after testing the "
+            "demand against the set the thrusters can produce, and "
+            "certifies the point by its KKT conditions; its `status` "
+            "output is 0 optimal, 1 momentum bound relaxed, 2 infeasible, "
+            "3 invalid input, 4 solver failed (duties 0 unless 0 or 1).")
+    if patched:
+        solver_text += (" qrqp is edited to reuse its KKT factorization "
+                        "while the active set does not change within a "
+                        "solve (`ocp.codegen.patch_qrqp`; same results).")
+    return solver_text
+
+
+def _memory_text(static_bytes: int) -> str:
+    """The README's paragraph on memory (no heap)."""
+    heap = ("No function allocates: all memory is the caller's `w`/`iw` "
+            "arrays (sizes from `f_work`) or static. ")
+    if static_bytes:
+        heap += (
+            "CasADi's DAQP runtime would set DAQP's workspace up on the "
+            "heap on every solve; here it is edited "
+            "(`ocp.codegen.patch_daqp_static`) to lay it out in static "
+            f"arrays sized for each QP at generation time ({static_bytes}"
+            " bytes in all, per memory slot: `CASADI_MAX_NUM_THREADS`, "
+            "default 1), and DAQP's own allocating functions are not in "
+            "`daqp/api.c`. ")
+    heap += ("Check an object build with `nm`: no undefined `malloc`, "
+             "`calloc`, `realloc` or `free`. `main.c` uses no heap either "
+             "(static arrays, a static `stdout` buffer).")
+    return heap
+
+
 def _readme(fns: dict[str, ca.Function],
             samples: dict[str, list[np.ndarray]], plugin: str = "qrqp",
-            cflags=(), ldflags=("-lm",), method: str = "conic",
-            patched: bool = False, duty_plugin: str | None = None) -> str:
+            solver_sources=(), method: str = "conic",
+            patched: bool = False, duty_plugin: str | None = None,
+            static_bytes: int = 0) -> str:
     rows = []
     for name, f in fns.items():
         ins = ", ".join(f"{f.name_in(i)}[{f.nnz_in(i)}]"
@@ -94,50 +176,41 @@ def _readme(fns: dict[str, ca.Function],
                          for i in range(f.n_out()))
         rows.append(f"| `{name}` | {ins} | {outs} |")
     opt = " ".join(OPT_FLAGS)
-    build_cmd = " ".join(["gcc", opt, *cflags, "-o adcs_driver main.c",
-                          f"{SOURCE}.c", *ldflags])
-    if method == "closed form":
-        solver_text = ("`wheel_qp` solves its QP exactly in closed form "
-                       "(3 or 4 working wheels: the equality leaves a "
-                       "point or a segment); the other QPs use CasADi's "
-                       "qrqp, generated inline, so only `-lm` is needed.")
-    elif plugin == "daqp":
-        solver_text = ("`wheel_qp` is solved by DAQP: the source includes "
-                       "`daqp/api.h` and links the static `libdaqpstat.a` "
-                       "that the casadi wheel ships (paths in the "
-                       "Makefile's `SOLVER_CFLAGS` / `SOLVER_LIBS`); the "
-                       "other QPs use CasADi's qrqp, generated inline. "
-                       "Export with `wheel_qp_plugin=\"qrqp\"` for a "
-                       "self-contained source.")
-    else:
-        solver_text = ("The QPs are solved by CasADi's qrqp, generated "
-                       "inline, so only `-lm` is needed.")
-    if duty_plugin is not None and "duty_qp" in fns:
-        solver_text += (
-            " `duty_qp` solves the duty QP reduced to its free directions "
-            f"with {duty_plugin} (" + ("DAQP: the source includes "
-            "`daqp/api.h` and links `libdaqpstat.a`" if duty_plugin ==
-            "daqp" else "generated inline") + ") after testing the demand "
-            "against the set the thrusters can produce, and certifies the "
-            "point by its KKT conditions; its `status` output is 0 "
-            "optimal, 1 momentum bound relaxed, 2 infeasible, 3 invalid "
-            "input, 4 solver failed (duties 0 unless 0 or 1).")
-    if patched:
-        solver_text += (" qrqp is edited to reuse its KKT factorization "
-                        "while the active set does not change within a "
-                        "solve (`ocp.codegen.patch_qrqp`; same results).")
+    build_cmd = " ".join(["cc", opt, "-std=c99 -o adcs_driver main.c",
+                          f"{SOURCE}.c", *solver_sources, "-lm"])
+    solver_text = _solver_text(fns, plugin, method, patched, duty_plugin)
+    heap = _memory_text(static_bytes)
     return f"""# Generated ADCS C code
 
 Written by `ocp.codegen.export.export_c` (CasADi {ca.__version__} code
 generation). `{SOURCE}.c` / `{SOURCE}.h` are C99. {solver_text}
 
-Build and run the driver: `make run` (or
-`{build_cmd} && ./adcs_driver`).
+## Build
 
-Calling convention (CasADi): for a function `f`, query work sizes with
-`f_work(&sz_arg, &sz_res, &sz_iw, &sz_w)`, allocate, take a memory slot
-with `mem = f_checkout()`, call `f(arg, res, iw, w, mem)` (arg/res arrays
-of pointers to dense column vectors) and `f_release(mem)`. `main.c` does
+Everything the build reads is in this folder: a C99 compiler and libm
+are all it needs (no include path, no prebuilt library).
+
+* `make run`: build and run the driver (`make lib`: `lib{SOURCE}.a`;
+  `make shared`: `{SOURCE}.so`). `CC`, `CFLAGS`, `WARNINGS` (default
+  `-Wall -Wextra -Werror`), `LDLIBS` and `AR` may be overridden, e.g.
+  `make lib CC=arm-none-eabi-gcc AR=arm-none-eabi-ar CFLAGS="-O2
+  -mcpu=cortex-m7"`. A flight build of its own compiles the Makefile's
+  `ADCS_SOURCES` with its flags.
+* CMake: `add_subdirectory()` this folder and link the target
+  `adcs_codegen` (options `ADCS_WARNINGS`, `ADCS_DRIVER`).
+* By hand: `{build_cmd} && ./adcs_driver`.
+
+## Memory
+
+{heap}
+
+## Calling convention
+
+CasADi's: for a function `f`, query work sizes with
+`f_work(&sz_arg, &sz_res, &sz_iw, &sz_w)`, provide arrays of those sizes
+(static in a flight build), take a memory slot with
+`mem = f_checkout()`, call `f(arg, res, iw, w, mem)` (arg/res arrays of
+pointers to dense column vectors) and `f_release(mem)`. `main.c` does
 this for every function and times the calls with `clock_gettime`.
 
 Units: SI (N·m, N·m·s, kg·m², rad, s); quaternions scalar-first (w, x,
@@ -157,8 +230,4 @@ at the next sample. `mpc_rti_step` makes one SQP step per sample.
 problem by the condensed SQP (`ocp.mpc.condensed`: the QP on the controls
 only, DAQP started from the active set of `lam_x_prev`; `lam_g` is
 zero); their last output `iterations` counts the SQP iterations.
-CasADi's DAQP runtime allocates its workspace on every solve: `main.c`
-keeps freed memory in the heap (`mallopt`, glibc) so that the timed calls
-do not fault pages in; a flight build without an operating-system heap
-needs an allocator that does the same.
 """

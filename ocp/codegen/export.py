@@ -1,18 +1,19 @@
 """C code export of the allocation laws, QPs, dynamics and MPC step.
 
-`export_c` writes one self-contained C source (CasADi ``CodeGenerator``,
-no CasADi at run time) with its header, a test driver ``main.c`` that
-calls every function on sample inputs and times it with
-``clock_gettime``, a ``Makefile`` and a README. The wheel QP is solved
+`export_c` writes a self-contained folder: one C source (CasADi
+``CodeGenerator``, no CasADi at run time) with its header, the C sources
+of every solver it calls (DAQP, MIT, in ``daqp/`` with its licence:
+`ocp.codegen.daqp_static`), a test driver ``main.c`` that calls every
+function on sample inputs and times it with ``clock_gettime``, a
+``Makefile``, a ``CMakeLists.txt`` and a README. A C99 compiler and libm
+are all the build needs; nothing in the folder names a path outside it.
+No exported function allocates: the memory is the caller's ``w``/``iw``
+arrays or static (DAQP's workspace, laid out at generation time by
+`patch_daqp_static`). The wheel QP is solved
 exactly in closed form for 3 or 4 working wheels (no solver in its C,
 ``wheel_qp_fast_path``); otherwise, and for the other QPs, every QP inside
-is a code-generatable conic. A wheel-QP conic is daqp when its header and
-the static ``libdaqpstat.a`` of the casadi wheel are found (≈ 4x faster
-than qrqp; the build then adds ``-I<casadi>/include
-<casadi>/libdaqpstat.a``, see
-`allocation.qp.conic_function.conic_c_flags`), otherwise qrqp; with
-``wheel_qp_plugin="qrqp"`` the C is self-contained and ``gcc`` and
-``libm`` are all the build needs. Builds use ``-O3``. The generated
+is a code-generatable conic: daqp (≈ 4x faster than qrqp) when the casadi
+daqp plugin is there, else qrqp. Builds use ``-O3``. The generated
 qrqp is edited to reuse its KKT factorization while the active set does
 not change (`patch_qrqp`, bit-identical results); a generated DAQP conic
 returns its point on a failed solve instead of aborting the call
@@ -45,7 +46,6 @@ import os
 
 from typing import Any
 
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -56,13 +56,19 @@ from adcs_common.exceptions import InvalidValueError
 from adcs_common.paths import output_folder
 from adcs_common.validation import as_finite_scalar, check_positive
 from allocation import WheelArray, conic_allocator_function, min_norm_function
-from allocation.qp.conic_function import conic_c_flags, wheel_qp_method
+from allocation.qp.conic_function import wheel_qp_method
 from thrusters import ThrusterSet
 
 from ocp.models.rigid import SpacecraftModel, rigid_spacecraft
 from ocp.spacecraft import load_spacecraft
 from .build import build_exported, run_driver
-from .driver import _MAKEFILE, _driver_source, _readme
+from .daqp_static import (
+    DAQP_DIR,
+    DAQP_SOURCES,
+    copy_daqp_sources,
+    patch_daqp_static,
+)
+from .driver import _CMAKELISTS, _MAKEFILE, _driver_source, _readme
 from .patches import (
     patch_daqp_failure,
     patch_daqp_warm_start,
@@ -85,6 +91,7 @@ __all__ = [
     "duty_qp_function",
     "export_c",
     "patch_daqp_failure",
+    "patch_daqp_static",
     "patch_daqp_warm_start",
     "patch_minmax",
     "patch_qrqp",
@@ -97,18 +104,16 @@ WHEEL_QP_PLUGINS = ("daqp", "qrqp")
 
 
 def daqp_available() -> bool:
-    """Return True when generated C with daqp can be built here.
+    """Return True when CasADi's daqp conic plugin is there.
 
-    Needs the CasADi conic plugin, ``daqp/api.h`` under the casadi
-    package's ``include`` and its static ``libdaqpstat.a``.
+    The exports' DAQP C sources are the toolbox's own (vendored, copied
+    into each export), so the plugin that builds the Functions is all
+    that is needed.
     """
-    root = Path(ca.__file__).parent
     try:
-        ok = ca.has_conic("daqp")
+        return bool(ca.has_conic("daqp"))
     except RuntimeError:
-        ok = False
-    return (ok and (root / "include" / "daqp" / "api.h").is_file()
-            and (root / "libdaqpstat.a").is_file())
+        return False
 
 
 def _resolve_wheel_qp_plugin(plugin: str | None,
@@ -121,22 +126,9 @@ def _resolve_wheel_qp_plugin(plugin: str | None,
             f"got {plugin!r}")
     if plugin == "daqp" and not daqp_available():
         raise InvalidValueError(
-            f"{name}='daqp' needs the casadi daqp plugin, "
-            "include/daqp/api.h and libdaqpstat.a in the casadi package; "
-            "use 'qrqp' (self-contained C)")
+            f"{name}='daqp' needs the casadi daqp conic plugin; "
+            "use 'qrqp'")
     return plugin
-
-
-def c_flags(plugin: str) -> tuple[list[str], list[str]]:
-    """Compile flags and link arguments for generated C with ``plugin``.
-
-    Returns ``([], ["-lm"])`` for qrqp (self-contained C).
-    """
-    if plugin != "daqp":
-        return [], ["-lm"]
-    flags = conic_c_flags("daqp")
-    inc = [f for f in flags if f.startswith("-I")]
-    return inc, [f for f in flags if not f.startswith("-I")]
 
 
 def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
@@ -158,9 +150,9 @@ def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
     h_max : float
         Momentum bound [N·m·s].
     plugin : {None, "daqp", "qrqp"}
-        Conic of the fast path: daqp (sub-microsecond in C; links the
-        casadi wheel's ``libdaqpstat.a``), qrqp (self-contained C, about
-        5 µs) or None: daqp when `daqp_available`.
+        Conic of the fast path: daqp (sub-microsecond in C; its sources
+        travel with the export), qrqp (generated inline, about 5 µs) or
+        None: daqp when `daqp_available`.
     **qp_options
         Forwarded to `thrusters.build_qp` (tracking, bound, weights).
 
@@ -300,23 +292,60 @@ def _check_variants(variants) -> tuple[str, ...]:
 def _target_plugins(target: str, out: Path, wheel: str | None,
                     duty: str | None
                     ) -> tuple[str | None, str | None, str | None]:
-    """QP plugins of a target export: qrqp for every QP on a Cortex-M
-    until the folder carries DAQP's C (the casadi wheel's
-    ``libdaqpstat.a`` is x86); ``"daqp"`` asked for is then an error."""
-    if target == "host" or daqp_c_sources(out)[0]:
-        return wheel, duty, None
-    for name, p in (("wheel_qp_plugin", wheel), ("duty_qp_plugin", duty)):
-        if p == "daqp":
-            raise InvalidValueError(
-                f"{name}='daqp' with target={target!r} needs DAQP's C "
-                "sources in the export folder; use 'qrqp'")
-    return "qrqp", "qrqp", "qrqp"
+    """QP plugins of an export: a Cortex-M target takes the host's, since
+    the folder carries DAQP's C sources (`copy_daqp_sources`) whenever a
+    function calls DAQP."""
+    return wheel, duty, None
 
 
 def _renamed(f: ca.Function, name: str) -> ca.Function:
     """``f`` wrapped under a new name (C symbol)."""
     args = f.mx_in()
     return ca.Function(name, args, f.call(args), f.name_in(), f.name_out())
+
+
+def _write_build_files(out, solver_sources) -> None:
+    """The Makefile and CMakeLists.txt: relative paths, C99 and libm."""
+    rel = [p.relative_to(out).as_posix() for p in solver_sources]
+    note = (f"{DAQP_DIR}/: DAQP, MIT licence, {DAQP_DIR}/LICENSE"
+            if rel else "the QPs are generated inline")
+    (out / "Makefile").write_text(_MAKEFILE.format(
+        src=SOURCE, opt=" ".join(OPT_FLAGS), solver_note=note,
+        solver_sources="".join(f" \\\n  {r}" for r in rel)))
+    (out / "CMakeLists.txt").write_text(_CMAKELISTS.format(
+        src=SOURCE, opt=" ".join(OPT_FLAGS), solver_note=note,
+        solver_sources_cmake="".join(f"\n  {r}" for r in rel)))
+
+
+def _write_source(fns: dict, out: Path, reuse_factorization: bool
+                  ) -> tuple[bool, bool, dict, list[Path]]:
+    """Generate ``adcs_codegen.c`` and edit it for flight.
+
+    Returns ``(daqp_patched, qrqp_patched, daqp_conics, solver_sources)``:
+    the DAQP failure patch applied, the qrqp reuse patch applied, each
+    DAQP conic's static workspace and the DAQP C sources copied beside
+    the source (none without a DAQP conic).
+    """
+    cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True})
+    for f in fns.values():
+        cg.add(f)
+    cg.generate(f"{out}/")
+    source = out / f"{SOURCE}.c"
+    patched = False
+    text, daqp_patched = patch_daqp_failure(source.read_text())
+    text, _ = patch_minmax(text)
+    text, _ = patch_daqp_warm_start(text)
+    # DAQP's workspace in static storage, its sources beside the source
+    text, daqp_conics = patch_daqp_static(text)
+    if reuse_factorization:
+        text, patched = patch_qrqp(text)
+    text, _ = patch_unused_parameters(text)       # last: the others
+    source.write_text(text)                      # match CasADi's text
+    solver_sources = copy_daqp_sources(out) if daqp_conics else []
+    if not daqp_conics and (out / DAQP_DIR / "api.c").is_file():
+        for name in DAQP_SOURCES:                # stale from an earlier
+            (out / DAQP_DIR / name).unlink(missing_ok=True)   # export
+    return daqp_patched, patched, daqp_conics, solver_sources
 
 
 def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
@@ -368,14 +397,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         qrqp to convergence), ``"mpc_rti_step"`` (one SQP step per
         sample), each ~1.2 MB of C at horizon 20; ``"mpc_cond_step"``,
         ``"mpc_cond_rti_step"``: the condensed SQP
-        (`ocp.mpc.condensed`; DAQP, linking ``libdaqpstat.a`` where the
-        casadi wheel ships it, else qrqp), ~0.8 MB; empty for none.
+        (`ocp.mpc.condensed`; DAQP where `daqp_available`, else qrqp),
+        ~0.8 MB; empty for none.
         Default: both sqpmethod steps and the condensed RTI step.
     wheel_qp_plugin : {None, "daqp", "qrqp"}
-        Conic of ``wheel_qp``: ``"daqp"`` (≈ 4x faster in C; needs the
-        casadi wheel's ``include/daqp`` and ``libdaqpstat.a`` at build
-        time), ``"qrqp"`` (self-contained C) or None: daqp when
-        `daqp_available`, else qrqp.
+        Conic of ``wheel_qp``: ``"daqp"`` (≈ 4x faster in C),
+        ``"qrqp"`` or None: daqp when `daqp_available`, else qrqp.
     wheel_qp_fast_path : bool
         Solve the wheel QP exactly without the conic where possible
         (`allocation.qp.conic_function.conic_allocator_function`: a closed
@@ -384,8 +411,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         is within the bounds, else the conic).
     duty_qp_plugin : {None, "daqp", "qrqp"}
         Conic of ``duty_qp``'s fast path (`duty_qp_function`): daqp
-        (sub-microsecond; links ``libdaqpstat.a``), qrqp (self-contained)
-        or None: daqp when `daqp_available`.
+        (sub-microsecond), qrqp or None: daqp when `daqp_available`.
     qrqp_reuse_factorization : bool
         Edit the generated qrqp to reuse its KKT factorization when the
         active set recurs within a solve (`patch_qrqp`: same results bit
@@ -450,13 +476,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
     method = wheel_qp_method(wheels, wheel_qp_fast_path)
     duty_plugin = _resolve_wheel_qp_plugin(duty_qp_plugin, "duty_qp_plugin")
-    # a closed-form wheel_qp holds no conic: no solver library to link
-    # unless the duty QP's fast path calls daqp
     condensed = _resolve_wheel_qp_plugin(condensed, "condensed_qp_plugin")
-    uses_daqp = (plugin == "daqp" and method != "closed form") or (
-        thrusters is not None and duty_plugin == "daqp") or (
-        condensed == "daqp" and any("cond" in v for v in mpc_variants))
-    cflags, ldflags = c_flags("daqp" if uses_daqp else "")
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
@@ -464,33 +484,22 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
         rate_max=rate_max, condensed_qp_plugin=condensed)
-    cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True})
-    for f in fns.values():
-        cg.add(f)
-    cg.generate(f"{out}/")
-    source = out / f"{SOURCE}.c"
-    patched = False
-    text, daqp_patched = patch_daqp_failure(source.read_text())
-    text, _ = patch_minmax(text)
-    text, _ = patch_daqp_warm_start(text)
-    if qrqp_reuse_factorization:
-        text, patched = patch_qrqp(text)
-    text, _ = patch_unused_parameters(text)       # last: the others
-    source.write_text(text)                      # match CasADi's text
+    daqp_patched, patched, daqp_conics, solver_sources = _write_source(
+        fns, out, qrqp_reuse_factorization)
     driver = out / "main.c"
     driver.write_text(_driver_source(fns, samples, int(repeats), model,
                                      dt))
-    makefile = out / "Makefile"
-    makefile.write_text(_MAKEFILE.format(
-        src=SOURCE, opt=" ".join(OPT_FLAGS), cflags=" ".join(cflags),
-        libs=" ".join(ldflags)))
+    _write_build_files(out, solver_sources)
+    static_bytes = sum(8 * nw + 4 * niw for nw, niw in daqp_conics.values())
     readme = out / "README.md"
-    readme.write_text(_readme(fns, samples, plugin, cflags, ldflags,
-                              method, patched, duty_plugin))
+    readme.write_text(_readme(
+        fns, samples, plugin, [p.relative_to(out).as_posix()
+                               for p in solver_sources],
+        method, patched, duty_plugin, static_bytes))
     res = ExportResult(out_dir=out, functions=fns, samples=samples,
                        source=out / f"{SOURCE}.c",
                        header=out / f"{SOURCE}.h", driver=driver,
-                       makefile=makefile, readme=readme,
+                       makefile=out / "Makefile", readme=readme,
                        extras={"wheel_qp_plugin": plugin,
                                "duty_qp_plugin": duty_plugin,
                                "wheel_qp_method": method,
@@ -498,7 +507,10 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
                                "daqp_patched": daqp_patched,
                                "condensed_qp_plugin": condensed,
                                "rate_max": rate_max,
-                               "cflags": cflags, "ldflags": ldflags})
+                               "solver_sources": solver_sources,
+                               "daqp_static": daqp_conics,
+                               "daqp_static_bytes": static_bytes,
+                               "cflags": [], "ldflags": ["-lm"]})
     if cortex_m:
         res = write_target_files(res, target, _driver_source(
             fns, samples, max(int(repeats) // 10, 3), model, dt,

@@ -157,7 +157,10 @@ def memory_report(res: ExportResult, core, objs: list[Path],
 
     out = res.out_dir
     target = core.name
-    ci = (out / f"{SOURCE}_{target}.ci").read_text()
+    # the call graphs of every unit (the generated source's and DAQP's):
+    # a call into another unit meets its node by name
+    ci = "\n".join(p.with_suffix(".ci").read_text() for p in objs
+                   if p.with_suffix(".ci").is_file())
     frames, edges = call_graph(ci)
     text = res.source.read_text()
     size_tool = _size_tool(CROSS_CC)

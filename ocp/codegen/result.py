@@ -40,10 +40,15 @@ class ExportResult(ResultMixin):
     extras : dict
         ``wheel_qp_plugin`` (conic of ``wheel_qp``), ``wheel_qp_method``
         (`allocation.qp.conic_function.wheel_qp_method`: ``"closed
-        form"``, ``"min-norm check + conic"`` or ``"conic"``), ``cflags``
-        and ``ldflags`` (what the build adds for daqp: empty and ``-lm``
-        for qrqp or a closed form), ``qrqp_patched`` (`patch_qrqp` was
-        applied); a Cortex-M export adds ``target``, ``c_sources`` /
+        form"``, ``"min-norm check + conic"`` or ``"conic"``),
+        ``solver_sources`` (the C sources written beside the source:
+        DAQP's in ``daqp/``, empty without DAQP), ``daqp_static`` (C name
+        of each DAQP conic -> reals and ints of its static workspace,
+        `ocp.codegen.patch_daqp_static`), ``daqp_static_bytes`` (their
+        sum), ``cflags``/``ldflags`` (always ``[]`` and ``["-lm"]``: the
+        folder builds alone), ``qrqp_patched`` (`patch_qrqp` was
+        applied); after a build ``warnings``, ``warning_text`` and
+        ``objects``; a Cortex-M export adds ``target``, ``c_sources`` /
         ``c_include`` (extra C the target build compiles: DAQP's, when
         the folder carries it) and, built, ``memory``
         (`ocp.codegen.memory.memory_report`).

@@ -101,15 +101,14 @@ def toolchain_missing(run: bool = True) -> str | None:
 def daqp_c_sources(out_dir: Path) -> tuple[list[Path], list[Path]]:
     """DAQP's C sources and include folders in an export folder.
 
-    A Cortex-M build compiles them with the generated source; a target
-    export whose functions call DAQP needs them. Looked for under
-    ``daqp/src`` and ``daqp/include`` of the folder (empty lists when the
-    export does not carry DAQP).
+    A Cortex-M build compiles them with the generated source: the
+    export copies them to ``daqp/`` beside it whenever a function calls
+    DAQP (empty lists otherwise). The generated source includes
+    ``"daqp/api.h"`` and DAQP's files include each other from their own
+    folder, so no include folder is needed.
     """
     root = Path(out_dir) / "daqp"
-    srcs = sorted((root / "src").glob("*.c"))
-    inc = [root / "include"] if (root / "include").is_dir() else []
-    return srcs, inc
+    return sorted(root.glob("*.c")), []
 
 
 def write_target_files(res: ExportResult, target: str, driver_text: str
@@ -160,8 +159,9 @@ def build_target(res: ExportResult, progress: bool = False
                  ) -> ExportResult:
     """Cross-compile the export and its bare-metal driver; memory report.
 
-    The generated source is compiled once with ``-fstack-usage
-    -fcallgraph-info=su`` (stack and call graph for the report). Sets
+    Every source (the generated one, DAQP's) is compiled with
+    ``-fstack-usage -fcallgraph-info=su`` (stack and call graph for the
+    report). Sets
     ``executable`` (the ELF), ``extras["memory"]`` and writes
     ``memory_<target>.json`` (`ocp.codegen.memory.memory_report`).
     """
@@ -176,10 +176,11 @@ def build_target(res: ExportResult, progress: bool = False
     log: list[str] = []
     objs = []
     sources = [out / f"{SOURCE}.c", *map(Path, res.extras["c_sources"])]
-    for i, src in enumerate(sources):
+    for src in sources:
         obj = out / f"{src.stem}_{target}.o"
-        extra = ["-fstack-usage", "-fcallgraph-info=su"] if i == 0 else []
-        _cc([*flags, *extra, "-c", str(src), "-o", str(obj)], log, out)
+        # every unit's frames and calls: DAQP's too
+        _cc([*flags, "-fstack-usage", "-fcallgraph-info=su", "-c",
+             str(src), "-o", str(obj)], log, out)
         objs.append(obj)
     startup = out / f"startup_{target}.o"
     _cc([*flags, "-c", str(out / STARTUP), "-o", str(startup)], log, out)

@@ -51,14 +51,16 @@ def test_files_written(exported):
     assert r.extras["wheel_qp_method"] == "closed form"
     # the duty QP's fast path links DAQP when it is there
     assert r.extras["duty_qp_plugin"] == plugin
-    assert ("daqp/api.h" in r.source.read_text()) == (plugin == "daqp")
-    assert ("libdaqpstat.a" in r.makefile.read_text()) == (plugin == "daqp")
+    # DAQP's sources travel in the folder, no library from elsewhere
+    assert ('"daqp/api.h"' in r.source.read_text()) == (plugin == "daqp")
+    assert ("daqp/api.c" in r.makefile.read_text()) == (plugin == "daqp")
+    assert "libdaqpstat" not in r.makefile.read_text()
     assert "-O3" in r.makefile.read_text()
     # flight builds use -Werror: the source compiles warning-free, once
     assert r.extras["warnings"] == 0, r.extras["warning_text"][:2000]
     make = r.makefile.read_text()
-    assert make.count("adcs_codegen.c\n") == 1 and "-Wall -Wextra" in make
-    assert "main.c adcs_codegen.o" in make
+    assert "-Wall -Wextra -Werror" in make
+    assert "main.c $(ADCS_OBJECTS)" in make
 
 
 @pytest.mark.skipif(not daqp_available(), reason="needs casadi daqp")
@@ -67,8 +69,9 @@ def test_wheel_qp_conic_daqp_links_daqp(tmp_path):
     res = export_c(tmp_path, wheels=arr, mpc_variants=(),
                    wheel_qp_fast_path=False, build=True, repeats=50)
     assert res.extras["wheel_qp_method"] == "conic"
-    assert "daqp/api.h" in res.source.read_text()
-    assert "libdaqpstat.a" in res.makefile.read_text()
+    assert '"daqp/api.h"' in res.source.read_text()
+    assert "daqp/api.c" in res.makefile.read_text()
+    assert list(res.extras["daqp_static"]) != []
     _check_wheel_qp_c(res)
 
 
@@ -79,7 +82,7 @@ def test_closed_form_wheel_qp_c_equals_conic(tmp_path, failed):
     res = export_c(tmp_path, wheels=arr, mpc_variants=(), build=True,
                    repeats=50)
     assert res.extras["wheel_qp_method"] == "closed form"
-    assert "SOLVER_LIBS = -lm" in res.makefile.read_text()
+    assert "ADCS_SOURCES = adcs_codegen.c\n" in res.makefile.read_text()
     _check_wheel_qp_c(res, reference=conic_allocator_function(
         arr, dt=0.5, plugin="qrqp", fast_path=False))
     t = run_driver(res)
@@ -120,7 +123,8 @@ def test_wheel_qp_qrqp_fallback_is_self_contained(tmp_path):
                    wheel_qp_plugin="qrqp", build=True, repeats=50)
     assert res.extras["wheel_qp_plugin"] == "qrqp"
     assert "daqp" not in res.source.read_text()
-    assert "SOLVER_LIBS = -lm" in res.makefile.read_text()
+    assert "ADCS_SOURCES = adcs_codegen.c\n" in res.makefile.read_text()
+    assert not (tmp_path / "daqp").exists()
     f = res.functions["wheel_qp"]
     ext = ca.external("wheel_qp", str(res.shared_library))
     for _ in range(20):
@@ -338,16 +342,16 @@ def test_cli_export_run_prints_cold_and_warm_times_and_checks(tmp_path,
     assert len(err) == 1 and "no-such-cc" in err[0]
 
 
-@pytest.mark.skipif(not daqp_available(), reason="needs the DAQP library")
+@pytest.mark.skipif(not daqp_available(), reason="needs casadi's daqp")
 def test_daqp_warm_start_patch_survives_a_dependent_working_set(tmp_path):
     """A row equal to a bound, both in the warm start: the right point.
 
     DAQP's setup may refuse that working set: the patched conic then
-    starts cold.
+    starts cold (in its static workspace, the vendored DAQP).
     """
     import subprocess
 
-    from allocation.qp.conic_function import conic_c_flags
+    from ocp.codegen.daqp_static import copy_daqp_sources, patch_daqp_static
     from ocp.codegen.patches import patch_daqp_failure, patch_daqp_warm_start
 
     H, A = ca.DM.eye(2), ca.DM([[1.0, 0.0]])
@@ -363,12 +367,14 @@ def test_daqp_warm_start_patch_survives_a_dependent_working_set(tmp_path):
     src = (tmp_path / "warm_qp.c").read_text()
     src, n_fail = patch_daqp_failure(src)
     src, n_warm = patch_daqp_warm_start(src)
-    assert n_fail == 1 and n_warm == 3
+    src, conics = patch_daqp_static(src)
+    assert n_fail == 1 and n_warm == 3 and len(conics) == 1
     (tmp_path / "warm_qp.c").write_text(src)
     lib = tmp_path / "warm_qp.so"
-    subprocess.run(["gcc", "-O2", "-fPIC", "-shared", str(tmp_path /
-                    "warm_qp.c"), "-o", str(lib), *conic_c_flags("daqp")],
-                   check=True)
+    subprocess.run(["gcc", "-O2", "-fPIC", "-shared",
+                    str(tmp_path / "warm_qp.c"),
+                    *map(str, copy_daqp_sources(tmp_path)), "-o", str(lib),
+                    "-lm"], check=True)
     ext = ca.external("warm_qp", str(lib))
     for warm in ([1.0, 0.0], [1.0, 1.0], [0.0, 0.0], [-1.0, 1.0]):
         for la in (1.0, 0.0, -1.0):

@@ -89,6 +89,7 @@ def test_m4f_startup_and_driver_build_clean(m7, tmp_path):
     proc = subprocess.run(
         [CROSS_CC, *compile_flags(res, core), str(out / "main_cortex_m.c"),
          str(out / STARTUP), str(out / "adcs_codegen.c"),
+         *res.extras.get("c_sources", []),
          *link_flags(res, core), "-lm", "-o", str(tmp_path / "m4.elf")],
         capture_output=True, text=True)
     assert proc.returncode == 0 and "warning" not in proc.stderr, \
@@ -128,14 +129,15 @@ def test_worst_stack_follows_the_call_graph():
     assert worst_stack("f", frames, edges) == (48, True, ["sqrt"])
 
 
-def test_unknown_target_and_daqp_on_a_target_are_errors(tmp_path):
+def test_unknown_target_is_an_error_and_daqp_travels(tmp_path):
     from adcs_common.exceptions import InvalidValueError
 
     with pytest.raises(InvalidValueError, match="target must be"):
         export_c(tmp_path, "demo", mpc_variants=(), target="avr")
-    with pytest.raises(InvalidValueError, match="DAQP's C"):
-        export_c(tmp_path, "demo", mpc_variants=(), target="cortex-m7",
-                 wheel_qp_plugin="daqp")
+    # DAQP travels in the folder (its C sources): a target takes it too
+    res = export_c(tmp_path / "d", "demo", mpc_variants=(),
+                   target="cortex-m7", wheel_qp_plugin="daqp")
+    assert any(p.endswith("daqp.c") for p in res.extras["c_sources"])
 
 
 def test_cli_export_target_run_prints_counts_and_memory(tmp_path, capsys):

@@ -1,70 +1,66 @@
-
 /* Closed loop: mpc step -> plant (the generated rk4) -> next state, with
- * the solution fed back as warm start; times every MPC step. */
-static void closed_loop(const char* name, eval_t f, work_t work,
-                        checkout_t checkout, release_t release,
-                        const casadi_real* x0, const casadi_real* qf,
-                        int nx, int nz, int ng, int nu, double dt,
-                        int steps) {
-  casadi_int sz_arg, sz_res, sz_iw, sz_w, p_arg, p_res, p_iw, p_w;
-  work(&sz_arg, &sz_res, &sz_iw, &sz_w);
-  rk4_work(&p_arg, &p_res, &p_iw, &p_w);
-  if (p_arg > sz_arg) sz_arg = p_arg;
-  if (p_res > sz_res) sz_res = p_res;
-  if (p_iw > sz_iw) sz_iw = p_iw;
-  if (p_w > sz_w) sz_w = p_w;
-  const casadi_real** a = malloc(sizeof(casadi_real*) * (sz_arg + 8));
-  casadi_real** r = malloc(sizeof(casadi_real*) * (sz_res + 8));
-  casadi_int* iw = malloc(sizeof(casadi_int) * (sz_iw + 1));
-  casadi_real* w = malloc(sizeof(casadi_real) * (sz_w + 1));
-  casadi_real *x = calloc(nx, sizeof(casadi_real)),
-              *xn = calloc(nx, sizeof(casadi_real)),
-              *z = calloc(nz, sizeof(casadi_real)),
-              *lx = calloc(nz, sizeof(casadi_real)),
-              *lg = calloc(ng, sizeof(casadi_real)),
-              *u = calloc(nu, sizeof(casadi_real));
+ * the solution fed back as warm start; times every MPC step. The state,
+ * plan and multipliers live in static arrays of ADCS_LOOP_N reals. */
+static casadi_real cl_x[ADCS_LOOP_N], cl_xn[ADCS_LOOP_N], cl_z[ADCS_LOOP_N],
+    cl_lx[ADCS_LOOP_N], cl_lg[ADCS_LOOP_N], cl_u[ADCS_LOOP_N];
+
+static int closed_loop(const char* name, eval_t f, work_t work,
+                       checkout_t checkout, release_t release,
+                       const casadi_real* x0, const casadi_real* qf,
+                       int nx, int nz, int ng, int nu, double dt,
+                       int steps) {
   casadi_real tau[3] = {0, 0, 0}, h = dt, cost, viol, viol1, defect;
-  double* t = malloc(sizeof(double) * steps);
-  int k, i, mem = checkout(), pmem = rk4_checkout();
-  memcpy(x, x0, sizeof(casadi_real) * nx);
+  int k, i, mem, pmem;
+  double worst = 0.0, dot = 0.0, nq = 0.0, err, tmax = 0.0, twarm = 0.0;
+  if (check_work(name, work, 8, 8, steps) || check_work("rk4", rk4_work,
+      4, 1, steps) || nx > ADCS_LOOP_N || nz > ADCS_LOOP_N
+      || ng > ADCS_LOOP_N || nu > ADCS_LOOP_N) return 1;
+  mem = checkout();
+  pmem = rk4_checkout();
+  if (mem < 0 || pmem < 0) return 1;
+  memset(cl_z, 0, sizeof cl_z);
+  memset(cl_lx, 0, sizeof cl_lx);
+  memset(cl_lg, 0, sizeof cl_lg);
+  memset(cl_u, 0, sizeof cl_u);
+  memcpy(cl_x, x0, sizeof(casadi_real) * nx);
   for (k = 0; k + nx <= nz; k += nx + nu)  /* cold start: x0 everywhere */
-    memcpy(z + k, x0, sizeof(casadi_real) * nx);
-  double worst = 0.0;
-  for (k = 0; k < sz_res + 8; ++k) r[k] = 0;  /* outputs not asked for */
+    memcpy(cl_z + k, x0, sizeof(casadi_real) * nx);
+  for (k = 0; k < ADCS_SZ_RES; ++k) drv_res[k] = 0;  /* outputs not asked */
+  for (k = 0; k < ADCS_SZ_ARG; ++k) drv_arg[k] = 0;
   for (k = 0; k < steps; ++k) {
-    a[0] = x; a[1] = qf; a[2] = tau; a[3] = z; a[4] = lx; a[5] = lg;
-    r[0] = u; r[1] = z; r[2] = lx; r[3] = lg; r[4] = &cost; r[5] = &viol;
-    r[6] = &viol1; r[7] = &defect;
-    double t0 = clock_now();
-    f(a, r, iw, w, mem);
-    t[k] = clock_now() - t0;
+    double t0;
+    drv_arg[0] = cl_x; drv_arg[1] = qf; drv_arg[2] = tau; drv_arg[3] = cl_z;
+    drv_arg[4] = cl_lx; drv_arg[5] = cl_lg;
+    drv_res[0] = cl_u; drv_res[1] = cl_z; drv_res[2] = cl_lx;
+    drv_res[3] = cl_lg; drv_res[4] = &cost; drv_res[5] = &viol;
+    drv_res[6] = &viol1; drv_res[7] = &defect;
+    t0 = clock_now();
+    f(drv_arg, drv_res, drv_iw, drv_w, mem);
+    drv_t[k] = clock_now() - t0;
     if (viol1 > worst) worst = viol1;
-    a[0] = x; a[1] = u; a[2] = tau; a[3] = &h;
-    r[0] = xn;
-    rk4(a, r, iw, w, pmem);
-    memcpy(x, xn, sizeof(casadi_real) * nx);
+    drv_arg[0] = cl_x; drv_arg[1] = cl_u; drv_arg[2] = tau; drv_arg[3] = &h;
+    drv_res[0] = cl_xn;
+    rk4(drv_arg, drv_res, drv_iw, drv_w, pmem);
+    memcpy(cl_x, cl_xn, sizeof(casadi_real) * nx);
   }
   release(mem);
   rk4_release(pmem);
-  double dot = 0.0, nq = 0.0;
-  for (i = 0; i < 4; ++i) { dot += x[i] * qf[i]; nq += x[i] * x[i]; }
+  for (i = 0; i < 4; ++i) { dot += cl_x[i] * qf[i]; nq += cl_x[i] * cl_x[i]; }
   dot = fabs(dot) / sqrt(nq);
   if (dot > 1.0) dot = 1.0;
-  double err = 2.0 * acos(dot) * 57.295779513082323;
-  double tmax = 0.0, twarm = 0.0;
-  for (k = 0; k < steps; ++k) if (t[k] > tmax) tmax = t[k];
+  err = 2.0 * acos(dot) * 57.295779513082323;
+  for (k = 0; k < steps; ++k) if (drv_t[k] > tmax) tmax = drv_t[k];
   /* the first step starts cold (x0 everywhere, no multipliers) */
-  for (k = 1; k < steps; ++k) if (t[k] > twarm) twarm = t[k];
-  qsort(t, steps, sizeof(double), cmp_double);
+  for (k = 1; k < steps; ++k) if (drv_t[k] > twarm) twarm = drv_t[k];
+  sort_doubles(drv_t, steps);
   printf("TIME closed_loop:%s median_" TIME_UNIT "=%.3f max_" TIME_UNIT
          "=%.3f calls=%d final_error_deg=%.3e max_warm_" TIME_UNIT
-         "=%.3f\n", name, t[steps / 2], tmax, steps, err, twarm);
+         "=%.3f\n", name, drv_t[steps / 2], tmax, steps, err, twarm);
   printf("STATE closed_loop:%s:", name);
-  for (i = 0; i < nx; ++i) printf(" %.17g", x[i]);
+  for (i = 0; i < nx; ++i) printf(" %.17g", (double)cl_x[i]);
   printf("\n");
   printf("  closed_loop:%s worst applied-step violation %.3e\n", name,
-         worst);
-  free(a); free(r); free(iw); free(w); free(t);
-  free(x); free(xn); free(z); free(lx); free(lg); free(u);
+         (double)worst);
+  return 0;
 }
 

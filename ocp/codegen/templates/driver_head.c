@@ -4,28 +4,17 @@
  * Output lines "TIME <name> first_us=... median_us=... max_us=...
  * calls=... flag=..." are parsed by ocp.codegen.export.run_driver: the
  * first (cold) call, the median and worst of all calls, and the OR of
- * every call's return flag (0: every call succeeded). */
+ * every call's return flag (0: every call succeeded).
+ *
+ * No heap, as in a flight build: the functions' arg/res/iw/w arrays are
+ * static, sized at generation time from their *_work sizes (checked at
+ * run time, driver_body.c), and stdout writes through a static buffer. */
 #define _POSIX_C_SOURCE 199309L
 #include <math.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 #include <time.h>
 #include "adcs_codegen.h"
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
-
-/* CasADi's DAQP runtime allocates its workspace on every solve and frees
- * it after. As real-time Linux programs do, keep freed memory in the heap
- * (no trimming, no mmap) so that those calls do not fault pages in. */
-static void realtime_heap(void) {
-#if defined(__GLIBC__)
-  mallopt(M_TRIM_THRESHOLD, 64 << 20);
-  mallopt(M_TOP_PAD, 16 << 20);
-  mallopt(M_MMAP_MAX, 0);
-#endif
-}
 
 typedef int (*eval_t)(const casadi_real**, casadi_real**, casadi_int*,
                       casadi_real*, int);
@@ -45,5 +34,8 @@ static double clock_now(void) {
 static void stack_paint(void) {}
 static long stack_used(void) { return -1; }
 
-static void driver_init(void) { realtime_heap(); }
+static char drv_stdout[1 << 14];
+static void driver_init(void) {
+  setvbuf(stdout, drv_stdout, _IOFBF, sizeof drv_stdout);
+}
 

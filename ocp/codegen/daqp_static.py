@@ -1,0 +1,221 @@
+"""DAQP in exported C without the heap: vendored sources, static workspace.
+
+CasADi's generated DAQP runtime (``casadi_daqp_solve``) calls DAQP's
+``setup_daqp`` on every solve, which allocates the solver's workspace
+with ``malloc``, and ``free_daqp_workspace``/``free_daqp_ldp`` after it.
+`patch_daqp_static` edits that runtime so that the workspace's arrays
+point into static storage laid out per conic (and per CasADi memory
+slot) from the problem dimensions known at generation time;
+`copy_daqp_sources` writes DAQP's C sources (MIT, vendored in
+``ocp/codegen/vendor/daqp``, ``README.md`` there) beside the export. The
+vendored ``api.c`` keeps no allocating function, so any path back to the
+heap fails at link time.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+from importlib import resources
+from pathlib import Path
+
+from adcs_common.exceptions import AdcsError
+
+#: The DAQP release vendored: its headers are those the casadi wheel
+#: ships under ``casadi/include/daqp`` (the API the generated code calls).
+DAQP_VERSION = "0.5.1"
+
+#: The vendored DAQP files copied into each export (folder ``daqp/``).
+DAQP_SOURCES = ("api.c", "auxiliary.c", "bnb.c", "daqp.c", "daqp_prox.c",
+                "factorization.c", "utils.c")
+DAQP_HEADERS = ("api.h", "auxiliary.h", "bnb.h", "constants.h", "daqp.h",
+                "daqp_prox.h", "factorization.h", "types.h", "utils.h")
+DAQP_FILES = DAQP_SOURCES + DAQP_HEADERS + ("LICENSE", "README.md")
+
+#: Folder of the vendored DAQP inside an export.
+DAQP_DIR = "daqp"
+
+
+def vendored_daqp() -> Path:
+    """The folder of the vendored DAQP sources (package data)."""
+    return Path(str(resources.files("ocp.codegen") / "vendor" / "daqp"))
+
+
+def copy_daqp_sources(out: Path) -> list[Path]:
+    """Copy the vendored DAQP sources, headers and licence to ``out/daqp``.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The C sources written (to compile beside the generated source).
+    """
+    src = vendored_daqp()
+    dst = Path(out) / DAQP_DIR
+    dst.mkdir(exist_ok=True)
+    for name in DAQP_FILES:
+        shutil.copyfile(src / name, dst / name)
+    return [dst / name for name in DAQP_SOURCES]
+
+
+# ------------------------------------------------------------ the C edits
+#: DAQP's setup_daqp (api.c) without the heap: the same steps in the same
+#: order (allocate_daqp_workspace, setup_daqp_ldp, setup_daqp_bnb with no
+#: binary constraint, activate_constraints), the arrays carved from ``w``
+#: (``nw`` doubles) and ``iw`` (``niw`` ints).
+_SETUP_STATIC = r"""/* (ocp.codegen.patch_daqp_static) DAQP's setup_daqp
+ * without the heap: the same steps, the workspace's arrays carved from static
+ * storage (w: nw reals, iw: niw ints) sized for this conic at generation
+ * time.
+ * Soft and binary constraints (which need more storage) are refused. */
+static int casadi_daqp_setup_static(DAQPProblem* qp, DAQPWorkspace* work,
+    c_float* w, int nw, int* iw, int niw) {
+  int i, mask = UPDATE_M+UPDATE_d+UPDATE_sense;
+  int n = qp->n, m = qp->m, ms = qp->ms;
+  for (i=0; i<m; ++i) if (qp->sense[i] & (SOFT|BINARY)) return -100;
+  if (5*(n+1) + (n+1)*(n+2)/2 + 2*n + 3*m + n*(m-ms) + n*(n+1)/2 + n > nw
+      || (n+1) + m > niw) return -101;
+  /* allocate_daqp_workspace(work, n, 0) */
+  work->n = n;
+  work->Rinv = NULL; work->v = NULL; work->scaling = NULL;
+  work->lam = w; w += n+1;
+  work->lam_star = w; w += n+1;
+  work->WS = iw; iw += n+1;
+  work->D = w; w += n+1;
+  work->xldl = w; w += n+1;
+  work->zldl = w; w += n+1;
+  work->L = w; w += (n+1)*(n+2)/2;
+  work->u = w; w += n;
+  work->x = work->u;
+  work->xold = w; w += n;
+  work->bnb = NULL;
+  reset_daqp_workspace(work);
+  /* setup_daqp_ldp(work, qp) */
+  work->n = n; work->m = m; work->ms = ms; work->qp = qp;
+  work->scaling = w; w += m;
+  for (i=0; i<ms; ++i) work->scaling[i] = 1;
+  work->M = w; w += n*(m-ms);
+  work->dupper = w; w += m;
+  work->dlower = w; w += m;
+  work->sense = iw; iw += m;
+  work->RinvD = NULL;
+  if (qp->H != NULL) {
+    work->Rinv = w; w += n*(n+1)/2;
+    mask += UPDATE_Rinv;
+  } else {
+    work->Rinv = NULL;
+  }
+  if (qp->f != NULL || work->settings->eps_prox != 0) {
+    work->v = w;
+    mask += UPDATE_v;
+  } else {
+    work->v = NULL;
+  }
+  i = update_ldp(mask, work);
+  if (i < 0) return i;
+  /* setup_daqp_bnb(work, 0, 0): nothing; then the initial working set */
+  return activate_constraints(work);
+}
+
+"""
+
+_INCLUDE = "#include <daqp/api.h>\n"
+_INCLUDE_NEW = '#include "daqp/api.h"\n#include "daqp/utils.h"\n'
+_DATA_END = "  int nodecount;\n  int bnb_itercount;\n};\n"
+_DATA_END_NEW = ("  int nodecount;\n  int bnb_itercount;\n"
+                 "  c_float* ws;  /* static workspace "
+                 "(ocp.codegen.patch_daqp_static) */\n"
+                 "  int* iws;\n  int nws, niws;\n};\n")
+_SOLVE_HEAD = "int casadi_daqp_solve(struct casadi_daqp_data* d,"
+_SETUP_CALL = "setup_daqp(&d->daqp,&d->work,&(d->res.setup_time))"
+_SETUP_NEW = ("casadi_daqp_setup_static(&d->daqp,&d->work,"
+              "d->ws,d->nws,d->iws,d->niws)")
+_FREES = re.compile(r"^[ \t]*free_daqp_(?:workspace|ldp)\(&d->work\);\n",
+                    re.M)
+_CONIC = re.compile(
+    r"^static int (casadi_f\d+)\(const casadi_real\*\* arg, "
+    r"casadi_real\*\* res, casadi_int\* iw, casadi_real\* w, int mem\) "
+    r"\{\n(?:(?!^\}).*\n)*?  struct casadi_daqp_data\* d=&\1_mem\[mem\];\n"
+    r"(?P<body>(?:(?!^\}).*\n)*?)"
+    r"  casadi_daqp_set_work\(d, &arg, &res, &iw, &w\);\n", re.M)
+_SPARSITY = re.compile(r"static const casadi_int (casadi_s\d+)\[\d+\] = "
+                       r"\s*\{\s*(\d+),\s*(\d+),")
+
+
+def daqp_static_sizes(n: int, na: int) -> tuple[int, int]:
+    """Reals and ints of the static workspace of one DAQP conic.
+
+    ``n`` variables, ``na`` general rows (``m = n + na`` constraints, the
+    first ``n`` the bounds): what ``setup_daqp`` would allocate.
+    """
+    m = n + na
+    nw = (5 * (n + 1) + (n + 1) * (n + 2) // 2 + 2 * n + 3 * m + n * na
+          + n * (n + 1) // 2 + n)
+    return nw, (n + 1) + m
+
+
+def patch_daqp_static(source: str) -> tuple[str, dict[str, tuple[int, int]]]:
+    """Make CasADi's generated DAQP conics run without the heap.
+
+    Edits (exact text of CasADi 3.7/3.8; run after `patch_daqp_warm_start`):
+    the include becomes ``"daqp/api.h"`` (the vendored copy beside the
+    source, no ``-I``); ``casadi_daqp_setup_static`` replaces every
+    ``setup_daqp`` call; the ``free_daqp_*`` calls go; each conic gets
+    static arrays ``casadi_fN_daqp_w``/``_iw`` (one set per CasADi memory
+    slot, ``CASADI_MAX_NUM_THREADS``) sized from its ``H`` and ``A``
+    sparsities, and points its data at them before each solve.
+
+    Returns
+    -------
+    text : str
+        The edited text (``source`` unchanged when it holds no DAQP).
+    conics : dict
+        C name of each DAQP conic -> (reals, ints) of its static storage.
+
+    Raises
+    ------
+    AdcsError
+        The source holds DAQP but not in the text this edit knows (a
+        CasADi version whose runtime differs): the export would allocate.
+    """
+    if _INCLUDE not in source:
+        return source, {}
+    sparsity = {m[1]: (int(m[2]), int(m[3]))
+                for m in _SPARSITY.finditer(source)}
+    conics: dict[str, tuple[int, int]] = {}
+
+    def _conic(m: re.Match) -> str:
+        sp_a = re.search(r"p_qp\.sp_a = (casadi_s\d+);", m["body"])
+        sp_h = re.search(r"p_qp\.sp_h = (casadi_s\d+);", m["body"])
+        if not (sp_a and sp_h):
+            raise AdcsError(f"DAQP conic {m[1]}: no H/A sparsity found")
+        n = sparsity[sp_h[1]][1]
+        na = sparsity[sp_a[1]][0]
+        conics[m[1]] = daqp_static_sizes(n, na)
+        nw, niw = conics[m[1]]
+        return (m[0] + f"  d->ws = {m[1]}_daqp_w[mem]; d->nws = {nw};\n"
+                f"  d->iws = {m[1]}_daqp_iw[mem]; d->niws = {niw};\n")
+
+    text = _CONIC.sub(_conic, source)
+    for name, (nw, niw) in conics.items():
+        decl = (f"static struct casadi_daqp_data {name}_mem"
+                "[CASADI_MAX_NUM_THREADS];\n")
+        text = text.replace(
+            decl, decl + f"static c_float {name}_daqp_w"
+            f"[CASADI_MAX_NUM_THREADS][{nw}];\n"
+            f"static int {name}_daqp_iw[CASADI_MAX_NUM_THREADS][{niw}];\n")
+    ok = (bool(conics) and source.count(_DATA_END) == 1
+          and source.count(_SOLVE_HEAD) == 1
+          and text.count("casadi_daqp_set_work(d, &arg, &res, &iw, &w);")
+          == len(conics))
+    if ok:
+        text = text.replace(_INCLUDE, _INCLUDE_NEW)
+        text = text.replace(_DATA_END, _DATA_END_NEW)
+        text = text.replace(_SOLVE_HEAD, _SETUP_STATIC + _SOLVE_HEAD)
+        text = text.replace(_SETUP_CALL, _SETUP_NEW)
+        text = _FREES.sub("", text)
+    if not ok or "setup_daqp(" in text or "free_daqp_" in text:
+        raise AdcsError(
+            "the generated DAQP runtime differs from the text "
+            "ocp.codegen.patch_daqp_static edits (CasADi "
+            "version?): it would allocate on every solve")
+    return text, conics

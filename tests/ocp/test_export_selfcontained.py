@@ -1,0 +1,211 @@
+"""The C export as flight code: a folder that builds alone, and no heap.
+
+Issue #28 items 1-2: every solver source travels in the export folder
+(DAQP, vendored, with its licence), nothing names the build machine's
+paths, the folder builds with a C compiler and libm alone (make or
+CMake, -Wall -Wextra -Werror), and no exported function reaches malloc,
+calloc, realloc or free (checked on the objects' symbol tables and by a
+driver linked against a heap that aborts).
+"""
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import casadi as ca
+import pytest
+
+from adcs_common.exceptions import AdcsError
+from allocation import WheelArray
+from ocp.codegen.daqp_static import (
+    DAQP_HEADERS,
+    DAQP_SOURCES,
+    patch_daqp_static,
+    vendored_daqp,
+)
+from ocp.codegen.export import daqp_available, export_c
+from thrusters import six_thruster_unit
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(shutil.which("cc") is None
+                       or shutil.which("make") is None,
+                       reason="needs cc and make"),
+]
+
+#: The allocator's entry points no exported function may reach.
+HEAP = ("malloc", "calloc", "realloc", "free")
+
+#: Only the system's tools: no virtual environment, no casadi folder.
+SYSTEM_ENV = {"PATH": "/usr/bin:/bin", "LC_ALL": "C"}
+
+#: A heap that aborts: linked before libc, it takes every allocation of
+#: the program (C library calls included: the driver writes stdout
+#: through a static buffer).
+TRAP_HEAP = r"""
+#include <stdlib.h>
+#include <unistd.h>
+static void trap(const char* what) {
+  write(2, "heap trap: ", 11); write(2, what, 7); write(2, "\n", 1);
+  abort();
+}
+void* malloc(size_t n) { (void)n; trap("malloc "); return 0; }
+void* calloc(size_t n, size_t m) {
+  (void)n; (void)m; trap("calloc "); return 0;
+}
+void* realloc(void* p, size_t n) {
+  (void)p; (void)n; trap("realloc"); return 0;
+}
+void free(void* p) { if (p) trap("free   "); }
+"""
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    """A DAQP-heavy export: wheel_qp's conic, duty_qp, condensed MPC."""
+    if not daqp_available():
+        pytest.skip("needs casadi's daqp plugin")
+    out = tmp_path_factory.mktemp("flight") / "adcs-c"
+    return export_c(out, wheels=WheelArray.pyramid(h_max=0.2, m_max=0.05),
+                    thrusters=six_thruster_unit(),
+                    mpc_variants=("mpc_cond_rti_step", "mpc_cond_step"),
+                    wheel_qp_fast_path=False, repeats=50)
+
+
+@pytest.fixture(scope="module")
+def built(exported, tmp_path_factory):
+    """The folder copied elsewhere and built there by make alone."""
+    dst = tmp_path_factory.mktemp("elsewhere") / "copy"
+    shutil.copytree(exported.out_dir, dst)
+    run = subprocess.run(["make", "-j2"], cwd=dst, env=SYSTEM_ENV,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return dst, run
+
+
+def _objects(folder: Path) -> list[Path]:
+    return [folder / "adcs_codegen.o"] + [
+        folder / "daqp" / n.replace(".c", ".o") for n in DAQP_SOURCES]
+
+
+def test_every_daqp_function_uses_the_vendored_sources(exported):
+    r = exported
+    assert set(r.extras["daqp_static"]) and r.extras["daqp_static_bytes"]
+    text = r.source.read_text()
+    assert '#include "daqp/api.h"' in text and "<daqp/" not in text
+    assert "setup_daqp(" not in text and "free_daqp_" not in text
+    for name in (*DAQP_SOURCES, *DAQP_HEADERS, "LICENSE", "README.md"):
+        assert (r.out_dir / "daqp" / name).is_file(), name
+    assert "MIT License" in (r.out_dir / "daqp" / "LICENSE").read_text()
+    for name in ("Makefile", "CMakeLists.txt"):
+        body = (r.out_dir / name).read_text()
+        assert all(f"daqp/{s}" in body for s in DAQP_SOURCES), name
+
+
+def test_nothing_names_the_build_machines_paths(exported):
+    import ocp
+
+    machine = {sys.prefix, sys.base_prefix, sys.exec_prefix,
+               str(Path(ca.__file__).parent),
+               str(Path(ocp.__file__).resolve().parents[1]),
+               str(exported.out_dir), str(exported.out_dir.resolve()),
+               str(Path.home()), os.getcwd(), "site-packages",
+               "libdaqpstat"}
+    for path in exported.out_dir.rglob("*"):
+        if path.is_file():
+            text = path.read_text(encoding="utf-8")
+            for p in machine:
+                assert p not in text, (path.name, p)
+    # no absolute path in what the build reads
+    for name in ("Makefile", "CMakeLists.txt"):
+        body = (exported.out_dir / name).read_text()
+        assert not re.search(r"(^|[\s=\"'(])/\w", body, re.M), name
+
+
+def test_the_folder_builds_alone_warning_free_and_runs(built):
+    """Copied elsewhere: make with the system cc, -Wall -Wextra -Werror."""
+    dst, run = built
+    assert "-Wall -Wextra -Werror" in run.stdout
+    assert "warning" not in run.stderr
+    drv = subprocess.run(["./adcs_driver"], cwd=dst, env=SYSTEM_ENV,
+                         capture_output=True, text=True, timeout=300)
+    assert drv.returncode == 0, drv.stdout[-2000:] + drv.stderr[-2000:]
+    times = [ln for ln in drv.stdout.splitlines() if ln.startswith("TIME")]
+    for name in ("wheel_qp", "duty_qp", "mpc_cond_rti_step",
+                 "mpc_cond_step", "closed_loop:mpc_cond_rti_step"):
+        assert any(ln.startswith(f"TIME {name} ") for ln in times), name
+    assert all("flag=0" in ln for ln in times if "flag=" in ln)
+
+
+def test_no_exported_function_reaches_the_heap(built):
+    """Symbol tables: no allocator; a driver linked to a trapping heap."""
+    dst, _ = built
+    nm = subprocess.run(["nm", "-u", *map(str, _objects(dst))],
+                        capture_output=True, text=True, check=True).stdout
+    undefined = {ln.split()[-1] for ln in nm.splitlines()
+                 if ln.strip() and not ln.endswith(":")}
+    assert undefined & set(HEAP) == set(), undefined & set(HEAP)
+    assert "sqrt" in undefined          # nm did read the objects
+    (dst / "trap_heap.c").write_text(TRAP_HEAP)
+    subprocess.run(["cc", "-O2", "-std=c99", "-c", "-o", "main_trap.o",
+                    "main.c"], cwd=dst, env=SYSTEM_ENV, check=True)
+    link = ["cc", "-o", "driver_trap", "trap_heap.c", "main_trap.o",
+            *[str(p.relative_to(dst)) for p in _objects(dst)], "-lm"]
+    subprocess.run(link, cwd=dst, env=SYSTEM_ENV, check=True)
+    drv = subprocess.run(["./driver_trap"], cwd=dst, env=SYSTEM_ENV,
+                         capture_output=True, text=True, timeout=300)
+    assert drv.returncode == 0, drv.stderr[-2000:]
+    assert "heap trap" not in drv.stderr
+    assert drv.stdout.count("TIME ") >= 10
+    # the trap springs: a call of malloc from the same objects aborts
+    (dst / "uses_heap.c").write_text(
+        "#include <stdlib.h>\nint main(void) { void* p = malloc(8); "
+        "free(p); return p == 0; }\n")
+    subprocess.run(["cc", "-O0", "-o", "uses_heap", "trap_heap.c",
+                    "uses_heap.c"], cwd=dst, env=SYSTEM_ENV, check=True)
+    bad = subprocess.run(["./uses_heap"], cwd=dst, capture_output=True,
+                         text=True, timeout=60)
+    assert bad.returncode != 0 and "heap trap: malloc" in bad.stderr
+
+
+@pytest.mark.skipif(shutil.which("cmake") is None, reason="needs cmake")
+def test_cmake_builds_the_folder(exported, tmp_path):
+    src = tmp_path / "adcs-c"
+    shutil.copytree(exported.out_dir, src)
+    build = tmp_path / "build"
+    env = {**SYSTEM_ENV, "CC": "cc"}
+    for cmd in (["cmake", "-S", str(src), "-B", str(build),
+                 "-DCMAKE_BUILD_TYPE=Release"],
+                ["cmake", "--build", str(build), "-j2"]):
+        run = subprocess.run(cmd, env=env, capture_output=True, text=True,
+                             timeout=600)
+        assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    drv = subprocess.run([str(build / "adcs_driver")], env=SYSTEM_ENV,
+                         capture_output=True, text=True, timeout=300)
+    assert drv.returncode == 0 and "TIME duty_qp " in drv.stdout
+
+
+def test_vendored_daqp_is_the_api_casadi_generates_for():
+    """The vendored headers are the casadi wheel's (DAQP 0.5.1)."""
+    ours = vendored_daqp()
+    theirs = Path(ca.__file__).parent / "include" / "daqp"
+    if not (theirs / "api.h").is_file():
+        pytest.skip("this casadi ships no DAQP headers")
+    for name in DAQP_HEADERS:
+        assert (ours / name).read_bytes() == (theirs / name).read_bytes(), \
+            name
+    api = (ours / "api.c").read_text()
+    for gone in ("malloc", "free(", "setup_daqp(", "allocate_daqp_"):
+        assert gone not in api.split("*/", 1)[1], gone
+
+
+def test_static_patch_refuses_a_runtime_it_does_not_know():
+    text = ("#include <daqp/api.h>\nint casadi_daqp_solve(void) "
+            "{ return setup_daqp(0, 0, 0); }\n")
+    with pytest.raises(AdcsError, match="would allocate"):
+        patch_daqp_static(text)
+    plain = "int main(void) { return 0; }\n"
+    assert patch_daqp_static(plain) == (plain, {})
