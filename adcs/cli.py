@@ -84,11 +84,16 @@ def _export(args: argparse.Namespace) -> int:
         m = w.m_max if args.m_max is None else args.m_max
         sc = sc.with_wheels(WheelArray(w.axes, h, m, w.failed, w.names,
                                        w.scale))
-    variants = [v.strip() for v in args.mpc.split(",") if v.strip()]
+    mpc = args.mpc
+    if mpc is None:     # single: no MPC unless asked (float qrqp fails)
+        mpc = ("" if args.precision == "single" else
+               "mpc_step,mpc_rti_step,mpc_cond_rti_step")
+    variants = [v.strip() for v in mpc.split(",") if v.strip()]
     print(f"adcs export: generating C for {sc.name!r} in {args.out} ...",
           flush=True)
     res = export_c(args.out, sc, dt=args.dt, horizon=args.horizon,
-                   mpc_variants=variants, build=args.build or args.run,
+                   mpc_variants=variants, precision=args.precision,
+                   build=args.build or args.run,
                    cc=args.cc, progress=args.build or args.run)
     for p in (res.source, res.header, res.driver, res.makefile,
               res.readme):
@@ -282,11 +287,21 @@ def build_parser() -> argparse.ArgumentParser:
                      help="sample time [s]")
     exp.add_argument("--horizon", type=int, default=20,
                      help="MPC horizon (intervals)")
-    exp.add_argument("--mpc", default="mpc_step,mpc_rti_step,"
-                     "mpc_cond_rti_step",
+    exp.add_argument("--mpc", default=None,
                      help="MPC variants to export (comma-separated, from "
                      "mpc_step, mpc_rti_step, mpc_cond_step, "
-                     "mpc_cond_rti_step; empty for none)")
+                     "mpc_cond_rti_step; empty for none; default "
+                     "mpc_step,mpc_rti_step,mpc_cond_rti_step; none with "
+                     "--precision single)")
+    exp.add_argument("--precision", choices=("double", "single"),
+                     default="double",
+                     help="C arithmetic: single makes casadi_real float "
+                     "with float literals and float math (sqrtf, fabsf, "
+                     "...; single-precision FPUs such as the Cortex-M4F), "
+                     "QP tolerances chosen for float, qrqp for every QP "
+                     "(the casadi wheel's DAQP library is double); MPC: "
+                     "the condensed steps only, experimental (float qrqp "
+                     "does not converge on their QP) (default double)")
     exp.add_argument("--build", action="store_true",
                      help="compile the driver and a shared library (gcc)")
     exp.add_argument("--run", action="store_true",

@@ -7,6 +7,7 @@ from importlib import resources
 import casadi as ca
 import numpy as np
 from ocp.models.rigid import SpacecraftModel
+from .precision import README_SINGLE
 from .result import OPT_FLAGS, SOURCE
 
 
@@ -17,15 +18,20 @@ def _template(name: str) -> str:
 
 
 # ------------------------------------------------------------------ C text
-def _c_array(name: str, values) -> str:
+def _c_array(name: str, values, suffix: str = "") -> str:
     v = np.asarray(values, dtype=float).ravel()
-    body = ", ".join(f"{x:.17g}" for x in v) if v.size else "0"
+    if suffix:          # float: 9 digits round-trip, a point before "f"
+        body = ", ".join(f"{float(x):#.9g}f" for x in v.astype(np.float32))
+    else:
+        body = ", ".join(f"{x:.17g}" for x in v)
+    body = body or "0"
     return f"static casadi_real {name}[{max(v.size, 1)}] = {{{body}}};"
 
 
 def _driver_source(fns: dict[str, ca.Function],
                    samples: dict[str, list[np.ndarray]], repeats: int,
-                   model: SpacecraftModel, dt: float) -> str:
+                   model: SpacecraftModel, dt: float,
+                   precision: str = "double") -> str:
     lines = [_DRIVER_HEAD]
     calls = []
     for name, f in fns.items():
@@ -41,7 +47,8 @@ def _driver_source(fns: dict[str, ca.Function],
             ins = samples[case]
             tag = case.replace(":", "_")
             for i, a in enumerate(ins):
-                lines.append(_c_array(f"{tag}_in{i}", a))
+                lines.append(_c_array(f"{tag}_in{i}", a, "f" if
+                                      precision == "single" else ""))
             arg = ", ".join(f"{tag}_in{i}" for i in range(len(ins)))
             calls.append(
                 f"  {{ const casadi_real* a[] = {{{arg}}};\n"
@@ -77,7 +84,8 @@ _MAKEFILE = _template("Makefile.in")
 def _readme(fns: dict[str, ca.Function],
             samples: dict[str, list[np.ndarray]], plugin: str = "qrqp",
             cflags=(), ldflags=("-lm",), method: str = "conic",
-            patched: bool = False, duty_plugin: str | None = None) -> str:
+            patched: bool = False, duty_plugin: str | None = None,
+            precision: str = "double") -> str:
     rows = []
     for name, f in fns.items():
         ins = ", ".join(f"{f.name_in(i)}[{f.nnz_in(i)}]"
@@ -153,4 +161,4 @@ CasADi's DAQP runtime allocates its workspace on every solve: `main.c`
 keeps freed memory in the heap (`mallopt`, glibc) so that the timed calls
 do not fault pages in; a flight build without an operating-system heap
 needs an allocator that does the same.
-"""
+""" + (README_SINGLE if precision == "single" else "")

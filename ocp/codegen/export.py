@@ -69,6 +69,9 @@ from .patches import (
     patch_minmax,
     patch_unused_parameters,
 )
+from .precision import (check_precision, check_single, condensed_options,
+                        duty_qp_options, patch_qrqp_failure, to_single,
+                        wheel_qp_options)
 from .qrqp_patch import patch_qrqp
 from .result import ExportResult, OPT_FLAGS, SOURCE
 
@@ -138,7 +141,7 @@ def c_flags(plugin: str) -> tuple[list[str], list[str]]:
 
 
 def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
-                     plugin: str | None = None,
+                     plugin: str | None = None, precision: str = "double",
                      **qp_options) -> ca.Function:
     """Build the thruster duty-cycle QP as one certified casadi Function.
 
@@ -159,6 +162,9 @@ def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
         Conic of the fast path: daqp (sub-microsecond in C; links the
         casadi wheel's ``libdaqpstat.a``), qrqp (self-contained C, about
         5 µs) or None: daqp when `daqp_available`.
+    precision : {"double", "single"}
+        Tolerances of the certificate and the conic for that arithmetic
+        (`ocp.codegen.precision.TOLERANCES`).
     **qp_options
         Forwarded to `thrusters.build_qp` (tracking, bound, weights).
 
@@ -172,9 +178,10 @@ def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
     from thrusters import build_qp
     from thrusters.qp.certified import certified_duty_function
 
+    plugin = _resolve_wheel_qp_plugin(plugin, "plugin")
     return certified_duty_function(
-        build_qp(unit, cycle, h_max, **qp_options),
-        _resolve_wheel_qp_plugin(plugin, "plugin"))
+        build_qp(unit, cycle, h_max, **qp_options), plugin,
+        **duty_qp_options(check_precision(precision), plugin))
 
 
 def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
@@ -186,7 +193,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                       wheel_qp_plugin: str | None = "qrqp",
                       wheel_qp_fast_path: bool = True,
                       duty_qp_plugin: str | None = "qrqp",
-                      rate_max: float | None = None
+                      rate_max: float | None = None,
+                      precision: str = "double"
                       ) -> tuple[dict[str, ca.Function],
                                  dict[str, list[np.ndarray]],
                                  SpacecraftModel]:
@@ -223,7 +231,7 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
     samples["min_norm"] = [M]
     fns["wheel_qp"] = conic_allocator_function(
         wheels, dt=dt, plugin=_resolve_wheel_qp_plugin(wheel_qp_plugin),
-        fast_path=wheel_qp_fast_path)
+        fast_path=wheel_qp_fast_path, **wheel_qp_options(precision))
     h = 0.5 * np.asarray(wheels.h_max) * rng.uniform(-1, 1, n)
     samples["wheel_qp"] = [2.0 * M, h]
     # a demand beyond the attainable set (alpha < 1): the driver times it
@@ -232,7 +240,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
         4.0 * float(np.sum(wheels.m_max)) * M / np.linalg.norm(M), h]
     if thrusters is not None:
         fns["duty_qp"] = duty_qp_function(thrusters, cycle, thruster_h_max,
-                                          plugin=duty_qp_plugin)
+                                          plugin=duty_qp_plugin,
+                                          precision=precision)
         samples["duty_qp"] = [np.array([0.0, 0.01, -0.02, 0.004, 0.0,
                                         -0.003, 1e-4, 0.0, 0.0]),
                               np.ones(thrusters.n)]
@@ -256,12 +265,14 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
         qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
         x0 = model.state([1.0, 0.0, 0.0, 0.0])
         # the condensed QP links DAQP where the casadi wheel ships it
-        condensed_plugin = "daqp" if daqp_available() else "qrqp"
+        condensed_plugin = ("daqp" if daqp_available() and precision ==
+                            "double" else "qrqp")
         for name in MPC_VARIANTS:
             if name not in mpc_variants:
                 continue
             rti = "rti" in name
-            kw = ({"solver": "condensed", "qp_solver": condensed_plugin}
+            kw = ({"solver": "condensed", "qp_solver": condensed_plugin,
+                   "solver_options": condensed_options(precision)}
                   if "cond" in name else {"solver": "sqpmethod",
                                           "expand": False})
             ctl = AttitudeMPC(model, horizon=horizon, dt=dt, rti=rti,
@@ -312,7 +323,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              duty_qp_plugin: str | None = None,
              qrqp_reuse_factorization: bool = True,
              rate_max: float | None = None,
-             build: bool = False,
+             precision: str = "double", build: bool = False,
              cc: str = "gcc", repeats: int = 1000,
              progress: bool = False) -> ExportResult:
     """Generate C for the toolbox's laws, QPs, model and MPC step.
@@ -373,6 +384,13 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         Body-rate limit [rad/s] of the MPC steps (``|ω_i| <= rate_max``
         on every planned state, as `ocp.mpc.AttitudeMPC`); default: the
         spacecraft's ``rate_max`` (none without a spacecraft).
+    precision : {"double", "single"}
+        ``"single"``: ``casadi_real`` is float, with float literals and
+        float math (`ocp.codegen.precision.to_single`), the QP and SQP
+        tolerances of `ocp.codegen.precision.TOLERANCES`, qrqp for every
+        conic (None plugins; daqp is refused: the casadi wheel's
+        ``libdaqpstat.a`` is double) and the condensed MPC steps only
+        (`ocp.codegen.precision.SINGLE_MPC_VARIANTS`).
     build : bool
         Compile the driver and a shared library with ``cc``.
     cc : str
@@ -411,6 +429,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     if int(repeats) < 1:
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
     mpc_variants = _check_variants(mpc_variants)
+    check_single(check_precision(precision), {
+        "wheel_qp_plugin": wheel_qp_plugin,
+        "duty_qp_plugin": duty_qp_plugin}, mpc_variants)
+    if precision == "single":      # None: qrqp (daqp's library is double)
+        wheel_qp_plugin = wheel_qp_plugin or "qrqp"
+        duty_qp_plugin = duty_qp_plugin or "qrqp"
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
     method = wheel_qp_method(wheels, wheel_qp_fast_path)
     duty_plugin = _resolve_wheel_qp_plugin(duty_qp_plugin, "duty_qp_plugin")
@@ -418,7 +442,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     # unless the duty QP's fast path calls daqp
     uses_daqp = (plugin == "daqp" and method != "closed form") or (
         thrusters is not None and duty_plugin == "daqp") or (
-        daqp_available() and any("cond" in v for v in mpc_variants))
+        daqp_available() and precision == "double"
+        and any("cond" in v for v in mpc_variants))
     cflags, ldflags = c_flags("daqp" if uses_daqp else "")
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
@@ -426,8 +451,9 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         mpc_max_iter=mpc_max_iter,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
-        rate_max=rate_max)
-    cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True})
+        rate_max=rate_max, precision=precision)
+    cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True, **(
+        {"casadi_real": "float"} if precision == "single" else {})})
     for f in fns.values():
         cg.add(f)
     cg.generate(f"{out}/")
@@ -439,17 +465,19 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     if qrqp_reuse_factorization:
         text, patched = patch_qrqp(text)
     text, _ = patch_unused_parameters(text)       # last: the others
-    source.write_text(text)                      # match CasADi's text
+    if precision == "single":                    # match CasADi's text
+        text, _ = to_single(patch_qrqp_failure(text)[0])
+    source.write_text(text)
     driver = out / "main.c"
     driver.write_text(_driver_source(fns, samples, int(repeats), model,
-                                     dt))
+                                     dt, precision))
     makefile = out / "Makefile"
     makefile.write_text(_MAKEFILE.format(
         src=SOURCE, opt=" ".join(OPT_FLAGS), cflags=" ".join(cflags),
         libs=" ".join(ldflags)))
     readme = out / "README.md"
     readme.write_text(_readme(fns, samples, plugin, cflags, ldflags,
-                              method, patched, duty_plugin))
+                              method, patched, duty_plugin, precision))
     res = ExportResult(out_dir=out, functions=fns, samples=samples,
                        source=out / f"{SOURCE}.c",
                        header=out / f"{SOURCE}.h", driver=driver,
@@ -460,6 +488,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
                                "qrqp_patched": patched,
                                "daqp_patched": daqp_patched,
                                "rate_max": rate_max,
+                               "precision": precision,
                                "cflags": cflags, "ldflags": ldflags})
     if build:
         return build_exported(res, cc=cc, progress=progress)

@@ -292,11 +292,12 @@ class AttitudeMPC:
         self.check_function = check_function(self, p)
         self.nlpsol = self.fallback = None
         if self.solver == "condensed":
-            extra = set(user_options) - {"step_tol", "anderson"}
+            extra = set(user_options) - {"step_tol", "anderson",
+                                         "row_tol", "qp_tol"}
             if extra:
                 raise InvalidValueError(
-                    f"solver='condensed' takes solver_options 'step_tol' "
-                    f"and 'anderson' only, got {sorted(extra)}")
+                    "solver='condensed' takes solver_options 'step_tol' and "
+                    f"'anderson' only (+ row_tol, qp_tol): {sorted(extra)}")
             self.rti_function, full = condensed_step_functions(
                 self, self.qp_solver, **user_options)
             self.step_function = self.rti_function if self.rti else full

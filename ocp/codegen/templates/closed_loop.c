@@ -23,7 +23,7 @@ static void closed_loop(const char* name, eval_t f, work_t work,
               *lx = calloc(nz, sizeof(casadi_real)),
               *lg = calloc(ng, sizeof(casadi_real)),
               *u = calloc(nu, sizeof(casadi_real));
-  casadi_real tau[3] = {0, 0, 0}, h = dt, cost, viol, viol1, defect;
+  casadi_real tau[3] = {0, 0, 0}, h = (casadi_real)dt, cost, viol, viol1, defect;
   double* t = malloc(sizeof(double) * steps);
   int k, i, mem = checkout(), pmem = rk4_checkout();
   memcpy(x, x0, sizeof(casadi_real) * nx);
@@ -38,7 +38,7 @@ static void closed_loop(const char* name, eval_t f, work_t work,
     double t0 = now_us();
     f(a, r, iw, w, mem);
     t[k] = now_us() - t0;
-    if (viol1 > worst) worst = viol1;
+    if ((double)viol1 > worst) worst = (double)viol1;
     a[0] = x; a[1] = u; a[2] = tau; a[3] = &h;
     r[0] = xn;
     rk4(a, r, iw, w, pmem);
@@ -47,7 +47,10 @@ static void closed_loop(const char* name, eval_t f, work_t work,
   release(mem);
   rk4_release(pmem);
   double dot = 0.0, nq = 0.0;
-  for (i = 0; i < 4; ++i) { dot += x[i] * qf[i]; nq += x[i] * x[i]; }
+  for (i = 0; i < 4; ++i) {
+    dot += (double)x[i] * (double)qf[i];
+    nq += (double)x[i] * (double)x[i];
+  }
   dot = fabs(dot) / sqrt(nq);
   if (dot > 1.0) dot = 1.0;
   double err = 2.0 * acos(dot) * 57.295779513082323;

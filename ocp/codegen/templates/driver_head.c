@@ -71,7 +71,7 @@ static void time_call(const char* name, eval_t f, work_t work,
   printf("TIME %s first_us=%.3f median_us=%.3f max_us=%.3f calls=%d "
          "flag=%d\n", name, first, t[reps / 2], t[reps - 1], reps, flag);
   printf("  %s first output:", name);
-  for (i = 0; i < n_show && i < 4; ++i) printf(" %.10g", res[0][i]);
+  for (i = 0; i < n_show && i < 4; ++i) printf(" %.10g", (double)res[0][i]);
   printf("\n");
   free(a); free(r); free(iw); free(w); free(t);
 }
