@@ -86,11 +86,16 @@ def _export(args: argparse.Namespace) -> int:
         m = w.m_max if args.m_max is None else args.m_max
         sc = sc.with_wheels(WheelArray(w.axes, h, m, w.failed, w.names,
                                        w.scale))
-    variants = [v.strip() for v in args.mpc.split(",") if v.strip()]
+    mpc = args.mpc
+    if mpc is None:     # single: no MPC unless asked (float qrqp fails)
+        mpc = ("" if args.precision == "single" else
+               "mpc_step,mpc_rti_step,mpc_cond_rti_step")
+    variants = [v.strip() for v in mpc.split(",") if v.strip()]
     print(f"adcs export: generating C for {sc.name!r} in {args.out} ...",
           flush=True)
     res = export_c(args.out, sc, dt=args.dt, horizon=args.horizon,
-                   mpc_variants=variants, build=args.build or args.run,
+                   mpc_variants=variants, precision=args.precision,
+                   build=args.build or args.run,
                    cc=args.cc, progress=args.build or args.run,
                    target=args.target)
     for p in (res.source, res.header, res.driver, res.makefile,
@@ -268,6 +273,54 @@ def _add_bench(sub) -> None:
     ben.set_defaults(func=_bench)
 
 
+def _add_export(sub) -> None:
+    """The ``export`` subcommand's parser."""
+    exp = sub.add_parser("export", help="generate C code (allocation "
+                         "laws, QPs, dynamics, MPC step) with a test "
+                         "driver")
+    exp.add_argument("--out", default="adcs-c",
+                     help="output folder (default ./adcs-c)")
+    exp.add_argument("--spacecraft", default="demo",
+                     help=SPACECRAFT_HELP + " (default demo)")
+    exp.add_argument("--h-max", type=float, default=None,
+                     help="override every wheel's momentum bound [N·m·s]")
+    exp.add_argument("--m-max", type=float, default=None,
+                     help="override every wheel's torque bound [N·m]")
+    exp.add_argument("--dt", type=float, default=0.5,
+                     help="sample time [s]")
+    exp.add_argument("--horizon", type=int, default=20,
+                     help="MPC horizon (intervals)")
+    exp.add_argument("--mpc", default=None,
+                     help="MPC variants to export (comma-separated, from "
+                     "mpc_step, mpc_rti_step, mpc_cond_step, "
+                     "mpc_cond_rti_step; empty for none; default "
+                     "mpc_step,mpc_rti_step,mpc_cond_rti_step; none with "
+                     "--precision single)")
+    exp.add_argument("--precision", choices=("double", "single"),
+                     default="double",
+                     help="C arithmetic: single makes casadi_real float "
+                     "with float literals and float math (sqrtf, fabsf, "
+                     "...; single-precision FPUs such as the Cortex-M4F), "
+                     "QP tolerances chosen for float, qrqp for every QP; "
+                     "no MPC step yet (default double)")
+    exp.add_argument("--build", action="store_true",
+                     help="compile the driver and a shared library (gcc)")
+    exp.add_argument("--run", action="store_true",
+                     help="build and run the driver, print timings")
+    exp.add_argument("--cc", default="gcc",
+                     help="C compiler of --build/--run (default gcc)")
+    exp.add_argument("--target", default="host",
+                     choices=("host", "cortex-m7", "cortex-m4f"),
+                     help="where the driver runs: host (--cc), or a "
+                     "Cortex-M7 (double FPU) / Cortex-M4F (single FPU, "
+                     "double in software): cross-compiled with "
+                     "arm-none-eabi-gcc (-Wall -Wextra -Werror), --run on "
+                     "qemu-system-arm (mps2-an500 / mps2-an386, -icount "
+                     "shift=0): instruction counts, not cycles, and a "
+                     "memory report (memory_<target>.json)")
+    exp.set_defaults(func=_export)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser of ``adcs``."""
     parser = argparse.ArgumentParser(
@@ -295,43 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "Dask worker processes (default: in this process)")
     rep.set_defaults(func=_report)
 
-    exp = sub.add_parser("export", help="generate C code (allocation "
-                         "laws, QPs, dynamics, MPC step) with a test "
-                         "driver")
-    exp.add_argument("--out", default="adcs-c",
-                     help="output folder (default ./adcs-c)")
-    exp.add_argument("--spacecraft", default="demo",
-                     help=SPACECRAFT_HELP + " (default demo)")
-    exp.add_argument("--h-max", type=float, default=None,
-                     help="override every wheel's momentum bound [N·m·s]")
-    exp.add_argument("--m-max", type=float, default=None,
-                     help="override every wheel's torque bound [N·m]")
-    exp.add_argument("--dt", type=float, default=0.5,
-                     help="sample time [s]")
-    exp.add_argument("--horizon", type=int, default=20,
-                     help="MPC horizon (intervals)")
-    exp.add_argument("--mpc", default="mpc_step,mpc_rti_step,"
-                     "mpc_cond_rti_step",
-                     help="MPC variants to export (comma-separated, from "
-                     "mpc_step, mpc_rti_step, mpc_cond_step, "
-                     "mpc_cond_rti_step; empty for none)")
-    exp.add_argument("--build", action="store_true",
-                     help="compile the driver and a shared library (gcc)")
-    exp.add_argument("--run", action="store_true",
-                     help="build and run the driver, print timings")
-    exp.add_argument("--cc", default="gcc",
-                     help="C compiler of --build/--run (default gcc)")
-    exp.add_argument("--target", default="host",
-                     choices=("host", "cortex-m7", "cortex-m4f"),
-                     help="where the driver runs: host (--cc), or a "
-                     "Cortex-M7 (double FPU) / Cortex-M4F (single FPU, "
-                     "double in software): cross-compiled with "
-                     "arm-none-eabi-gcc (-Wall -Wextra -Werror), --run on "
-                     "qemu-system-arm (mps2-an500 / mps2-an386, -icount "
-                     "shift=0): instruction counts, not cycles, and a "
-                     "memory report (memory_<target>.json); QPs by qrqp "
-                     "until the export carries DAQP's C sources")
-    exp.set_defaults(func=_export)
+    _add_export(sub)
 
     _add_bench(sub)
 

@@ -73,7 +73,8 @@ def conic_allocator_function(array: WheelArray,
                              dt: float | None = None, plugin: str = "daqp",
                              name: str = "wheel_qp",
                              plugin_options: dict | None = None,
-                             fast_path: bool = True) -> ca.Function:
+                             fast_path: bool = True,
+                             margin: float = _MARGIN) -> ca.Function:
     """`QPAllocator` (``saturation="scale"``) as a single casadi Function.
 
     The same law as the numpy allocator: bounds ``|m_i| <= m_max_i`` (and
@@ -112,6 +113,10 @@ def conic_allocator_function(array: WheelArray,
         CasADi conic plugin (``"daqp"`` default, ``"qrqp"``, ``"osqp"``).
     fast_path : bool
         Use the exact closed forms above before the conic.
+    margin : float
+        Relative margin of the scale: ``α (1 - margin)`` when α < 1
+        (default 1e-9; a float export needs more, 1 - 1e-9 is 1.0f:
+        `ocp.codegen.precision.TOLERANCES`).
 
     Returns
     -------
@@ -170,7 +175,7 @@ def conic_allocator_function(array: WheelArray,
     s = ca.DM(normals) @ M
     ratio = ca.if_else(s > 1e-15, d / s, ca.inf)
     alpha = ca.fmax(ca.fmin(1.0, ca.mmin(ratio)), 0.0)
-    alpha = ca.if_else(alpha < 1.0, alpha * (1.0 - _MARGIN), alpha)
+    alpha = ca.if_else(alpha < 1.0, alpha * (1.0 - margin), alpha)
     target = alpha * M
 
     if fast_path:

@@ -7,6 +7,7 @@ from importlib import resources
 import casadi as ca
 import numpy as np
 from ocp.models.rigid import SpacecraftModel
+from .precision import README_SINGLE
 from .result import OPT_FLAGS, SOURCE
 
 
@@ -17,9 +18,13 @@ def _template(name: str) -> str:
 
 
 # ------------------------------------------------------------------ C text
-def _c_array(name: str, values) -> str:
+def _c_array(name: str, values, suffix: str = "") -> str:
     v = np.asarray(values, dtype=float).ravel()
-    body = ", ".join(f"{x:.17g}" for x in v) if v.size else "0"
+    if suffix:          # float: 9 digits round-trip, a point before "f"
+        body = ", ".join(f"{float(x):#.9g}f" for x in v.astype(np.float32))
+    else:
+        body = ", ".join(f"{x:.17g}" for x in v)
+    body = body or "0"
     return f"static casadi_real {name}[{max(v.size, 1)}] = {{{body}}};"
 
 
@@ -53,10 +58,12 @@ LOOP_STEPS = 80
 def _driver_source(fns: dict[str, ca.Function],
                    samples: dict[str, list[np.ndarray]], repeats: int,
                    model: SpacecraftModel, dt: float,
+                   precision: str = "double",
                    head: str | None = None) -> str:
     """Text of a driver: ``head`` (the host's by default, or a target's
     from `ocp.codegen.target`), the shared body with its static arrays,
-    the calls, the loops."""
+    the calls, the loops; sample inputs as float literals in single
+    ``precision``."""
     lines = [_DRIVER_HEAD if head is None else head,
              _DRIVER_BODY.replace("/* @SIZES@ */", _driver_sizes(
                  fns, repeats, LOOP_STEPS))]
@@ -76,7 +83,8 @@ def _driver_source(fns: dict[str, ca.Function],
             ins = samples[case]
             tag = case.replace(":", "_")
             for i, a in enumerate(ins):
-                lines.append(_c_array(f"{tag}_in{i}", a))
+                lines.append(_c_array(f"{tag}_in{i}", a, "f" if
+                                      precision == "single" else ""))
             arg = ", ".join(f"{tag}_in{i}" for i in range(len(ins)))
             calls.append(
                 f"  {{ const casadi_real* a[] = {{{arg}}};\n"
@@ -167,7 +175,7 @@ def _readme(fns: dict[str, ca.Function],
             samples: dict[str, list[np.ndarray]], plugin: str = "qrqp",
             solver_sources=(), method: str = "conic",
             patched: bool = False, duty_plugin: str | None = None,
-            static_bytes: int = 0) -> str:
+            static_bytes: int = 0, precision: str = "double") -> str:
     rows = []
     for name, f in fns.items():
         ins = ", ".join(f"{f.name_in(i)}[{f.nnz_in(i)}]"
@@ -230,4 +238,4 @@ at the next sample. `mpc_rti_step` makes one SQP step per sample.
 problem by the condensed SQP (`ocp.mpc.condensed`: the QP on the controls
 only, DAQP started from the active set of `lam_x_prev`; `lam_g` is
 zero); their last output `iterations` counts the SQP iterations.
-"""
+""" + (README_SINGLE if precision == "single" else "")

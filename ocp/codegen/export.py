@@ -75,6 +75,9 @@ from .patches import (
     patch_minmax,
     patch_unused_parameters,
 )
+from .precision import (check_precision, check_single, condensed_options,
+                        duty_qp_options, patch_qrqp_failure, to_single,
+                        wheel_qp_options)
 from .qrqp_patch import patch_qrqp
 from .result import ExportResult, OPT_FLAGS, SOURCE
 from .target import (build_target, check_target, daqp_c_sources,
@@ -132,7 +135,7 @@ def _resolve_wheel_qp_plugin(plugin: str | None,
 
 
 def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
-                     plugin: str | None = None,
+                     plugin: str | None = None, precision: str = "double",
                      **qp_options) -> ca.Function:
     """Build the thruster duty-cycle QP as one certified casadi Function.
 
@@ -153,6 +156,9 @@ def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
         Conic of the fast path: daqp (sub-microsecond in C; its sources
         travel with the export), qrqp (generated inline, about 5 µs) or
         None: daqp when `daqp_available`.
+    precision : {"double", "single"}
+        Tolerances of the certificate and the conic for that arithmetic
+        (`ocp.codegen.precision.TOLERANCES`).
     **qp_options
         Forwarded to `thrusters.build_qp` (tracking, bound, weights).
 
@@ -166,9 +172,10 @@ def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
     from thrusters import build_qp
     from thrusters.qp.certified import certified_duty_function
 
+    plugin = _resolve_wheel_qp_plugin(plugin, "plugin")
     return certified_duty_function(
-        build_qp(unit, cycle, h_max, **qp_options),
-        _resolve_wheel_qp_plugin(plugin, "plugin"))
+        build_qp(unit, cycle, h_max, **qp_options), plugin,
+        **duty_qp_options(check_precision(precision), plugin))
 
 
 def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
@@ -181,7 +188,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                       wheel_qp_fast_path: bool = True,
                       duty_qp_plugin: str | None = "qrqp",
                       rate_max: float | None = None,
-                      condensed_qp_plugin: str | None = None
+                      condensed_qp_plugin: str | None = None,
+                      precision: str = "double"
                       ) -> tuple[dict[str, ca.Function],
                                  dict[str, list[np.ndarray]],
                                  SpacecraftModel]:
@@ -218,7 +226,7 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
     samples["min_norm"] = [M]
     fns["wheel_qp"] = conic_allocator_function(
         wheels, dt=dt, plugin=_resolve_wheel_qp_plugin(wheel_qp_plugin),
-        fast_path=wheel_qp_fast_path)
+        fast_path=wheel_qp_fast_path, **wheel_qp_options(precision))
     h = 0.5 * np.asarray(wheels.h_max) * rng.uniform(-1, 1, n)
     samples["wheel_qp"] = [2.0 * M, h]
     # a demand beyond the attainable set (alpha < 1): the driver times it
@@ -227,7 +235,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
         4.0 * float(np.sum(wheels.m_max)) * M / np.linalg.norm(M), h]
     if thrusters is not None:
         fns["duty_qp"] = duty_qp_function(thrusters, cycle, thruster_h_max,
-                                          plugin=duty_qp_plugin)
+                                          plugin=duty_qp_plugin,
+                                          precision=precision)
         samples["duty_qp"] = [np.array([0.0, 0.01, -0.02, 0.004, 0.0,
                                         -0.003, 1e-4, 0.0, 0.0]),
                               np.ones(thrusters.n)]
@@ -257,7 +266,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
             if name not in mpc_variants:
                 continue
             rti = "rti" in name
-            kw = ({"solver": "condensed", "qp_solver": condensed_plugin}
+            kw = ({"solver": "condensed", "qp_solver": condensed_plugin,
+                   "solver_options": condensed_options(precision)}
                   if "cond" in name else {"solver": "sqpmethod",
                                           "expand": False})
             ctl = AttitudeMPC(model, horizon=horizon, dt=dt, rti=rti,
@@ -317,7 +327,8 @@ def _write_build_files(out, solver_sources) -> None:
         solver_sources_cmake="".join(f"\n  {r}" for r in rel)))
 
 
-def _write_source(fns: dict, out: Path, reuse_factorization: bool
+def _write_source(fns: dict, out: Path, reuse_factorization: bool,
+                  precision: str = "double"
                   ) -> tuple[bool, bool, dict, list[Path]]:
     """Generate ``adcs_codegen.c`` and edit it for flight.
 
@@ -326,7 +337,8 @@ def _write_source(fns: dict, out: Path, reuse_factorization: bool
     DAQP conic's static workspace and the DAQP C sources copied beside
     the source (none without a DAQP conic).
     """
-    cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True})
+    cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True, **(
+        {"casadi_real": "float"} if precision == "single" else {})})
     for f in fns.values():
         cg.add(f)
     cg.generate(f"{out}/")
@@ -340,7 +352,9 @@ def _write_source(fns: dict, out: Path, reuse_factorization: bool
     if reuse_factorization:
         text, patched = patch_qrqp(text)
     text, _ = patch_unused_parameters(text)       # last: the others
-    source.write_text(text)                      # match CasADi's text
+    if precision == "single":                    # match CasADi's text
+        text, _ = to_single(patch_qrqp_failure(text)[0])
+    source.write_text(text)
     solver_sources = copy_daqp_sources(out) if daqp_conics else []
     if not daqp_conics and (out / DAQP_DIR / "api.c").is_file():
         for name in DAQP_SOURCES:                # stale from an earlier
@@ -361,7 +375,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              duty_qp_plugin: str | None = None,
              qrqp_reuse_factorization: bool = True,
              rate_max: float | None = None,
-             target: str = "host",
+             target: str = "host", precision: str = "double",
              build: bool = False,
              cc: str = "gcc", repeats: int = 1000,
              progress: bool = False) -> ExportResult:
@@ -429,6 +443,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         report is written. Without DAQP's C sources in the folder
         (`ocp.codegen.target.daqp_c_sources`) every QP of a target export
         is solved by qrqp (``"daqp"`` asked for is an error).
+    precision : {"double", "single"}
+        ``"single"``: ``casadi_real`` is float, with float literals and
+        float math (`ocp.codegen.precision.to_single`), the QP
+        tolerances of `ocp.codegen.precision.TOLERANCES` and qrqp for
+        every conic (DAQP's single-precision build is not wired in yet);
+        no MPC step yet (the condensed SQP needs DAQP).
     build : bool
         Compile the driver and a shared library with ``cc`` (a target:
         the ELF with ``arm-none-eabi-gcc``, `build_target`).
@@ -471,6 +491,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
     mpc_variants = _check_variants(mpc_variants)
     cortex_m = check_target(target) != "host"
+    check_single(check_precision(precision), {
+        "wheel_qp_plugin": wheel_qp_plugin,
+        "duty_qp_plugin": duty_qp_plugin}, mpc_variants)
+    if precision == "single":      # None: qrqp (DAQP is double here)
+        wheel_qp_plugin = wheel_qp_plugin or "qrqp"
+        duty_qp_plugin = duty_qp_plugin or "qrqp"
     wheel_qp_plugin, duty_qp_plugin, condensed = _target_plugins(
         target, out, wheel_qp_plugin, duty_qp_plugin)
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
@@ -483,19 +509,20 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         mpc_max_iter=mpc_max_iter,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
-        rate_max=rate_max, condensed_qp_plugin=condensed)
+        rate_max=rate_max, condensed_qp_plugin=condensed,
+        precision=precision)
     daqp_patched, patched, daqp_conics, solver_sources = _write_source(
-        fns, out, qrqp_reuse_factorization)
+        fns, out, qrqp_reuse_factorization, precision)
     driver = out / "main.c"
     driver.write_text(_driver_source(fns, samples, int(repeats), model,
-                                     dt))
+                                     dt, precision))
     _write_build_files(out, solver_sources)
     static_bytes = sum(8 * nw + 4 * niw for nw, niw in daqp_conics.values())
     readme = out / "README.md"
     readme.write_text(_readme(
         fns, samples, plugin, [p.relative_to(out).as_posix()
                                for p in solver_sources],
-        method, patched, duty_plugin, static_bytes))
+        method, patched, duty_plugin, static_bytes, precision))
     res = ExportResult(out_dir=out, functions=fns, samples=samples,
                        source=out / f"{SOURCE}.c",
                        header=out / f"{SOURCE}.h", driver=driver,
@@ -510,11 +537,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
                                "solver_sources": solver_sources,
                                "daqp_static": daqp_conics,
                                "daqp_static_bytes": static_bytes,
+                               "precision": precision,
                                "cflags": [], "ldflags": ["-lm"]})
     if cortex_m:
         res = write_target_files(res, target, _driver_source(
             fns, samples, max(int(repeats) // 10, 3), model, dt,
-            head=target_head()))
+            precision, head=target_head()))
         return build_target(res) if build else res
     if build:
         return build_exported(res, cc=cc, progress=progress)

@@ -45,7 +45,7 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_finite_scalar, check_positive
 from .acceleration import anderson_function
-from .condensed_qp import routed_qp
+from .condensed_qp import ROW_TOL, routed_qp
 from .problem import momentum_residual, pointing_residuals
 from .riccati import factor_rows, riccati_kernels
 
@@ -122,7 +122,7 @@ def _kernels(mpc: Any) -> dict[str, ca.Function]:
     }
 
 
-def _iteration(mpc: Any, plugin: str) -> ca.Function:
+def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     """``cond_iter(z, lam_x, p) -> (z_new, lam_x, step, qp_kkt)``: one SQP
     step and its QP's optimality certificate (`condensed_qp.qp_kkt`).
 
@@ -156,7 +156,7 @@ def _iteration(mpc: Any, plugin: str) -> ca.Function:
     lam_a0 = [lx0[xs[k]][7:] for k in range(1, N + 1)] + (
         [lx0[xs[k]][4:7] for k in range(1, N + 1)] if rate_rows else [])
     y, lam_u, lam_a, kkt = routed_qp(plugin, N, nu, nw, winv.sparsity(),
-                                 Rows.sparsity())(
+                                 Rows.sparsity(), **qp_tols)(
         ca.mtimes(winv.T, g), winv, Rows, np.tile(u_lo, N) - u_bar,
         np.tile(u_hi, N) - u_bar, ca.vertcat(*lba), ca.vertcat(*uba),
         ca.vertcat(*[lx0[us[k]] for k in range(N)]), ca.vertcat(*lam_a0))
@@ -268,9 +268,20 @@ STEP_NAMES = (["x", "qf", "tau", "z_prev", "lam_x_prev", "lam_g_prev"],
                "first_violation", "defect", "iterations", "qp_kkt"])
 
 
+def check_condensed_options(options: dict) -> None:
+    """Refuse ``solver_options`` the condensed SQP does not take."""
+    extra = set(options) - {"step_tol", "anderson", "row_tol", "qp_tol"}
+    if extra:
+        raise InvalidValueError(
+            "solver='condensed' takes solver_options 'step_tol' and "
+            f"'anderson' only (+ row_tol, qp_tol): {sorted(extra)}")
+
+
 def condensed_step_functions(mpc: Any, plugin: str | None = None,
                              step_tol: float = STEP_TOL,
-                             anderson: int = ANDERSON_MEMORY
+                             anderson: int = ANDERSON_MEMORY,
+                             row_tol: float = ROW_TOL,
+                             qp_tol: float | None = None
                              ) -> tuple[ca.Function, ca.Function]:
     """``(rti_function, step_function)`` of the condensed SQP.
 
@@ -293,6 +304,9 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
         Memory m of the Anderson acceleration of the iterations
         (`ocp.mpc.acceleration`; 0: plain full steps). The plan returned
         is always a QP step's.
+    row_tol, qp_tol : float
+        `condensed_qp.routed_qp`'s row test and qrqp tolerance (float
+        exports raise them: `ocp.codegen.precision.TOLERANCES`).
     """
     step_tol = as_finite_scalar(step_tol, "step_tol")
     check_positive(step_tol, "step_tol")
@@ -305,7 +319,7 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
             "solver='condensed' handles wheel-only models; with thrusters "
             "use solver='sqpmethod'")
     plugin = plugin or condensed_qp_plugin()
-    it = _iteration(mpc, plugin)
+    it = _iteration(mpc, plugin, row_tol=row_tol, qp_tol=qp_tol)
     nx, nz, ng = mpc.model.nx, mpc.nz, mpc.ng
     x = ca.MX.sym("x", nx)
     qf = ca.MX.sym("qf", 4)

@@ -49,7 +49,8 @@ def _independent_rows(N: int, nu: int, nw: int, na: int) -> ca.Function:
 
 
 def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
-               sp_r: ca.Sparsity) -> ca.Function:
+               sp_r: ca.Sparsity, row_tol: float = ROW_TOL,
+               qp_tol: float | None = None) -> ca.Function:
     """Build the QP in ``y`` (`ocp.mpc.riccati`): Hessian I, bounds as rows.
 
     ``qp(g, W⁻¹, rows, lbu, ubu, lba, uba, lam_u0, lam_a0) -> (y, lam_u,
@@ -62,6 +63,9 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     rows were active: the QP with the rows directly, started from the
     bounds and the rows of the warm start (`_independent_rows`).
     ``kkt`` is the point's optimality certificate (`qp_kkt`).
+    ``row_tol`` replaces `ROW_TOL` and ``qp_tol`` (qrqp only) its
+    ``constr_viol_tol`` / ``dual_inf_tol`` (float exports,
+    `ocp.codegen.precision.TOLERANCES`).
     """
     n, na = N * nu, sp_r.size1()
     g = ca.MX.sym("g", n)
@@ -72,6 +76,8 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     lu0, la0 = ca.MX.sym("lam_u0", n), ca.MX.sym("lam_a0", na)
     ins = [g, W, R, lbu, ubu, lba, uba, lu0, la0]
     opts = _qp_options(plugin)
+    if qp_tol is not None and plugin == "qrqp":
+        opts.update(constr_viol_tol=qp_tol, dual_inf_tol=qp_tol)
     eye = ca.DM.eye(n)
     box = ca.conic("cond_qp_box", plugin, {"h": eye.sparsity(),
                                            "a": sp_w}, opts)
@@ -98,7 +104,7 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     ay = ca.mtimes(R, s1["x"])
     excess = ca.mmax(ca.vertcat(ay - uba, lba - ay, 0.0))
     staged = ca.Function("cond_qp_staged", ins, pick(
-        excess > ROW_TOL, g, W, R, lbu, ubu, lba, uba, s1["lam_a"],
+        excess > row_tol, g, W, R, lbu, ubu, lba, uba, s1["lam_a"],
         s1["x"]))
     warm = rows_warm(lu0, lbu, ubu, la0)
     direct = ca.Function("cond_qp_direct", ins, with_rows(lu0, warm))

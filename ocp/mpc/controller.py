@@ -67,7 +67,8 @@ from adcs_common.options import merge_options
 from adcs_common.solver_options import check_nlpsol_options
 from adcs_common.threads import new_lock, synchronized
 from .certificate import default_mpc_solver, qp_kkt_function
-from .condensed import condensed_qp_plugin, condensed_step_functions
+from .condensed import (check_condensed_options, condensed_qp_plugin,
+                        condensed_step_functions)
 from .plan import check_function, plan_bounds, shift_function
 from .problem import (
     BOUND_TOL,
@@ -294,11 +295,7 @@ class AttitudeMPC:
         self.check_function = check_function(self, p)
         self.nlpsol = self.fallback = None
         if self.solver == "condensed":
-            extra = set(user_options) - {"step_tol", "anderson"}
-            if extra:
-                raise InvalidValueError(
-                    f"solver='condensed' takes solver_options 'step_tol' "
-                    f"and 'anderson' only, got {sorted(extra)}")
+            check_condensed_options(user_options)
             self.rti_function, full = condensed_step_functions(
                 self, self.qp_solver, **user_options)
             self.step_function = self.rti_function if self.rti else full

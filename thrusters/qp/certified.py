@@ -57,7 +57,9 @@ def attainable_margin(qp: DutyCycleQP, e, kmax):
 
 def certified_duty_function(qp: DutyCycleQP, plugin: str = "daqp", *,
                             viol_tol: float = 1e-6, slack_tol: float = 1e-7,
-                            name: str = "duty_qp") -> ca.Function:
+                            name: str = "duty_qp", kkt_tol: float = 1e-9,
+                            attain_tol: float = _ATTAIN_TOL,
+                            options: dict | None = None) -> ca.Function:
     """``duty_qp(theta[9], kmax[n]) -> (duty[n], slack, violation, status)``.
 
     Every call writes every output. A demand the thrusters cannot produce
@@ -78,6 +80,12 @@ def certified_duty_function(qp: DutyCycleQP, plugin: str = "daqp", *,
         Slack above which the momentum bound counts as relaxed [1].
     name : str
         Function (C symbol) name.
+    kkt_tol, attain_tol : float
+        KKT residual bound of the certificate (`duty_function`) and
+        relative margin of the attainability test (`attainable_margin`);
+        a float export raises both (`ocp.codegen.precision.TOLERANCES`).
+    options : dict, optional
+        Conic options (`duty_function`).
 
     Returns
     -------
@@ -96,7 +104,8 @@ def certified_duty_function(qp: DutyCycleQP, plugin: str = "daqp", *,
     """
     n = qp.nx - 1
     nth = qp.Lm.shape[1]
-    fast = duty_function(qp, plugin, viol_tol=viol_tol, jit=False)
+    fast = duty_function(qp, plugin, options, viol_tol=viol_tol,
+                         kkt_tol=kkt_tol, jit=False)
     # straight-line SX before and after the one conic call (cheaper in C
     # than the same arithmetic as MX nodes)
     th = ca.SX.sym("theta", nth)
@@ -106,7 +115,7 @@ def certified_duty_function(qp: DutyCycleQP, plugin: str = "daqp", *,
     th0 = ca.if_else(valid, th, ca.DM.zeros(nth))
     km0 = ca.if_else(valid, km, ca.DM.ones(n))
     l = ca.DM(infinite_bounds(qp.l0)) + ca.DM(qp.Lm) @ th0
-    attain = attainable_margin(qp, l[:qp.n_eq], km0) <= _ATTAIN_TOL
+    attain = attainable_margin(qp, l[:qp.n_eq], km0) <= attain_tol
     before = ca.Function(f"{name}_in", [th, km],
                          [th0, km0, ca.logic_and(valid, attain), valid])
 
