@@ -21,6 +21,7 @@ from .accuracy import (
 )
 from .arrays import WheelArray, pyramid_axes
 from .design import FAMILIES, ArrayDesign, certify_layout, design_array
+from .design_trade import TradeCurve, trade_curve
 from .electrical import WheelMotor
 from .envelope import Envelope, Facets, envelope, envelope_frame
 from .exceptions import (
@@ -94,6 +95,7 @@ __all__ = [
     "SolverError",
     "SolverNotFound",
     "TorqueError",
+    "TradeCurve",
     "WheelAllocation",
     "WheelArray",
     "WheelMotor",
@@ -131,6 +133,7 @@ __all__ = [
     "tilted_axes",
     "torque_error",
     "torque_reach",
+    "trade_curve",
     "weighted_function",
     "weighted_gains",
     "weighted_law",
