@@ -21,7 +21,7 @@ from .accuracy import (
 )
 from .arrays import WheelArray, pyramid_axes
 from .design import FAMILIES, ArrayDesign, certify_layout, design_array
-from .design_trade import TradeCurve, trade_curve
+from .design_trade import TradeCurve, reference_layouts, trade_curve
 from .electrical import WheelMotor
 from .envelope import Envelope, Facets, envelope, envelope_frame
 from .exceptions import (
@@ -128,6 +128,7 @@ __all__ = [
     "pyramid_min_norm_function",
     "reach_frame",
     "reach_table",
+    "reference_layouts",
     "sign_matrix_function",
     "sign_matrix_gains",
     "tilted_axes",

@@ -23,10 +23,11 @@ from adcs_common.exceptions import InvalidValueError
 from adcs_common.results import ResultMixin
 from adcs_common.validation import as_count, as_vector
 
+from .arrays import WheelArray
 from .design import ArrayDesign, certify_layout, design_array
 from .design_nlp import EPS_SCHEDULE, build_design_nlp, family_axes
 
-__all__ = ["TradeCurve", "trade_curve"]
+__all__ = ["TradeCurve", "reference_layouts", "trade_curve"]
 
 #: Smoothing widths of one epsilon-constraint solve (from a warm start).
 _TRADE_SCHEDULE = EPS_SCHEDULE[-4:]
@@ -72,6 +73,46 @@ class TradeCurve(ResultMixin):
     def n_points(self) -> int:
         """Number P of points on the front."""
         return int(self.radius.size)
+
+
+def _icosahedral_axes() -> np.ndarray:
+    phi = (1 + np.sqrt(5)) / 2
+    v = np.array([[0, 1, phi], [0, -1, phi], [1, phi, 0], [-1, phi, 0],
+                  [phi, 0, 1], [phi, 0, -1]], dtype=float).T
+    return v / np.linalg.norm(v, axis=0)
+
+
+def reference_layouts() -> dict[str, tuple[np.ndarray, float, float]]:
+    """The reference layouts of the design problem, with their radii.
+
+    Returns
+    -------
+    dict
+        Name -> ``(axes, nominal, failed)``: unit spin axes (3, N), and
+        the reference nominal inscribed radius and worst single-failure
+        radius for unit capacity per wheel (NaN where the layout is not
+        the reference of that radius). Computed from the facet formula;
+        the cone angles are to 1e-7 degree.
+    """
+    nan = float("nan")
+    cone = {a: family_axes("cone", n, [np.deg2rad(a)])
+            for n, a in ((4, np.rad2deg(np.arccos(1 / np.sqrt(3)))),
+                         (5, 54.2322925), (5, 48.0300847))}
+    a4, a5n, a5f = cone
+    return {
+        "4 wheels, tetrahedral pyramid (54.7356°)":
+            (cone[a4], 4 / np.sqrt(6), 2 / np.sqrt(6)),
+        "4 wheels, 3 orthogonal + 1 skew (NASA standard)":
+            (WheelArray.orthogonal_plus_skew(skew="equal_angle").axes,
+             np.sqrt(2), 1 / np.sqrt(3)),
+        "5 wheels, best cone (54.232°)": (cone[a5n], 2.182643356, nan),
+        "5 wheels, cone best for one failure (48.030°)":
+            (cone[a5f], nan, np.sqrt(5) - 1),
+        "6 wheels, icosahedral axes":
+            (_icosahedral_axes(), 2.752763841, 1.902113033),
+        "4 wheels, the Meteor-M pyramid (55°, 45°)":
+            (WheelArray.pyramid().axes, 1.630253, nan),
+    }
 
 
 def _solve_at(nlp, n, axes, capacity, eps_fail, quantity):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from allocation import certify_layout, trade_curve
+from allocation import certify_layout, reference_layouts, trade_curve
 from adcs_common.exceptions import InvalidValueError
 
 #: wheels -> (nominal optimum, failure optimum) of the reference table
@@ -40,3 +40,12 @@ def test_five_wheels_trade_and_six_do_not():
 def test_bad_input_refused(kwargs):
     with pytest.raises(InvalidValueError):
         trade_curve(**kwargs)
+
+
+def test_reference_layouts_certified():
+    refs = reference_layouts()
+    assert len(refs) == 6
+    for axes, nominal, failed in refs.values():
+        r_nom, r_fail = certify_layout(axes)
+        for ref, ours in ((nominal, r_nom), (failed, r_fail)):
+            assert np.isnan(ref) or ours == pytest.approx(ref, abs=1e-6)
