@@ -26,6 +26,8 @@ from ocp.spacecraft import load_spacecraft
 STUDIES: dict[str, tuple[str, str]] = {
     "spacecraft": ("spacecraft", "Your spacecraft through every tool"),
     "wheels": ("wheels", "Meteor-M No. 2 wheel pyramid ([1])"),
+    "design": ("design", "Which array should I fly? Nominal against "
+               "single-failure radius"),
     "accuracy": ("accuracy", "Torque accuracy under mounting and "
                  "scale-factor errors ([1])"),
     "thrusters": ("thrusters", "Six-thruster unit in pulse-cycle mode "

@@ -21,6 +21,7 @@ from .accuracy import (
 )
 from .arrays import WheelArray, pyramid_axes
 from .design import FAMILIES, ArrayDesign, certify_layout, design_array
+from .design_trade import TradeCurve, reference_layouts, trade_curve
 from .electrical import WheelMotor
 from .envelope import Envelope, Facets, envelope, envelope_frame
 from .exceptions import (
@@ -94,6 +95,7 @@ __all__ = [
     "SolverError",
     "SolverNotFound",
     "TorqueError",
+    "TradeCurve",
     "WheelAllocation",
     "WheelArray",
     "WheelMotor",
@@ -126,11 +128,13 @@ __all__ = [
     "pyramid_min_norm_function",
     "reach_frame",
     "reach_table",
+    "reference_layouts",
     "sign_matrix_function",
     "sign_matrix_gains",
     "tilted_axes",
     "torque_error",
     "torque_reach",
+    "trade_curve",
     "weighted_function",
     "weighted_gains",
     "weighted_law",

@@ -12,7 +12,8 @@ to maximise
 
 Method: the epigraph NLP of `allocation.design_nlp` (facet normals from
 pairs of axes, a smooth lower bound of each support value) solved by
-IPOPT from several random starts, each answer then certified by the exact
+IPOPT from several random starts (a failure design follows the nominal
+objective first, then the failure one), each answer then certified by the exact
 envelope code (`allocation.envelope`): the radii reported are the
 certified ones, never the NLP's.
 """
@@ -40,6 +41,11 @@ from .design_nlp import (
     random_params,
 )
 from .envelope import envelope
+
+#: Smoothing widths of the nominal phase of a failure design, and of its
+#: failure phase that follows.
+NOMINAL_SCHEDULE = EPS_SCHEDULE[:5]
+FAILURE_SCHEDULE = EPS_SCHEDULE[2:]
 
 __all__ = ["ArrayDesign", "FAMILIES", "certify_layout", "design_array"]
 
@@ -189,21 +195,41 @@ def _check(n_wheels, failures, family, quantity, nominal_weight, budget):
     return n, k, w, budget
 
 
-def _one_start(nlp, n, family, params, capacity, k, w, quantity):
-    """Continuation over `EPS_SCHEDULE` from one start, then certify."""
-    t0 = np.zeros(nlp.n_t)
-    cap = capacity
-    for eps in EPS_SCHEDULE:
-        z, ok = nlp.solve(params, cap, t0, eps)
+def _continuation(nlp, n, params, cap, t0, schedule, w):
+    """IPOPT solves along the smoothing widths ``schedule``."""
+    ok = False
+    for eps in schedule:
+        z, ok = nlp.solve(params, cap, t0, eps, w)
         params = z[:nlp.n_par]
         if nlp.budget:
             cap = np.maximum(z[nlp.n_par:nlp.n_par + n], 1e-9 * nlp.budget)
         t0 = z[-nlp.n_t:]
     if not ok:                                 # polish at the last width
-        z, ok = nlp.solve(params, cap, t0, EPS_SCHEDULE[-1])
+        z, ok = nlp.solve(params, cap, t0, schedule[-1], w)
         params = z[:nlp.n_par]
         if nlp.budget:
             cap = np.maximum(z[nlp.n_par:nlp.n_par + n], 1e-9 * nlp.budget)
+        t0 = z[-nlp.n_t:]
+    return params, cap, t0
+
+
+def _one_start(nlp, n, family, params, capacity, k, w, quantity):
+    """One start: continuation over `EPS_SCHEDULE`, then certify.
+
+    With failures (and w < 1) the start first follows the nominal
+    objective (w = 1) down to a moderate width, which carries it into the
+    basin of a well-spread layout, and then the failure objective.
+    """
+    t0 = np.zeros(nlp.n_t)
+    cap = capacity
+    if k > 0 and w < 1:
+        params, cap, t0 = _continuation(nlp, n, params, cap, t0,
+                                        NOMINAL_SCHEDULE, 1.0)
+        params, cap, t0 = _continuation(nlp, n, params, cap, t0,
+                                        FAILURE_SCHEDULE, w)
+    else:
+        params, cap, t0 = _continuation(nlp, n, params, cap, t0,
+                                        EPS_SCHEDULE, w)
     axes = family_axes(family, n, params)
     axes = axes / np.linalg.norm(axes, axis=0)
     nominal, worst = certify_layout(axes, cap, k, quantity)
@@ -265,7 +291,7 @@ def design_array(n_wheels: int, *, failures: int = 0, family: str = "free",
                 as_vector(capacity, n, "capacity"))
     if not budget and np.any(capacity <= 0):
         raise InvalidValueError("capacity must be positive")
-    nlp = build_design_nlp(family, n, k, w, budget)
+    nlp = build_design_nlp(family, n, k, budget)
     rng = np.random.default_rng(seed)
     results, times = [], []
     for _ in range(starts):

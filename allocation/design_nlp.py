@@ -137,8 +137,10 @@ class DesignNLP:
     """A built NLP: one `casadi.nlpsol` for every start and re-solve.
 
     Decision vector ``z = [params, c (budget only), t]`` with ``t`` the
-    epigraph variables (nominal and/or failure radius); parameters
-    ``[eps, c (fixed capacities)]``.
+    epigraph variables (``t_nom``, then ``t_fail`` when failures > 0);
+    parameters ``[eps, w, c (fixed capacities)]`` with ``w`` the weight of
+    ``t_nom`` in the objective ``(1 - w) t_fail + w t_nom`` (ignored
+    without failures).
     """
 
     solver: ca.Function
@@ -153,12 +155,22 @@ class DesignNLP:
     ubg: np.ndarray
 
     def solve(self, params: np.ndarray, capacity: np.ndarray,
-              t0: np.ndarray, eps: float):
-        """One IPOPT solve from ``params``; returns (z, success)."""
+              t0: np.ndarray, eps: float, weight: float = 1.0,
+              t_fail_min: float = 0.0):
+        """One IPOPT solve from ``params``; returns (z, success).
+
+        ``weight`` is w of the objective; ``t_fail_min`` a lower bound on
+        the failure epigraph variable [units] (the epsilon-constraint of
+        a trade curve).
+        """
         z0 = np.concatenate([params, capacity if self.budget else [],
                              t0])
-        p = np.concatenate([[eps], capacity])
-        sol = self.solver(x0=z0, p=p, lbx=self.lbx, ubx=self.ubx,
+        p = np.concatenate([[eps, weight], capacity])
+        lbx = self.lbx
+        if t_fail_min > 0 and self.n_t == 2:
+            lbx = lbx.copy()
+            lbx[-1] = t_fail_min
+        sol = self.solver(x0=z0, p=p, lbx=lbx, ubx=self.ubx,
                           lbg=self.lbg, ubg=self.ubg)
         return (np.asarray(sol["x"]).ravel(),
                 bool(self.solver.stats()["success"]))
@@ -184,33 +196,28 @@ def _pair_rows(A, c, eps, cases, t_of_case):
 
 
 def build_design_nlp(family: str, n: int, failures: int,
-                     nominal_weight: float, budget: float | None,
+                     budget: float | None,
                      ipopt_options: dict | None = None) -> DesignNLP:
     """Build the epigraph NLP of one design problem.
 
-    The objective maximises ``(1 - w) t_fail + w t_nom`` (``w`` =
-    ``nominal_weight``; only ``t_nom`` with no failures), ``t_nom`` below
-    every nominal facet's support value and ``t_fail`` below every facet
-    of every ``failures``-wheel failure.
+    The objective maximises ``(1 - w) t_fail + w t_nom`` (``w`` a
+    parameter of each solve; only ``t_nom`` with no failures), ``t_nom``
+    below every nominal facet's support value and ``t_fail`` below every
+    facet of every ``failures``-wheel failure.
     """
     k = n_params(family, n)
     par = ca.SX.sym("par", k)
     eps = ca.SX.sym("eps")
+    w = ca.SX.sym("w")
     cap_p = ca.SX.sym("cap", n)
     c = ca.SX.sym("c", n) if budget else cap_p
     A = family_axes(family, n, par, lib=ca)
-    cases, ts, weights = [], [], []
-    if failures == 0 or nominal_weight > 0:
-        cases.append(())
-        weights.append(1.0 if failures == 0 else nominal_weight)
+    cases = [()]
     if failures > 0:
-        t_fail_cases = list(itertools.combinations(range(n), failures))
-        cases += t_fail_cases
-        weights.append(1.0 - nominal_weight)
-    n_t = len(weights)
+        cases += list(itertools.combinations(range(n), failures))
+    n_t = 1 if failures == 0 else 2
     t = ca.SX.sym("t", n_t)
-    t_of_case = [t[0]] * (1 if cases and cases[0] == () else 0)
-    t_of_case += [t[n_t - 1]] * (len(cases) - len(t_of_case))
+    t_of_case = [t[0]] + [t[n_t - 1]] * (len(cases) - 1)
     g = _pair_rows(A, c, eps, cases, t_of_case)
     lbg = [0.0] * len(g)
     ubg = [np.inf] * len(g)
@@ -230,12 +237,12 @@ def build_design_nlp(family: str, n: int, failures: int,
                           np.zeros(n_t)])
     ubx = np.concatenate([hi, np.full(n, budget) if budget else [],
                           np.full(n_t, np.inf)])
-    f = -sum(w * t[i] for i, w in enumerate(weights))
+    f = -t[0] if n_t == 1 else -(w * t[0] + (1 - w) * t[1])
     opts = {"print_time": False, "ipopt": {
         "print_level": 0, "sb": "yes", "tol": 1e-12, "max_iter": 300,
         "acceptable_tol": 1e-9, **(ipopt_options or {})}}
     solver = ca.nlpsol("array_design", "ipopt",
-                       {"x": z, "p": ca.vertcat(eps, cap_p), "f": f,
+                       {"x": z, "p": ca.vertcat(eps, w, cap_p), "f": f,
                         "g": ca.vertcat(*g)}, opts)
     return DesignNLP(solver, family, n, k, budget, n_t, lbx, ubx,
                      np.array(lbg), np.array(ubg))
