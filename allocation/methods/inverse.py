@@ -9,6 +9,7 @@ Every function takes a `WheelArray` (axes (3, N), per-wheel torque limits
 
 from __future__ import annotations
 
+from itertools import combinations
 from typing import Sequence
 
 import numpy as np
@@ -136,14 +137,21 @@ def cascaded_inverse(array: WheelArray, torque: ArrayLike,
 
 
 def default_groups(array: WheelArray) -> tuple[tuple[int, ...], ...]:
-    """Daisy-chain groups: the first three working wheels, then the rest.
+    """Daisy-chain groups: the first triad that spans 3-D, then the rest.
 
-    This is the natural split of a 3 + 1 array (orthogonal triad primary,
-    skew wheel secondary) and of a six-wheel array made of two triads.
+    The first three working wheels (in index order) whose axes span 3-D
+    space form the primary group, the other working wheels the secondary
+    one: the triad then the skew wheel of a 3 + 1 array, one wheel of each
+    pair (0, 2, 4) then the other three of six orthogonal pairs.
     """
     work = [int(i) for i in np.flatnonzero(array.active)]
-    return (tuple(work[:3]), tuple(work[3:])) if len(work) > 3 else (
-        tuple(work),)
+    if len(work) <= 3:
+        return (tuple(work),)
+    A = array.working_axes
+    for tri in combinations(work, 3):
+        if abs(np.linalg.det(A[:, list(tri)])) > 1e-9:
+            return (tri, tuple(i for i in work if i not in tri))
+    return (tuple(work),)
 
 
 def daisy_chain(array: WheelArray, torque: ArrayLike,
