@@ -254,7 +254,8 @@ def _add_bench(sub) -> None:
     ben.add_argument("--out", default="adcs-bench",
                      help="output folder for JSON and PNG")
     ben.add_argument("--problems", default="wheels,thrusters,slew",
-                     help="comma-separated: wheels, thrusters, slew")
+                     help="comma-separated: wheels, thrusters, slew, methods "
+                     "(the literature's allocation methods)")
     ben.add_argument("--backends", default="",
                      help="comma-separated backend names (default: all "
                      "installed)")

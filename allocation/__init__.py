@@ -33,6 +33,12 @@ from .exceptions import (
     SolverError,
     SolverNotFound,
 )
+from . import methods
+from .method_comparison import (
+    MethodComparison,
+    compare_methods,
+    format_comparison,
+)
 from .laws import (
     EQ9_GAINS,
     PAPER_EQ9_GAINS_PRINTED,
@@ -87,6 +93,7 @@ __all__ = [
     "InfeasibleError",
     "InvalidValueError",
     "LinearLaw",
+    "MethodComparison",
     "PAPER_EQ9_GAINS_PRINTED",
     "QPAllocator",
     "RankError",
@@ -104,15 +111,18 @@ __all__ = [
     "available_solvers",
     "certify_layout",
     "compare_law_axes",
+    "compare_methods",
     "conic_allocator_function",
     "design_array",
     "envelope",
     "envelope_frame",
     "fibonacci_directions",
+    "format_comparison",
     "format_reach_table",
     "gain_error_uniform",
     "gain_error_uniform_as_printed",
     "law_extent",
+    "methods",
     "min_norm_function",
     "min_norm_gains",
     "min_norm_law",

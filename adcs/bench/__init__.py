@@ -12,6 +12,9 @@ against an exact reference, so that a fast wrong answer shows as wrong:
   QPs: its loose points go through the shared QP layer's optimality
   certificate (`adcs_common.qp.certify`), which polishes them on their
   active set: the row must show no wrong answer;
+* ``methods`` (on request): the literature's allocation methods
+  (`allocation.methods`, names ``method:pinv`` ... ``method:direct``) on
+  the ``wheels`` demands, timed in Python and compared with the exact QP;
 * ``slew``: the MPC slew NLP (`ocp.mpc.AttitudeMPC`, horizon 20) from rest,
   cold-started, by every NLP solver name.
 
@@ -38,6 +41,7 @@ from adcs.provenance import provenance
 
 from .core import (
     CONTROLS,
+    DEFAULT_PROBLEMS,
     PROBLEMS,
     TOL,
     BenchRow,
@@ -47,6 +51,7 @@ from .core import (
     known_backends,
 )
 from .output import format_table, plot, to_frame, write_json
+from .methods import METHOD_NAMES, bench_methods
 from .problems import BUDGET, bench_slew, bench_thrusters, bench_wheels
 
 __all__ = [
@@ -56,6 +61,9 @@ __all__ = [
     "PROBLEMS",
     "Progress",
     "TOL",
+    "DEFAULT_PROBLEMS",
+    "METHOD_NAMES",
+    "bench_methods",
     "bench_slew",
     "bench_thrusters",
     "bench_wheels",
@@ -68,7 +76,7 @@ __all__ = [
 
 
 def run_bench(out_dir: str | os.PathLike[str] | None = None, *,
-              problems: Sequence[str] = PROBLEMS,
+              problems: Sequence[str] = DEFAULT_PROBLEMS,
               backends: Sequence[str] | None = None,
               repetitions: int | None = None, quick: bool = False,
               progress: bool = True, seed: int = 0,
@@ -82,7 +90,8 @@ def run_bench(out_dir: str | os.PathLike[str] | None = None, *,
         Folder for ``bench.json`` and ``bench.png`` (nothing written when
         None).
     problems : sequence of str
-        Subset of `PROBLEMS`.
+        Subset of `PROBLEMS` (default `DEFAULT_PROBLEMS`; ``"methods"``
+        adds the literature's allocation methods).
     backends : sequence of str, optional
         Backend names (default every installed one); names a problem does
         not know are reported as not available for that problem.
@@ -143,6 +152,10 @@ def run_bench(out_dir: str | os.PathLike[str] | None = None, *,
             stopped = "thrusters"
             rows += bench_thrusters(backends, reps, seed, bar, spacecraft,
                                     budget)
+        if "methods" in probs:
+            stopped = "methods"
+            rows += bench_methods(backends, reps, seed, bar, spacecraft,
+                                  budget)
         if "slew" in probs:
             stopped = "slew"
             rows += bench_slew(backends, max(reps // 5, 2) if not quick

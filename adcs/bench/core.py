@@ -19,7 +19,10 @@ from adcs_common.exceptions import (
 )
 
 #: Problem keys of `run_bench`.
-PROBLEMS = ("wheels", "thrusters", "slew")
+PROBLEMS = ("wheels", "thrusters", "slew", "methods")
+#: Problems `run_bench` and ``adcs bench`` run unless told (``methods``,
+#: the literature's allocation methods, on request).
+DEFAULT_PROBLEMS = ("wheels", "thrusters", "slew")
 #: An answer whose KKT residual or error exceeds this is "wrong".
 TOL = 1e-6
 #: ``"<backend>@loose"``: OSQP at its own default tolerances, without
@@ -36,8 +39,10 @@ def known_backends() -> tuple[str, ...]:
     from ocp.mpc import available_mpc_solvers
     from thrusters import available_solvers as duty_solvers
 
+    from .methods import METHOD_NAMES
+
     names = {*wheel_solvers(), *duty_solvers(), *available_mpc_solvers(),
-             *CONTROLS, "sqpmethod-daqp"}
+             *CONTROLS, "sqpmethod-daqp", *METHOD_NAMES}
     return tuple(sorted(names))
 
 

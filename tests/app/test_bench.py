@@ -117,3 +117,21 @@ def test_unknown_backend_is_one_line_and_status_2(capsys):
     assert main(["bench", "--backends", "nosuch", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "'nosuch' is not available" in err[0]
+
+
+def test_methods_rows_on_request():
+    """The literature's methods run on request: the redistributed and
+    cascaded inverses reach every bench demand with the QP's torques;
+    direct allocation reaches them all with other torques."""
+    from adcs.bench import DEFAULT_PROBLEMS
+
+    assert "methods" not in DEFAULT_PROBLEMS
+    rows = {r.backend: r for r in run_bench(
+        problems=["methods"], backends=["method:rpi", "method:cgi",
+                                        "method:direct"],
+        repetitions=10, progress=False)}
+    assert set(rows) == {"method:rpi", "method:cgi", "method:direct"}
+    for name in ("method:rpi", "method:cgi"):
+        assert rows[name].ok and rows[name].max_error <= 1e-9
+    direct = rows["method:direct"]
+    assert direct.max_kkt <= 1e-6 and "0/10 demands missed" in direct.note

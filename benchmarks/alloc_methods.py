@@ -1,0 +1,64 @@
+"""The control-allocation literature's methods beside the exact QP.
+
+Run from the repository root: ``python -m benchmarks.alloc_methods``
+(``--samples 2000 --directions 100 --seed 0`` by default). For each
+array (the pyramid of the papers with m_max = 0.2 N·m, the same with
+wheel 2 failed, 3 + 1, six wheels as orthogonal pairs and six on a
+54.7° cone) it prints, per method, the share of the attainable torque
+set reached by volume (uniform Monte Carlo demands, fixed seed) and over
+directions (mean and least radial reach over the set's), the relative
+torque error on the attainable demands it misses (median, 95th
+percentile), the share of reached demands where its torques equal the
+exact QP's, and the mean time per call in Python (this machine, one
+process). See `allocation.compare_methods`.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from allocation import WheelArray, compare_methods, format_comparison
+
+
+def cone6(m_max: float = 0.2) -> WheelArray:
+    """Six wheels on a 54.7356° cone, 60° apart."""
+    b = np.arccos(1 / np.sqrt(3))
+    az = 2 * np.pi * np.arange(6) / 6
+    axes = np.vstack([np.sin(b) * np.cos(az), np.sin(b) * np.sin(az),
+                      np.full(6, np.cos(b))])
+    return WheelArray.from_axes(axes, h_max=4.0, m_max=m_max,
+                                normalize=True)
+
+
+def arrays() -> dict[str, WheelArray]:
+    """The arrays of the comparison, by name."""
+    return {
+        "pyramid": WheelArray.pyramid(h_max=4.0, m_max=0.2),
+        "pyramid, wheel 2 failed": WheelArray.pyramid(
+            h_max=4.0, m_max=0.2, failed=[1]),
+        "3 + 1": WheelArray.orthogonal_plus_skew(h_max=4.0, m_max=0.2),
+        "six, orthogonal pairs": WheelArray.orthogonal_pairs(
+            h_max=4.0, m_max=0.2),
+        "six, cone": cone6(),
+    }
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the comparison table of every array."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--samples", type=int, default=2000)
+    p.add_argument("--directions", type=int, default=100)
+    p.add_argument("--seed", type=int, default=0)
+    a = p.parse_args(argv)
+    for name, array in arrays().items():
+        rows = compare_methods(array, n_samples=a.samples,
+                               n_directions=a.directions, seed=a.seed)
+        print(f"\n{name} ({array.n_wheels - len(array.failed)} working "
+              f"wheels, {a.samples} demands, {a.directions} directions)")
+        print(format_comparison(rows))
+
+
+if __name__ == "__main__":
+    main()
