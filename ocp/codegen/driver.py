@@ -237,5 +237,15 @@ at the next sample. `mpc_rti_step` makes one SQP step per sample.
 `mpc_cond_step` / `mpc_cond_rti_step` (when exported) solve the same
 problem by the condensed SQP (`ocp.mpc.condensed`: the QP on the controls
 only, DAQP started from the active set of `lam_x_prev`; `lam_g` is
-zero); their last output `iterations` counts the SQP iterations.
+zero); their outputs `iterations` counts the SQP iterations and
+`qp_kkt` is the last QP point's KKT residual (its optimality
+certificate: a step above 1e-6 is not its QP's solution; check it).
+
+Their worst case is bounded by construction: `mpc_cond_rti_step` makes
+one SQP iteration, `mpc_cond_step` at most the `mpc_max_iter` given to
+`export_c` (default 50; 8 is enough for the slew's after the cold
+step); each iteration solves at most three QPs (the bounds alone, then
+the rows, a cold restart if the warm start fails), each at most 1000
+DAQP iterations (`ocp.mpc.condensed_qp.QP_ITER_LIMIT`). A QP stopped by
+that limit shows in `qp_kkt`, never silently.
 """ + (README_SINGLE if precision == "single" else "")
