@@ -149,3 +149,27 @@ def test_cli_export_target_run_prints_counts_and_memory(tmp_path, capsys):
     assert "instruction counts, not cycles" in text
     assert "memory on cortex-m7" in text and "min_norm" in text
     assert (tmp_path / "memory_cortex-m7.json").is_file()
+
+
+def test_m7_condensed_closed_loop_equals_the_host(tmp_path):
+    """The exported condensed RTI step (DAQP in the folder, static
+    workspace), flown 80 steps by the driver on the emulated M7 in double
+    precision, ends in the state the host's driver ends in (1e-9), with
+    no heap (the memory report) and every call returning 0."""
+    kw = dict(mpc_variants=("mpc_cond_rti_step",), repeats=10)
+    host = export_c(tmp_path / "host", "demo", build=True, **kw)
+    run = subprocess.run([str(host.executable)], capture_output=True,
+                         text=True, timeout=300)
+    assert run.returncode == 0, run.stdout[-2000:]
+    line = next(s for s in run.stdout.splitlines()
+                if s.startswith("STATE closed_loop:mpc_cond_rti_step:"))
+    x_host = np.array([float(v) for v in line.split(":", 2)[2].split()])
+    target = export_c(tmp_path / "m7", "demo", target="cortex-m7",
+                      build=True, **kw)
+    times = run_target(target, timeout=300)
+    loop = times["closed_loop:mpc_cond_rti_step"]
+    np.testing.assert_allclose(loop["state"], x_host, rtol=0, atol=1e-9)
+    assert loop["final_error_deg"] < 1e-3
+    assert times["mpc_cond_rti_step"]["flag"] == 0
+    rec = target.extras["memory"]["functions"]["mpc_cond_rti_step"]
+    assert rec["heap"] is False
