@@ -42,7 +42,7 @@ def _dask_client(args: argparse.Namespace, local: bool):
     if args.scheduler is None and not local:
         yield None
         return
-    from .sweep import connect
+    from .sweep import close, connect
 
     if args.workers is not None and args.workers < 1:
         raise InvalidValueError(f"--workers must be >= 1, got {args.workers}")
@@ -51,10 +51,10 @@ def _dask_client(args: argparse.Namespace, local: bool):
                               tls_key=args.tls_key)
     try:
         yield client
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    except BaseException as exc:
+        close(client, cluster, quiet=interrupted(exc))
+        raise
+    close(client, cluster)
 
 
 def _add_cluster_options(parser: argparse.ArgumentParser,

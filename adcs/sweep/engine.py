@@ -22,6 +22,10 @@ untrusted network.
 
 from __future__ import annotations
 
+import contextlib
+import logging
+import signal
+import threading
 import warnings
 from pathlib import Path
 from typing import Any, Callable, TYPE_CHECKING
@@ -29,6 +33,7 @@ from typing import Any, Callable, TYPE_CHECKING
 import numpy as np
 
 from adcs_common.exceptions import AdcsError, InvalidValueError
+from adcs_common.interrupts import Interrupted, check, interrupted
 from adcs_common.paths import output_folder
 
 from .chunks import (SweepCacheWarning, chunk_inputs, chunk_key,
@@ -39,8 +44,8 @@ if TYPE_CHECKING:
     import xarray as xr
 
 
-__all__ = ["SweepCacheWarning", "SweepError", "connect", "local_cluster",
-           "run_chunk", "run_sweep"]
+__all__ = ["SweepCacheWarning", "SweepError", "close", "connect",
+           "local_cluster", "run_chunk", "run_sweep"]
 
 #: Where a local cluster and its dashboard listen unless told otherwise.
 LOOPBACK = "127.0.0.1"
@@ -71,9 +76,51 @@ def local_cluster(workers: int | None = None, host: str = LOOPBACK) -> Any:
             workers, int) or workers < 1):
         raise InvalidValueError(
             f"workers must be a positive integer, got {workers!r}")
-    return distributed.LocalCluster(
-        n_workers=workers, threads_per_worker=1, processes=True, host=host,
-        dashboard_address=f"{host}:0", silence_logs=50)
+    with _workers_ignore_ctrl_c():
+        return distributed.LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True,
+            host=host, dashboard_address=f"{host}:0", silence_logs=50)
+
+
+@contextlib.contextmanager
+def _workers_ignore_ctrl_c():
+    """Start worker processes that ignore SIGINT.
+
+    A Ctrl-C in a terminal reaches every process of the foreground group,
+    the local workers too, each of which would print its own traceback.
+    A process inherits an ignored SIGINT (and Python keeps it ignored),
+    so the workers spawned here leave the Ctrl-C to this process, which
+    cancels their tasks and closes the cluster (`close`).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def close(client: Any, cluster: Any = None, *, quiet: bool = False) -> None:
+    """Close a client and its local cluster (``quiet``: after a Ctrl-C).
+
+    ``quiet`` silences `distributed`'s loggers (a worker killed while it
+    runs a task, a connection closed under a pending call) and any error
+    of the shutdown itself: the command's one line says it was
+    interrupted.
+    """
+    if quiet:
+        for name in ("distributed", "tornado", "asyncio"):
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+    for closing in (client, cluster):
+        if closing is None:
+            continue
+        try:
+            closing.close(timeout=5) if quiet else closing.close()
+        except (Exception, KeyboardInterrupt):   # noqa: BLE001
+            if not quiet:
+                raise
 
 
 def connect(scheduler: str | None = None, *, workers: int | None = None,
@@ -115,10 +162,13 @@ def run_chunk(study: Callable[..., dict], rows: list[dict]) -> list[dict]:
     """Run ``study`` on each parameter row; an exception is recorded."""
     out = []
     for row in rows:
+        check()                    # a Ctrl-C recorded between cases
         try:
             result = dict(study(**row))
             error = ""
         except Exception as exc:  # noqa: BLE001 (recorded, sweep goes on)
+            if interrupted(exc):   # CasADi's wrapping of a Ctrl-C
+                raise
             result, error = {}, f"{type(exc).__name__}: {exc}"
         out.append({**row, **result, "error": error})
     return out
@@ -203,25 +253,51 @@ def run_sweep(study: Callable[..., dict], params: list[dict], *,
     loaded = len(done)
     bar = tqdm(total=len(chunks), initial=loaded, disable=not progress,
                desc=getattr(study, "__name__", "sweep"), unit="task")
-    if client is None:
-        for i, chunk, path, key in todo:
-            done[i] = _keep(run_chunk(study, chunk), path, key, chunk)
-            bar.update()
-    else:
-        distributed = _distributed()
-        futures = {client.submit(run_chunk, study, chunk, retries=retries,
-                                 pure=False): (i, chunk, path, key)
-                   for i, chunk, path, key in todo}
-        for fut in distributed.as_completed(futures):
-            i, chunk, path, key = futures[fut]
-            done[i] = _keep(fut.result(), path, key, chunk)
-            bar.update()
+    try:
+        _compute(study, todo, done, client, retries, bar)
+    except BaseException as exc:
+        if not interrupted(exc):
+            raise
+        bar.close()
+        saved = "saved" if folder is not None else "finished"
+        raise Interrupted(
+            f"{len(done)} of {len(chunks)} chunks {saved}"
+            + (f" in {folder}: rerun to resume" if folder is not None
+               else ""), partial=dict(done)) from None
     bar.close()
     ds = _dataset([r for i in sorted(done) for r in done[i]], pd, xr)
     ds.attrs.update(chunks=len(chunks), chunks_loaded=loaded,
                     chunks_computed=len(todo),
                     chunks_failed_verification=len(failed))
     return ds
+
+
+def _compute(study: Callable, todo: list, done: dict[int, list[dict]],
+             client: Any, retries: int, bar: Any) -> None:
+    """Run the chunks of ``todo`` into ``done``, each saved as it ends.
+
+    On Ctrl-C the chunks not finished are cancelled (on Dask), and the
+    interrupt propagates: ``done`` holds every finished chunk.
+    """
+    if client is None:
+        for i, chunk, path, key in todo:
+            done[i] = _keep(run_chunk(study, chunk), path, key, chunk)
+            bar.update()
+        return
+    distributed = _distributed()
+    futures = {client.submit(run_chunk, study, chunk, retries=retries,
+                             pure=False): (i, chunk, path, key)
+               for i, chunk, path, key in todo}
+    try:
+        for fut in distributed.as_completed(futures):
+            i, chunk, path, key = futures[fut]
+            done[i] = _keep(fut.result(), path, key, chunk)
+            bar.update()
+            check()
+    except BaseException:
+        with contextlib.suppress(Exception, KeyboardInterrupt):
+            client.cancel(list(futures))
+        raise
 
 
 def _saved(study: Callable, chunks: list[list[dict]], folder: Path | None):
