@@ -20,7 +20,8 @@ from adcs_common.exceptions import InfeasibleError, InvalidValueError
 from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 from allocation import WheelArray, min_norm_gains
 
-from ocp.spacecraft.definition import slew_parts, spacecraft_parts
+from ocp.spacecraft.definition import (Spacecraft, slew_parts,
+                                      spacecraft_parts)
 
 from adcs_common.quaternion import as_unit_quaternion
 from adcs_common.quaternion import quat_conj, quat_mul, rotation_between
@@ -195,7 +196,7 @@ class EigenaxisSlew:
                     "t_accel": ta, "t_coast": tc})
 
 
-def eigenaxis_slew(inertia: ArrayLike, q0: ArrayLike, qf: ArrayLike, *,
+def eigenaxis_slew(inertia: ArrayLike | Spacecraft, q0: ArrayLike, qf: ArrayLike, *,
                    wheels: WheelArray | None = None,
                    torque_max: ArrayLike | None = None,
                    rate_max: float | None = None
@@ -337,8 +338,8 @@ def _feedback_step(model: SpacecraftModel, qf: np.ndarray, kp: np.ndarray,
                        ["x", "tau"], ["xf", "u"])
 
 
-def quaternion_feedback_slew(inertia: ArrayLike, q0: ArrayLike, qf: ArrayLike,
-                             *,
+def quaternion_feedback_slew(inertia: ArrayLike | Spacecraft, q0: ArrayLike,
+                             qf: ArrayLike, *,
                              wheels: WheelArray | None = None,
                              torque_max: ArrayLike | None = None,
                              natural_frequency: float,

@@ -38,7 +38,7 @@ from adcs_common.validation import as_finite_array, as_vector, check_positive
 from allocation import WheelArray
 from thrusters import ThrusterSet
 
-from ocp.spacecraft.definition import spacecraft_parts
+from ocp.spacecraft.definition import Spacecraft, spacecraft_parts
 
 from adcs_common.rigid_body import body_rates, check_inertia
 from adcs_common.quaternion import quat_rate, quat_to_dcm
@@ -326,7 +326,7 @@ class SpacecraftModel:
         return X
 
 
-def rigid_spacecraft(inertia: ArrayLike, wheels: WheelArray | None = None, *,
+def rigid_spacecraft(inertia: ArrayLike | Spacecraft, wheels: WheelArray | None = None, *,
                      torque_max: ArrayLike | None = None,
                      thrusters: ThrusterSet | None = None
                      ) -> SpacecraftModel:

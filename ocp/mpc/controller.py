@@ -165,7 +165,7 @@ class AttitudeMPC:
         unknown solver option (the message lists the allowed ones).
     """
 
-    def __init__(self, model: SpacecraftModel, *, horizon: int = 20,
+    def __init__(self, model: SpacecraftModel | Spacecraft, *, horizon: int = 20,
                  dt: float = 0.5, solver: str | None = None,
                  qp_solver: str | None = None, rti: bool = False,
                  weights: MPCWeights | None = None,

@@ -35,6 +35,7 @@ from allocation import WheelArray
 
 
 from ocp.models.trajectory import SlewTrajectory
+from ocp.spacecraft.definition import Spacecraft
 from .build import clear_solver_cache
 from .setup import KeepOut, check_common, setup_slew
 from .keepout import solve_clear_of_cones
@@ -69,7 +70,8 @@ def _guarded(s, **kwargs) -> SlewTrajectory:
             "the time scale", solver=kwargs.get("solver")) from None
 
 
-def time_optimal_slew(inertia: ArrayLike, q0: ArrayLike, qf: ArrayLike, *,
+def time_optimal_slew(inertia: ArrayLike | Spacecraft, q0: ArrayLike,
+                      qf: ArrayLike, *,
                       torque_max: ArrayLike | None = None,
                       wheels: WheelArray | None = None, N: int = 100,
                       transcription: str = "multiple_shooting",

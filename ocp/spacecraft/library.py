@@ -84,7 +84,8 @@ def _read_regular(p: Path) -> bytes:
     return data
 
 
-def load_spacecraft(name_or_path) -> Spacecraft:
+def load_spacecraft(name_or_path: str | os.PathLike[str] | Spacecraft
+                    ) -> Spacecraft:
     """Load a built-in spacecraft by name, or one from a TOML file.
 
     Parameters
