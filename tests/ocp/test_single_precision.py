@@ -144,7 +144,12 @@ def test_transform_literals_and_math():
     assert "atan2f(x, 1e-8f)" in text
     assert "keep 1.5 and sqrt( in comments" in text
     assert '"%.16e sqrt("' in text
-    assert counts == {"literals": 5, "clamped": 3, "math": 4}
+    assert counts == {"literals": 5, "clamped": 3, "math": 4, "double": 0}
+    # CasADi's DAQP runtime declares casadi_real arrays as double
+    text, counts = to_single("int s(const double** arg, double* w) {\n"
+                             "  double lb = 1.;\n}\n")
+    assert "const casadi_real** arg, casadi_real* w" in text
+    assert "casadi_real lb = 1.f;" in text and counts["double"] == 3
 
 
 def test_tolerance_table_and_options():
@@ -229,11 +234,8 @@ def test_duty_qp_float_vs_double(single_lib, craft):
     assert statuses.count(0) > 50
 
 
-def test_export_single_refuses_daqp_and_sqpmethod(tmp_path):
-    with pytest.raises(InvalidValueError, match="daqp"):
-        export_c(tmp_path / "a", "demo", wheel_qp_plugin="daqp",
-                 mpc_variants=(), precision="single")
-    with pytest.raises(InvalidValueError, match="condensed"):
+def test_export_single_refuses_sqpmethod(tmp_path):
+    with pytest.raises(InvalidValueError, match="float"):
         export_c(tmp_path / "b", "demo", mpc_variants=("mpc_step",),
                  precision="single")
     with pytest.raises(InvalidValueError, match="precision"):
@@ -242,19 +244,29 @@ def test_export_single_refuses_daqp_and_sqpmethod(tmp_path):
 
 
 def test_export_single_builds_clean(tmp_path):
-    """The export without MPC: float source, driver, strict build, run."""
+    """The export without MPC: float source, DAQP's float build (from
+    its own types.h: no define passed here), driver, strict build, run."""
     res = export_c(tmp_path / "s", "demo", mpc_variants=(),
                    precision="single", repeats=3)
     assert res.extras["precision"] == "single"
+    assert res.extras["duty_qp_plugin"] == "daqp"
+    assert res.extras["cflags"] == ["-DDAQP_SINGLE_PRECISION"]
+    assert "-DDAQP_SINGLE_PRECISION" in res.makefile.read_text()
+    assert "DAQP_SINGLE_PRECISION" in (
+        res.out_dir / "CMakeLists.txt").read_text()
     assert "## Single precision" in res.readme.read_text()
-    obj = tmp_path / "s.o"
-    for cmd in (["-c", "-fPIC", str(res.source), "-o", str(obj)],
-                [str(res.driver), str(obj), "-o", str(tmp_path / "drv"),
-                 "-lm"]):
-        run = subprocess.run(["gcc", "-O1", *STRICT, f"-I{res.out_dir}",
-                              *cmd], capture_output=True, text=True)
+    objs = []
+    for src in [res.source, *res.extras["solver_sources"]]:
+        objs.append(tmp_path / f"{src.stem}.o")
+        run = subprocess.run(["gcc", "-O1", *STRICT, "-c", str(src), "-o",
+                              str(objs[-1])], capture_output=True, text=True)
         assert run.returncode == 0, run.stderr[-3000:]
-    assert double_math_symbols(obj) == []
+        assert double_math_symbols(objs[-1]) == [], src
+    run = subprocess.run(["gcc", "-O1", *STRICT, f"-I{res.out_dir}",
+                          str(res.driver), *map(str, objs), "-o",
+                          str(tmp_path / "drv"), "-lm"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-3000:]
     run = subprocess.run([str(tmp_path / "drv")], capture_output=True,
                          text=True, timeout=60)
     assert run.returncode == 0 and "flag=1" not in run.stdout
