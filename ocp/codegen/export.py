@@ -75,8 +75,8 @@ from .patches import (
     patch_minmax,
     patch_unused_parameters,
 )
-from .precision import (DAQP_SINGLE_FLAG, check_precision, check_single,
-                        condensed_options,
+from .precision import (DAQP_SINGLE_FLAG, SINGLE_DUTY_QP_PLUGIN,
+                        check_precision, check_single, condensed_options,
                         duty_qp_options, patch_qrqp_failure, to_single,
                         wheel_qp_options)
 from .qrqp_patch import patch_qrqp
@@ -453,7 +453,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         ``"single"``: ``casadi_real`` is float, with float literals and
         float math (`ocp.codegen.precision.to_single`), the QP and SQP
         tolerances of `ocp.codegen.precision.TOLERANCES`, DAQP in its
-        float build (``-DDAQP_SINGLE_PRECISION``) where double uses it;
+        float build (``-DDAQP_SINGLE_PRECISION``) where double uses it
+        but for ``duty_qp`` (qrqp: `SINGLE_DUTY_QP_PLUGIN`);
         MPC steps: the condensed ones only (`SINGLE_MPC_VARIANTS`).
     build : bool
         Compile the driver and a shared library with ``cc`` (a target:
@@ -497,6 +498,9 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
     mpc_variants = _check_variants(mpc_variants)
     cortex_m = check_target(target) != "host"
+    if precision == "single":     # DAQP's float point fails duty's check
+        check_single(precision, {"duty_qp_plugin": duty_qp_plugin}, ())
+        duty_qp_plugin = duty_qp_plugin or SINGLE_DUTY_QP_PLUGIN
     wheel_qp_plugin, duty_qp_plugin, condensed = _target_plugins(
         target, out, wheel_qp_plugin, duty_qp_plugin)
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)

@@ -48,6 +48,7 @@ __all__ = [
     "FLOAT_MIN_LITERAL",
     "MATH_FUNCTIONS",
     "PRECISIONS",
+    "SINGLE_DUTY_QP_PLUGIN",
     "SINGLE_MPC_VARIANTS",
     "TOLERANCES",
     "c_real",
@@ -355,6 +356,13 @@ def condensed_options(precision: str = "double") -> dict:
 #: tolerances, tol_pr 1e-9 and tol_du 1e-7, are not reachable in float.
 SINGLE_MPC_VARIANTS: tuple[str, ...] = ("mpc_cond_step", "mpc_cond_rti_step")
 
+#: ``duty_qp``'s conic in single precision: qrqp (primal active set). The
+#: reduced duty QP is nearly an LP (Hessian 1e-4 I): DAQP's dual form
+#: ``x = -R⁻¹(M'λ + v)`` with ``R⁻¹ = 100 I`` cancels terms ~ 1e4 larger
+#: than x, so its float point is ~ 1e-3 off (fval 0.2119 for 0.2133 on
+#: the driver's sample) and fails the certificate (status 4).
+SINGLE_DUTY_QP_PLUGIN = "qrqp"
+
 #: The define that makes DAQP's ``c_float`` a float (``daqp/types.h``):
 #: every object of a single-precision export that calls DAQP is compiled
 #: with it (the export's Makefile, CMakeLists.txt, host and target builds;
@@ -365,13 +373,21 @@ DAQP_SINGLE_FLAG = "-DDAQP_SINGLE_PRECISION"
 def check_single(precision: str, plugins: dict, variants) -> None:
     """Refuse what a single-precision export does not support.
 
-    Any conic plugin is accepted (DAQP is compiled in its float build,
-    qrqp is generated inline). MPC steps: only `SINGLE_MPC_VARIANTS`
-    (sqpmethod's tolerances are not reachable in float), whose condensed
-    QP needs DAQP (qrqp fails its certificate, in double already).
+    DAQP runs in its float build for ``wheel_qp`` and the condensed MPC
+    QP, not for ``duty_qp`` (`SINGLE_DUTY_QP_PLUGIN`). MPC steps: only
+    `SINGLE_MPC_VARIANTS` (sqpmethod's tolerances are not reachable in
+    float), whose condensed QP needs DAQP (qrqp fails its certificate, in
+    double already).
     """
     if check_precision(precision) == "double":
         return
+    if plugins.get("duty_qp_plugin") == "daqp":
+        raise InvalidValueError(
+            "precision='single' solves duty_qp with qrqp: DAQP's float "
+            "build loses the reduced duty QP's point (its Hessian is "
+            "1e-4 I, and DAQP's dual form recovers x = -R^-1 (M'lam + v) "
+            "by a cancellation of ~1e4 eps), which then fails its "
+            "certificate")
     bad = [v for v in variants if v not in SINGLE_MPC_VARIANTS]
     if bad:
         raise InvalidValueError(
@@ -394,8 +410,9 @@ double constants beyond float's range are mapped to `FLT_MAX` or
 `fminf`, …; `nm -u adcs_codegen.o` lists no double math symbol), so a
 single-precision FPU (Cortex-M4F) runs it without software double
 routines. The QPs use tolerances chosen for float
-(`ocp.codegen.precision.TOLERANCES`). DAQP (in `daqp/`) is its
-single-precision build: `daqp/types.h` here defines
+(`ocp.codegen.precision.TOLERANCES`). `duty_qp` uses qrqp (DAQP's
+float build loses the nearly-LP duty QP's point). DAQP (in `daqp/`,
+for `wheel_qp` and the MPC step) is its single-precision build: `daqp/types.h` here defines
 `DAQP_SINGLE_PRECISION` (`c_float` is `float`) and the Makefile and
 CMakeLists.txt pass `-DDAQP_SINGLE_PRECISION` too; a build of your own
 must not undefine it. The MPC step is the condensed SQP
