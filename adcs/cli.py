@@ -303,7 +303,7 @@ def _add_export(sub) -> None:
                      "with float literals and float math (sqrtf, fabsf, "
                      "...; single-precision FPUs such as the Cortex-M4F), "
                      "QP and SQP tolerances chosen for float, DAQP in its "
-                     "float build; condensed MPC steps only (default "
+                     "float build; mpc_cond_rti_step only (default "
                      "double)")
     exp.add_argument("--build", action="store_true",
                      help="compile the driver and a shared library (gcc)")

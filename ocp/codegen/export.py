@@ -455,7 +455,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         tolerances of `ocp.codegen.precision.TOLERANCES`, DAQP in its
         float build (``-DDAQP_SINGLE_PRECISION``) where double uses it
         but for ``duty_qp`` (qrqp: `SINGLE_DUTY_QP_PLUGIN`);
-        MPC steps: the condensed ones only (`SINGLE_MPC_VARIANTS`).
+        MPC step: the condensed RTI one only (`SINGLE_MPC_VARIANTS`).
     build : bool
         Compile the driver and a shared library with ``cc`` (a target:
         the ELF with ``arm-none-eabi-gcc``, `build_target`).

@@ -350,11 +350,12 @@ def condensed_options(precision: str = "double") -> dict:
             "qp_tol": tol["qrqp_tol"]}
 
 
-#: MPC variants a single-precision export writes: the condensed SQP with
-#: DAQP's float build (`DAQP_SINGLE_FLAG`) and the float ``row_tol``,
-#: ``step_tol`` of `TOLERANCES`. Not the sqpmethod steps: their
-#: tolerances, tol_pr 1e-9 and tol_du 1e-7, are not reachable in float.
-SINGLE_MPC_VARIANTS: tuple[str, ...] = ("mpc_cond_step", "mpc_cond_rti_step")
+#: MPC variants a single-precision export writes: the condensed RTI step
+#: with DAQP's float build (`DAQP_SINGLE_FLAG`) and the float ``row_tol``,
+#: ``step_tol`` of `TOLERANCES`. Not the sqpmethod steps (their
+#: tolerances, tol_pr 1e-9 and tol_du 1e-7, are not reachable in float),
+#: nor ``mpc_cond_step``: its float closed loop (host driver) turns NaN.
+SINGLE_MPC_VARIANTS: tuple[str, ...] = ("mpc_cond_rti_step",)
 
 #: ``duty_qp``'s conic in single precision: qrqp (primal active set). The
 #: reduced duty QP is nearly an LP (Hessian 1e-4 I): DAQP's dual form
@@ -415,8 +416,8 @@ float build loses the nearly-LP duty QP's point). DAQP (in `daqp/`,
 for `wheel_qp` and the MPC step) is its single-precision build: `daqp/types.h` here defines
 `DAQP_SINGLE_PRECISION` (`c_float` is `float`) and the Makefile and
 CMakeLists.txt pass `-DDAQP_SINGLE_PRECISION` too; a build of your own
-must not undefine it. The MPC step is the condensed SQP
-(`mpc_cond_rti_step`, `mpc_cond_step`) with float tolerances (row test
+must not undefine it. The MPC step is the condensed RTI step
+(`mpc_cond_rti_step`) with float tolerances (row test
 1e-6, step 1e-5); check its `qp_kkt` against 1e-4 rather than 1e-6.
 Outputs equal the double export's within float rounding: check
 `violation` against 1e-5 (scaled) rather than 1e-6. Build with

@@ -240,9 +240,10 @@ def test_export_single_refuses_sqpmethod_and_daqp_duty(tmp_path):
     with pytest.raises(InvalidValueError, match="duty_qp with qrqp"):
         export_c(tmp_path / "a", "demo", duty_qp_plugin="daqp",
                  mpc_variants=(), precision="single")
-    with pytest.raises(InvalidValueError, match="float"):
-        export_c(tmp_path / "b", "demo", mpc_variants=("mpc_step",),
-                 precision="single")
+    for variant in ("mpc_step", "mpc_cond_step"):
+        with pytest.raises(InvalidValueError, match="float"):
+            export_c(tmp_path / "b", "demo", mpc_variants=(variant,),
+                     precision="single")
     with pytest.raises(InvalidValueError, match="precision"):
         export_c(tmp_path / "c", "demo", mpc_variants=(),
                  precision="half")
