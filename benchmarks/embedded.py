@@ -1,7 +1,8 @@
 """Exported C on emulated Cortex-M cores: instruction counts and memory.
 
 Run from the repository root: ``python -m benchmarks.embedded [--target
-cortex-m7] [--mpc mpc_cond_rti_step] [--precision single] [--quick]``. Exports the demo craft
+cortex-m7] [--mpc mpc_cond_rti_step] [--precision single]
+[--quick]``. Exports the demo craft
 (`ocp.codegen.export_c`, horizon 20, dt 0.5 s; DAQP's C sources travel
 in the export, its workspace static) for the target, cross-compiles it
 (arm-none-eabi-gcc -O3, -Wall -Wextra -Werror) and runs the bare-metal

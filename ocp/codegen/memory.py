@@ -16,8 +16,9 @@ Per exported function (`memory_report`, written as
   together.
 * ``work_bytes``: the caller's work arrays (``sz_arg``, ``sz_res``
   pointers of 4 bytes, ``sz_iw`` casadi_int of 8 bytes and ``sz_w``
-  casadi_real of 8 bytes (4 in a single-precision export); the sizes the generated ``*_work`` functions return, which
-  can be smaller than the casadi Function's ``sz_w``).
+  casadi_real of 8 bytes (4 in a single-precision export); the sizes
+  the generated ``*_work`` functions return, which can be smaller than
+  the casadi Function's ``sz_w``).
 * ``stack``: the worst stack depth of the generated code from gcc's
   ``-fstack-usage`` frames along its call graph (``-fcallgraph-info=su``),
   from the function down; calls into the C library are not in that graph

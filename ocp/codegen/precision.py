@@ -413,8 +413,8 @@ single-precision FPU (Cortex-M4F) runs it without software double
 routines. The QPs use tolerances chosen for float
 (`ocp.codegen.precision.TOLERANCES`). `duty_qp` uses qrqp (DAQP's
 float build loses the nearly-LP duty QP's point). DAQP (in `daqp/`,
-for `wheel_qp` and the MPC step) is its single-precision build: `daqp/types.h` here defines
-`DAQP_SINGLE_PRECISION` (`c_float` is `float`) and the Makefile and
+for `wheel_qp` and the MPC step) is its single-precision build:
+`daqp/types.h` here defines `DAQP_SINGLE_PRECISION` (`c_float` is `float`) and the Makefile and
 CMakeLists.txt pass `-DDAQP_SINGLE_PRECISION` too; a build of your own
 must not undefine it. The MPC step is the condensed RTI step
 (`mpc_cond_rti_step`) with float tolerances (row test
