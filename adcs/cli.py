@@ -87,8 +87,8 @@ def _export(args: argparse.Namespace) -> int:
         sc = sc.with_wheels(WheelArray(w.axes, h, m, w.failed, w.names,
                                        w.scale))
     mpc = args.mpc
-    if mpc is None:     # single: no MPC unless asked (float qrqp fails)
-        mpc = ("" if args.precision == "single" else
+    if mpc is None:     # single: the condensed RTI step only
+        mpc = ("mpc_cond_rti_step" if args.precision == "single" else
                "mpc_step,mpc_rti_step,mpc_cond_rti_step")
     variants = [v.strip() for v in mpc.split(",") if v.strip()]
     print(f"adcs export: generating C for {sc.name!r} in {args.out} ...",
@@ -295,15 +295,16 @@ def _add_export(sub) -> None:
                      help="MPC variants to export (comma-separated, from "
                      "mpc_step, mpc_rti_step, mpc_cond_step, "
                      "mpc_cond_rti_step; empty for none; default "
-                     "mpc_step,mpc_rti_step,mpc_cond_rti_step; none with "
-                     "--precision single)")
+                     "mpc_step,mpc_rti_step,mpc_cond_rti_step; "
+                     "mpc_cond_rti_step with --precision single)")
     exp.add_argument("--precision", choices=("double", "single"),
                      default="double",
                      help="C arithmetic: single makes casadi_real float "
                      "with float literals and float math (sqrtf, fabsf, "
                      "...; single-precision FPUs such as the Cortex-M4F), "
-                     "QP tolerances chosen for float, qrqp for every QP; "
-                     "no MPC step yet (default double)")
+                     "QP and SQP tolerances chosen for float, DAQP in its "
+                     "float build; mpc_cond_rti_step only (default "
+                     "double)")
     exp.add_argument("--build", action="store_true",
                      help="compile the driver and a shared library (gcc)")
     exp.add_argument("--run", action="store_true",

@@ -1,7 +1,8 @@
 """Exported C on emulated Cortex-M cores: instruction counts and memory.
 
 Run from the repository root: ``python -m benchmarks.embedded [--target
-cortex-m7] [--mpc mpc_cond_rti_step] [--quick]``. Exports the demo craft
+cortex-m7] [--mpc mpc_cond_rti_step] [--precision single]
+[--quick]``. Exports the demo craft
 (`ocp.codegen.export_c`, horizon 20, dt 0.5 s; DAQP's C sources travel
 in the export, its workspace static) for the target, cross-compiles it
 (arm-none-eabi-gcc -O3, -Wall -Wextra -Werror) and runs the bare-metal
@@ -10,6 +11,9 @@ instruction counts (SysTick, one tick per 40 instructions, checked on a
 known loop), not cycles. Prints the first call, median, worst and mean
 count per function, the 80-step closed loop of the MPC step, and the
 memory table (`ocp.codegen.memory`). ``--quick``: no MPC step.
+``--precision single``: the float export (`ocp.codegen.precision`;
+DAQP's float build), e.g. with ``--target cortex-m4f``, whose FPU is
+single precision only.
 """
 
 from __future__ import annotations
@@ -30,6 +34,9 @@ def main() -> None:
                     choices=("cortex-m7", "cortex-m4f"))
     ap.add_argument("--mpc", default="mpc_cond_rti_step",
                     help="MPC variants (comma-separated; empty for none)")
+    ap.add_argument("--precision", default="double",
+                    choices=("double", "single"),
+                    help="C arithmetic of the export (single: float)")
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
     reason = toolchain_missing()
@@ -40,11 +47,12 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
         res = export_c(out, "demo", horizon=20, dt=0.5, mpc_variants=mpc,
-                       target=args.target, build=True)
+                       target=args.target, precision=args.precision,
+                       build=True)
         t1 = time.perf_counter()
         times = run_target(res, timeout=3600)
         t2 = time.perf_counter()
-    print(f"demo craft, horizon 20, {args.target} "
+    print(f"demo craft, horizon 20, {args.target}, {args.precision} "
           f"({' '.join(res.extras['memory']['core'])}), -O3; "
           f"export+build {t1 - t0:.0f} s, emulation {t2 - t1:.0f} s")
     print(format_counts(times, args.target))

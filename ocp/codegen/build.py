@@ -40,7 +40,8 @@ def build_exported(res: ExportResult, cc: str = "gcc",
     ldflags = list(res.extras.get("ldflags", ["-lm"]))
     solver = list(res.extras.get("solver_sources", []))
     opt = " ".join(OPT_FLAGS)
-    flags = [*STD_FLAGS, *WARNING_FLAGS]
+    # defines the sources need (single precision: DAQP's float build)
+    flags = [*STD_FLAGS, *WARNING_FLAGS, *res.extras.get("cflags", [])]
     log: list[str] = []
     # on a terminal only (None: tqdm's own test), not in logs or pipes
     steps = tqdm(total=3, desc=f"compiling {SOURCE}.c", unit="step",

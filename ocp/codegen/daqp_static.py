@@ -20,6 +20,7 @@ from importlib import resources
 from pathlib import Path
 
 from adcs_common.exceptions import AdcsError
+from .precision import float_literals
 
 #: The DAQP release vendored: its headers are those the casadi wheel
 #: ships under ``casadi/include/daqp`` (the API the generated code calls).
@@ -41,8 +42,22 @@ def vendored_daqp() -> Path:
     return Path(str(resources.files("ocp.codegen") / "vendor" / "daqp"))
 
 
-def copy_daqp_sources(out: Path) -> list[Path]:
+#: What ``daqp/types.h`` of a single-precision export starts with: the
+#: float build (``c_float`` is float) whatever the flags of the build.
+_SINGLE_DEFINE = ("/* single-precision export (ocp.codegen.copy_daqp_sources)"
+                  " */\n#ifndef DAQP_SINGLE_PRECISION\n"
+                  "#define DAQP_SINGLE_PRECISION\n#endif\n")
+
+
+def copy_daqp_sources(out: Path, single: bool = False) -> list[Path]:
     """Copy the vendored DAQP sources, headers and licence to ``out/daqp``.
+
+    ``single``: the copied ``types.h`` defines ``DAQP_SINGLE_PRECISION``
+    (DAQP's float build, for a single-precision export whose
+    ``casadi_real`` is float), so that every file that includes it agrees
+    on ``c_float`` even when a build forgets the flag; the copies' literals
+    and math calls are made float (`ocp.codegen.precision.float_literals`:
+    ``1e-12f``, ``sqrtf``), so that no double arithmetic is left.
 
     Returns
     -------
@@ -54,6 +69,11 @@ def copy_daqp_sources(out: Path) -> list[Path]:
     dst.mkdir(exist_ok=True)
     for name in DAQP_FILES:
         shutil.copyfile(src / name, dst / name)
+    if single:
+        for name in DAQP_SOURCES + DAQP_HEADERS:
+            (dst / name).write_text(float_literals((dst / name).read_text()))
+        types = dst / "types.h"
+        types.write_text(_SINGLE_DEFINE + types.read_text())
     return [dst / name for name in DAQP_SOURCES]
 
 

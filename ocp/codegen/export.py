@@ -75,7 +75,8 @@ from .patches import (
     patch_minmax,
     patch_unused_parameters,
 )
-from .precision import (check_precision, check_single, condensed_options,
+from .precision import (DAQP_SINGLE_FLAG, SINGLE_DUTY_QP_PLUGIN,
+                        check_precision, check_single, condensed_options,
                         duty_qp_options, patch_qrqp_failure, to_single,
                         wheel_qp_options)
 from .qrqp_patch import patch_qrqp
@@ -224,9 +225,10 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
     fns["min_norm"] = min_norm_function(wheels)
     M = 0.5 * float(np.min(wheels.m_max)) * rng.normal(size=3)
     samples["min_norm"] = [M]
+    plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
     fns["wheel_qp"] = conic_allocator_function(
-        wheels, dt=dt, plugin=_resolve_wheel_qp_plugin(wheel_qp_plugin),
-        fast_path=wheel_qp_fast_path, **wheel_qp_options(precision))
+        wheels, dt=dt, plugin=plugin, fast_path=wheel_qp_fast_path,
+        **wheel_qp_options(precision, plugin))
     h = 0.5 * np.asarray(wheels.h_max) * rng.uniform(-1, 1, n)
     samples["wheel_qp"] = [2.0 * M, h]
     # a demand beyond the attainable set (alpha < 1): the driver times it
@@ -314,17 +316,20 @@ def _renamed(f: ca.Function, name: str) -> ca.Function:
     return ca.Function(name, args, f.call(args), f.name_in(), f.name_out())
 
 
-def _write_build_files(out, solver_sources) -> None:
-    """The Makefile and CMakeLists.txt: relative paths, C99 and libm."""
+def _write_build_files(out, solver_sources, cflags=()) -> None:
+    """The Makefile and CMakeLists.txt: relative paths, C99 and libm;
+    ``cflags``: defines every build needs (DAQP's float build)."""
     rel = [p.relative_to(out).as_posix() for p in solver_sources]
     note = (f"{DAQP_DIR}/: DAQP, MIT licence, {DAQP_DIR}/LICENSE"
             if rel else "the QPs are generated inline")
     (out / "Makefile").write_text(_MAKEFILE.format(
         src=SOURCE, opt=" ".join(OPT_FLAGS), solver_note=note,
-        solver_sources="".join(f" \\\n  {r}" for r in rel)))
+        solver_sources="".join(f" \\\n  {r}" for r in rel),
+        defines=" ".join(cflags)))
     (out / "CMakeLists.txt").write_text(_CMAKELISTS.format(
         src=SOURCE, opt=" ".join(OPT_FLAGS), solver_note=note,
-        solver_sources_cmake="".join(f"\n  {r}" for r in rel)))
+        solver_sources_cmake="".join(f"\n  {r}" for r in rel),
+        defines=" ".join(f[2:] for f in cflags)))
 
 
 def _write_source(fns: dict, out: Path, reuse_factorization: bool,
@@ -355,7 +360,8 @@ def _write_source(fns: dict, out: Path, reuse_factorization: bool,
     if precision == "single":                    # match CasADi's text
         text, _ = to_single(patch_qrqp_failure(text)[0])
     source.write_text(text)
-    solver_sources = copy_daqp_sources(out) if daqp_conics else []
+    solver_sources = (copy_daqp_sources(out, precision == "single")
+                      if daqp_conics else [])
     if not daqp_conics and (out / DAQP_DIR / "api.c").is_file():
         for name in DAQP_SOURCES:                # stale from an earlier
             (out / DAQP_DIR / name).unlink(missing_ok=True)   # export
@@ -445,10 +451,11 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         is solved by qrqp (``"daqp"`` asked for is an error).
     precision : {"double", "single"}
         ``"single"``: ``casadi_real`` is float, with float literals and
-        float math (`ocp.codegen.precision.to_single`), the QP
-        tolerances of `ocp.codegen.precision.TOLERANCES` and qrqp for
-        every conic (DAQP's single-precision build is not wired in yet);
-        no MPC step yet (the condensed SQP needs DAQP).
+        float math (`ocp.codegen.precision.to_single`), the QP and SQP
+        tolerances of `ocp.codegen.precision.TOLERANCES`, DAQP in its
+        float build (``-DDAQP_SINGLE_PRECISION``) where double uses it
+        but for ``duty_qp`` (qrqp: `SINGLE_DUTY_QP_PLUGIN`);
+        MPC step: the condensed RTI one only (`SINGLE_MPC_VARIANTS`).
     build : bool
         Compile the driver and a shared library with ``cc`` (a target:
         the ELF with ``arm-none-eabi-gcc``, `build_target`).
@@ -491,18 +498,17 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
     mpc_variants = _check_variants(mpc_variants)
     cortex_m = check_target(target) != "host"
-    check_single(check_precision(precision), {
-        "wheel_qp_plugin": wheel_qp_plugin,
-        "duty_qp_plugin": duty_qp_plugin}, mpc_variants)
-    if precision == "single":      # None: qrqp (DAQP is double here)
-        wheel_qp_plugin = wheel_qp_plugin or "qrqp"
-        duty_qp_plugin = duty_qp_plugin or "qrqp"
+    if precision == "single":     # DAQP's float point fails duty's check
+        check_single(precision, {"duty_qp_plugin": duty_qp_plugin}, ())
+        duty_qp_plugin = duty_qp_plugin or SINGLE_DUTY_QP_PLUGIN
     wheel_qp_plugin, duty_qp_plugin, condensed = _target_plugins(
         target, out, wheel_qp_plugin, duty_qp_plugin)
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
     method = wheel_qp_method(wheels, wheel_qp_fast_path)
     duty_plugin = _resolve_wheel_qp_plugin(duty_qp_plugin, "duty_qp_plugin")
     condensed = _resolve_wheel_qp_plugin(condensed, "condensed_qp_plugin")
+    check_single(check_precision(precision), {
+        "condensed_qp_plugin": condensed}, mpc_variants)
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
@@ -516,8 +522,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     driver = out / "main.c"
     driver.write_text(_driver_source(fns, samples, int(repeats), model,
                                      dt, precision))
-    _write_build_files(out, solver_sources)
-    static_bytes = sum(8 * nw + 4 * niw for nw, niw in daqp_conics.values())
+    # DAQP's float build with float casadi_real (c_float: 4 bytes)
+    cflags = [DAQP_SINGLE_FLAG] if precision == "single" and daqp_conics \
+        else []
+    _write_build_files(out, solver_sources, cflags)
+    real = 4 if precision == "single" else 8
+    static_bytes = sum(real * nw + 4 * niw for nw, niw in daqp_conics.values())
     readme = out / "README.md"
     readme.write_text(_readme(
         fns, samples, plugin, [p.relative_to(out).as_posix()
@@ -538,7 +548,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
                                "daqp_static": daqp_conics,
                                "daqp_static_bytes": static_bytes,
                                "precision": precision,
-                               "cflags": [], "ldflags": ["-lm"]})
+                               "cflags": cflags, "ldflags": ["-lm"]})
     if cortex_m:
         res = write_target_files(res, target, _driver_source(
             fns, samples, max(int(repeats) // 10, 3), model, dt,

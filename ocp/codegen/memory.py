@@ -15,9 +15,10 @@ Per exported function (`memory_report`, written as
   by several functions count in each; ``"all"`` is every function linked
   together.
 * ``work_bytes``: the caller's work arrays (``sz_arg``, ``sz_res``
-  pointers of 4 bytes, ``sz_iw`` casadi_int and ``sz_w`` casadi_real of
-  8 bytes; the sizes the generated ``*_work`` functions return, which
-  can be smaller than the casadi Function's ``sz_w``).
+  pointers of 4 bytes, ``sz_iw`` casadi_int of 8 bytes and ``sz_w``
+  casadi_real of 8 bytes (4 in a single-precision export); the sizes
+  the generated ``*_work`` functions return, which can be smaller than
+  the casadi Function's ``sz_w``).
 * ``stack``: the worst stack depth of the generated code from gcc's
   ``-fstack-usage`` frames along its call graph (``-fcallgraph-info=su``),
   from the function down; calls into the C library are not in that graph
@@ -180,6 +181,7 @@ def memory_report(res: ExportResult, core, objs: list[Path],
     report: dict = {"target": target, "core": list(core.cpu_flags),
                     "units": "bytes", "method": __doc__.split("\n\n")[1]
                     .strip(), "functions": {}}
+    real = 4 if res.extras.get("precision") == "single" else REAL_BYTES
     for key, s in sizes.items():
         d = {k: s[k] - base[k] for k in s}
         rec = {**d, "flash": d["text"] + d["rodata"] + d["data"],
@@ -191,7 +193,7 @@ def memory_report(res: ExportResult, core, objs: list[Path],
                 frames, edges)
             rec.update(sz_arg=sz[0], sz_res=sz[1], sz_iw=sz[2], sz_w=sz[3],
                        work_bytes=POINTER_BYTES * (sz[0] + sz[1])
-                       + INT_BYTES * sz[2] + REAL_BYTES * sz[3],
+                       + INT_BYTES * sz[2] + real * sz[3],
                        stack=stack, stack_bounded=bounded,
                        library_calls=lib,
                        heap=bool({"malloc", "calloc", "realloc", "free"}

@@ -19,6 +19,8 @@ turns that text into genuine float code:
   its float variant (``sqrt(`` → ``sqrtf(``; CasADi's own
   ``casadi_fabs`` etc. are left alone: they are written on
   ``casadi_real`` and call the renamed functions inside);
+* every ``double`` in code becomes ``casadi_real`` (CasADi's DAQP
+  runtime declares ``casadi_daqp_solve`` on ``double`` pointers);
 * a ``printf`` of a ``casadi_real`` (qrqp's iteration log, compiled out
   unless printing is on) gets an explicit ``(double)`` so that
   ``-Wdouble-promotion`` stays quiet.
@@ -40,15 +42,19 @@ from pathlib import Path
 from adcs_common.exceptions import InvalidValueError
 
 __all__ = [
+    "DAQP_SINGLE_FLAG",
     "FLOAT_EPS",
     "FLOAT_MAX_LITERAL",
     "FLOAT_MIN_LITERAL",
     "MATH_FUNCTIONS",
     "PRECISIONS",
+    "SINGLE_DUTY_QP_PLUGIN",
+    "SINGLE_MPC_VARIANTS",
     "TOLERANCES",
     "c_real",
     "check_precision",
     "double_math_symbols",
+    "float_literals",
     "to_single",
     "tolerances",
 ]
@@ -175,6 +181,9 @@ _LITERAL = re.compile(
     r"(?![\w.])")
 _MATH = re.compile(r"(?<![\w.>])(" + "|".join(MATH_FUNCTIONS)
                    + r")(\s*\()")
+# ``double`` in code (the typedef is rewritten first): CasADi's DAQP
+# runtime declares casadi_daqp_solve(..., const double** arg, ...)
+_DOUBLE = re.compile(r"\bdouble\b")
 # printf arguments that are casadi_real: qrqp's log prints d->f etc.
 _PRINTF_REAL = re.compile(
     r"(printf\s*\([^;]*?\"\s*,)([^;]*?)(\)\s*;)", re.S)
@@ -190,7 +199,10 @@ def _float_literal(match: re.Match) -> str:
     return text + "f"
 
 
-def _code(text: str) -> str:
+def _code(text: str, rename_double: bool = True) -> str:
+    # CasADi's DAQP runtime spells some casadi_real as double
+    if rename_double:
+        text = _DOUBLE.sub("casadi_real", text)
     text = _LITERAL.sub(_float_literal, text)
     return _MATH.sub(lambda m: m.group(1) + "f" + m.group(2), text)
 
@@ -211,11 +223,13 @@ def to_single(text: str) -> tuple[str, dict[str, int]]:
     counts : dict
         ``literals`` suffixed, ``clamped`` (literals mapped to
         `FLOAT_MAX_LITERAL` / `FLOAT_MIN_LITERAL`), ``math`` (calls
-        renamed).
+        renamed), ``double`` (``double`` declarations made
+        ``casadi_real``: CasADi's DAQP runtime).
     """
     text = re.sub(r"#define casadi_real double\b", "#define casadi_real "
                   "float", text)
-    counts = {"literals": 0, "clamped": 0, "math": 0}
+    counts = {"literals": 0, "clamped": 0, "math": 0,
+              "double": len(_DOUBLE.findall(_SKIP.sub(" ", text)))}
     for m in _LITERAL.finditer(_SKIP.sub(" ", text)):
         v = abs(float(m.group(1)))
         counts["clamped" if v > _FLT_MAX or 0 < v < _FLT_MIN
@@ -228,6 +242,24 @@ def to_single(text: str) -> tuple[str, dict[str, int]]:
         pos = m.end()
     out.append(_code(text[pos:]))
     return _cast_printf("".join(out)), counts
+
+
+def float_literals(text: str) -> str:
+    """Float literals and float math in C code that is float already.
+
+    What `to_single` does to literals and math calls, without touching
+    ``double`` declarations: for DAQP's sources in its float build
+    (``c_float`` float, but ``1e-12``, ``0.5*x`` and ``sqrt(x)`` in
+    double), so that a single-precision FPU runs them without software
+    double routines (`ocp.codegen.copy_daqp_sources`).
+    """
+    out, pos = [], 0
+    for m in _SKIP.finditer(text):
+        out.append(_code(text[pos:m.start()], rename_double=False))
+        out.append(m.group(0))
+        pos = m.end()
+    out.append(_code(text[pos:], rename_double=False))
+    return "".join(out)
 
 
 def _cast_printf(text: str) -> str:
@@ -282,14 +314,16 @@ def double_math_symbols(obj: str | Path, nm: str = "nm") -> list[str]:
 
 
 # ------------------------------------------------ builders' options
-def wheel_qp_options(precision: str = "double") -> dict:
+def wheel_qp_options(precision: str = "double", plugin: str = "qrqp"
+                     ) -> dict:
     """Keywords of `allocation.conic_allocator_function` for a precision."""
     tol = tolerances(precision)
     if precision == "double":
         return {}
-    return {"margin": tol["wheel_margin"],
-            "plugin_options": {"constr_viol_tol": tol["qrqp_tol"],
-                               "dual_inf_tol": tol["qrqp_tol"]}}
+    opts = ({"constr_viol_tol": tol["qrqp_tol"],
+             "dual_inf_tol": tol["qrqp_tol"]} if plugin == "qrqp" else
+            {"daqp": {"primal_tol": tol["daqp_primal_tol"]}})
+    return {"margin": tol["wheel_margin"], "plugin_options": opts}
 
 
 def duty_qp_options(precision: str = "double", plugin: str = "qrqp"
@@ -316,36 +350,54 @@ def condensed_options(precision: str = "double") -> dict:
             "qp_tol": tol["qrqp_tol"]}
 
 
-#: MPC variants a single-precision export writes (the condensed SQP; the
-#: sqpmethod steps' tolerances, tol_pr 1e-9 and tol_du 1e-7, are not
-#: reachable in float).
-SINGLE_MPC_VARIANTS: tuple[str, ...] = ()
+#: MPC variants a single-precision export writes: the condensed RTI step
+#: with DAQP's float build (`DAQP_SINGLE_FLAG`) and the float ``row_tol``,
+#: ``step_tol`` of `TOLERANCES`. Not the sqpmethod steps (their
+#: tolerances, tol_pr 1e-9 and tol_du 1e-7, are not reachable in float),
+#: nor ``mpc_cond_step``: its float closed loop (host driver) turns NaN.
+SINGLE_MPC_VARIANTS: tuple[str, ...] = ("mpc_cond_rti_step",)
+
+#: ``duty_qp``'s conic in single precision: qrqp (primal active set). The
+#: reduced duty QP is nearly an LP (Hessian 1e-4 I): DAQP's dual form
+#: ``x = -R⁻¹(M'λ + v)`` with ``R⁻¹ = 100 I`` cancels terms ~ 1e4 larger
+#: than x, so its float point is ~ 1e-3 off (fval 0.2119 for 0.2133 on
+#: the driver's sample) and fails the certificate (status 4).
+SINGLE_DUTY_QP_PLUGIN = "qrqp"
+
+#: The define that makes DAQP's ``c_float`` a float (``daqp/types.h``):
+#: every object of a single-precision export that calls DAQP is compiled
+#: with it (the export's Makefile, CMakeLists.txt, host and target builds;
+#: the ``daqp/types.h`` copied into such an export also defines it).
+DAQP_SINGLE_FLAG = "-DDAQP_SINGLE_PRECISION"
 
 
 def check_single(precision: str, plugins: dict, variants) -> None:
-    """Refuse what a single-precision export does not support (yet).
+    """Refuse what a single-precision export does not support.
 
-    DAQP: the casadi wheel's ``libdaqpstat.a`` is built in double (its
-    ``c_float`` is double unless ``DAQP_SINGLE_PRECISION`` is defined),
-    so float C cannot call it; qrqp (generated inline) is used instead.
-    No MPC step yet (`SINGLE_MPC_VARIANTS` is empty): sqpmethod's
-    tolerances are not reachable in float, and the condensed SQP needs
-    DAQP (qrqp fails the condensed QP's certificate, in double already).
+    DAQP runs in its float build for ``wheel_qp`` and the condensed MPC
+    QP, not for ``duty_qp`` (`SINGLE_DUTY_QP_PLUGIN`). MPC steps: only
+    `SINGLE_MPC_VARIANTS` (sqpmethod's tolerances are not reachable in
+    float), whose condensed QP needs DAQP (qrqp fails its certificate, in
+    double already).
     """
     if check_precision(precision) == "double":
         return
-    daqp = [k for k, v in plugins.items() if v == "daqp"]
-    if daqp:
+    if plugins.get("duty_qp_plugin") == "daqp":
         raise InvalidValueError(
-            f"precision='single' cannot use daqp ({', '.join(daqp)}): the "
-            "casadi wheel's libdaqpstat.a is double precision; use 'qrqp' "
-            "or None")
+            "precision='single' solves duty_qp with qrqp: DAQP's float "
+            "build loses the reduced duty QP's point (its Hessian is "
+            "1e-4 I, and DAQP's dual form recovers x = -R^-1 (M'lam + v) "
+            "by a cancellation of ~1e4 eps), which then fails its "
+            "certificate")
     bad = [v for v in variants if v not in SINGLE_MPC_VARIANTS]
     if bad:
         raise InvalidValueError(
-            f"precision='single' exports no MPC step yet; got {bad} "
-            "(sqpmethod's tolerances are not reachable in float, and the "
-            "condensed SQP needs DAQP's single-precision build)")
+            f"precision='single' exports only {SINGLE_MPC_VARIANTS}; got "
+            f"{bad} (sqpmethod's tolerances are not reachable in float)")
+    if variants and plugins.get("condensed_qp_plugin") == "qrqp":
+        raise InvalidValueError(
+            "precision='single' MPC steps need DAQP: qrqp fails the "
+            "condensed QP's certificate")
 
 
 #: What the README of a single-precision export says.
@@ -358,11 +410,20 @@ double constants beyond float's range are mapped to `FLT_MAX` or
 `FLT_MIN`) and the math calls are the float ones (`sqrtf`, `fabsf`,
 `fminf`, …; `nm -u adcs_codegen.o` lists no double math symbol), so a
 single-precision FPU (Cortex-M4F) runs it without software double
-routines. The QPs use qrqp with tolerances chosen for float
-(`ocp.codegen.precision.TOLERANCES`); DAQP is not used (the casadi
-wheel's library is double). Outputs equal the double export's within
-float rounding: check `violation` against 1e-5 (scaled) rather than
-1e-6. Build with `-Wdouble-promotion` to see any double left.
+routines. The QPs use tolerances chosen for float
+(`ocp.codegen.precision.TOLERANCES`). `duty_qp` uses qrqp (DAQP's
+float build loses the nearly-LP duty QP's point). DAQP (in `daqp/`,
+for `wheel_qp` and the MPC step) is its single-precision build:
+`daqp/types.h` here defines `DAQP_SINGLE_PRECISION` (`c_float` is
+`float`) and the Makefile and CMakeLists.txt pass
+`-DDAQP_SINGLE_PRECISION` too; a build of your own must not undefine
+it. The MPC step is the condensed RTI step (`mpc_cond_rti_step`) with
+float tolerances (row test 1e-6, step 1e-5); check its `qp_kkt` against
+1e-4 rather than 1e-6, and its `first_violation` against 1e-4 (scaled;
+4.7e-5 measured over the driver's 80-step closed loop, 1e-13 in double).
+The QP outputs equal the double export's within float rounding: check
+`violation` against 1e-5 (scaled) rather than 1e-6. Build with
+`-Wdouble-promotion` to see any double left.
 """
 
 

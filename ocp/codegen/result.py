@@ -45,8 +45,9 @@ class ExportResult(ResultMixin):
         DAQP's in ``daqp/``, empty without DAQP), ``daqp_static`` (C name
         of each DAQP conic -> reals and ints of its static workspace,
         `ocp.codegen.patch_daqp_static`), ``daqp_static_bytes`` (their
-        sum), ``cflags``/``ldflags`` (always ``[]`` and ``["-lm"]``: the
-        folder builds alone), ``qrqp_patched`` (`patch_qrqp` was
+        sum), ``cflags``/``ldflags`` (``["-DDAQP_SINGLE_PRECISION"]`` in
+        single precision with DAQP, else ``[]``; ``["-lm"]``: the folder
+        builds alone), ``qrqp_patched`` (`patch_qrqp` was
         applied); after a build ``warnings``, ``warning_text`` and
         ``objects``; a Cortex-M export adds ``target``, ``c_sources`` /
         ``c_include`` (extra C the target build compiles: DAQP's, when

@@ -143,10 +143,12 @@ def _cc(args: list[str], log: list[str], cwd: Path) -> None:
 
 def compile_flags(res: ExportResult, core: CortexM) -> list[str]:
     """Flags of every object of a target build (optimisation, core, C99,
-    warnings as errors, one section per function and object)."""
+    warnings as errors, one section per function and object; the
+    export's defines: ``-DDAQP_SINGLE_PRECISION`` in single precision)."""
     inc = [f"-I{p}" for p in res.extras.get("c_include", [])]
     return [*OPT_FLAGS, *core.cpu_flags, *TARGET_WARNINGS,
-            "-ffunction-sections", "-fdata-sections", *inc]
+            "-ffunction-sections", "-fdata-sections", *inc,
+            *res.extras.get("cflags", [])]
 
 
 def link_flags(res: ExportResult, core: CortexM) -> list[str]:

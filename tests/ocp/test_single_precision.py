@@ -45,7 +45,9 @@ STRICT = ["-Wall", "-Wextra", "-Werror", "-Wdouble-promotion",
 #: both): min_norm 6.7e-7 of m_max (demands up to 3x the attainable
 #: set), wheel_qp 3.8e-7 (closed form) and 4.5e-7 (qrqp) of m_max,
 #: alpha 1.1e-7; duty_qp duties 6.1e-7, scaled violation 1.0e-5. The
-#: bounds below leave a margin of 15 or more.
+#: bounds below leave a margin of 15 or more. DAQP's float build
+#: (`test_daqp_wheel_qp_float_vs_double`, 200 demands): wheel_qp 2.4e-6
+#: of m_max, alpha 9.9e-7 (its primal_tol is 1e-6): margin 4.
 TOL_MIN_NORM = 1e-5       # relative to m_max
 TOL_WHEEL_QP = 1e-5       # relative to m_max (alpha: absolute)
 TOL_DUTY_QP = 1e-4        # duty in [0, 1]
@@ -144,7 +146,12 @@ def test_transform_literals_and_math():
     assert "atan2f(x, 1e-8f)" in text
     assert "keep 1.5 and sqrt( in comments" in text
     assert '"%.16e sqrt("' in text
-    assert counts == {"literals": 5, "clamped": 3, "math": 4}
+    assert counts == {"literals": 5, "clamped": 3, "math": 4, "double": 0}
+    # CasADi's DAQP runtime declares casadi_real arrays as double
+    text, counts = to_single("int s(const double** arg, double* w) {\n"
+                             "  double lb = 1.;\n}\n")
+    assert "const casadi_real** arg, casadi_real* w" in text
+    assert "casadi_real lb = 1.f;" in text and counts["double"] == 3
 
 
 def test_tolerance_table_and_options():
@@ -229,33 +236,113 @@ def test_duty_qp_float_vs_double(single_lib, craft):
     assert statuses.count(0) > 50
 
 
-def test_export_single_refuses_daqp_and_sqpmethod(tmp_path):
-    with pytest.raises(InvalidValueError, match="daqp"):
-        export_c(tmp_path / "a", "demo", wheel_qp_plugin="daqp",
+def test_export_single_refuses_sqpmethod_and_daqp_duty(tmp_path):
+    with pytest.raises(InvalidValueError, match="duty_qp with qrqp"):
+        export_c(tmp_path / "a", "demo", duty_qp_plugin="daqp",
                  mpc_variants=(), precision="single")
-    with pytest.raises(InvalidValueError, match="condensed"):
-        export_c(tmp_path / "b", "demo", mpc_variants=("mpc_step",),
-                 precision="single")
+    for variant in ("mpc_step", "mpc_cond_step"):
+        with pytest.raises(InvalidValueError, match="float"):
+            export_c(tmp_path / "b", "demo", mpc_variants=(variant,),
+                     precision="single")
     with pytest.raises(InvalidValueError, match="precision"):
         export_c(tmp_path / "c", "demo", mpc_variants=(),
                  precision="half")
 
 
 def test_export_single_builds_clean(tmp_path):
-    """The export without MPC: float source, driver, strict build, run."""
+    """The export without MPC: float source, DAQP's float build (from
+    its own types.h: no define passed here), driver, strict build, run."""
     res = export_c(tmp_path / "s", "demo", mpc_variants=(),
-                   precision="single", repeats=3)
+                   precision="single", repeats=3, wheel_qp_fast_path=False)
     assert res.extras["precision"] == "single"
+    assert res.extras["wheel_qp_plugin"] == "daqp"
+    assert res.extras["duty_qp_plugin"] == "qrqp"
+    assert res.extras["cflags"] == ["-DDAQP_SINGLE_PRECISION"]
+    assert "-DDAQP_SINGLE_PRECISION" in res.makefile.read_text()
+    assert "DAQP_SINGLE_PRECISION" in (
+        res.out_dir / "CMakeLists.txt").read_text()
     assert "## Single precision" in res.readme.read_text()
-    obj = tmp_path / "s.o"
-    for cmd in (["-c", "-fPIC", str(res.source), "-o", str(obj)],
-                [str(res.driver), str(obj), "-o", str(tmp_path / "drv"),
-                 "-lm"]):
-        run = subprocess.run(["gcc", "-O1", *STRICT, f"-I{res.out_dir}",
-                              *cmd], capture_output=True, text=True)
+    objs = []
+    for src in [res.source, *res.extras["solver_sources"]]:
+        objs.append(tmp_path / f"{src.stem}.o")
+        run = subprocess.run(["gcc", "-O1", *STRICT, "-c", str(src), "-o",
+                              str(objs[-1])], capture_output=True, text=True)
         assert run.returncode == 0, run.stderr[-3000:]
-    assert double_math_symbols(obj) == []
+        assert double_math_symbols(objs[-1]) == [], src
+    run = subprocess.run(["gcc", "-O1", *STRICT, f"-I{res.out_dir}",
+                          str(res.driver), *map(str, objs), "-o",
+                          str(tmp_path / "drv"), "-lm"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-3000:]
     run = subprocess.run([str(tmp_path / "drv")], capture_output=True,
                          text=True, timeout=60)
     assert run.returncode == 0 and "flag=1" not in run.stdout
     assert "TIME duty_qp " in run.stdout
+
+
+@pytest.fixture(scope="module")
+def daqp_single(tmp_path_factory):
+    """The float export with DAQP's float build: wheel_qp through DAQP
+    (no fast path), duty_qp (qrqp in float), as a shared library."""
+    out = tmp_path_factory.mktemp("daqp_single")
+    res = export_c(out, "demo", mpc_variants=(), precision="single",
+                   wheel_qp_fast_path=False, build=True, repeats=3)
+    assert res.extras["wheel_qp_plugin"] == "daqp"
+    assert res.extras["duty_qp_plugin"] == "qrqp"
+    assert res.extras["warnings"] == 0, res.extras["warning_text"]
+    lib = ctypes.CDLL(str(res.shared_library))
+    return {k: _CFunction(lib, res.functions[k])
+            for k in ("wheel_qp", "duty_qp")}
+
+
+def test_daqp_wheel_qp_float_vs_double(daqp_single, craft):
+    """wheel_qp solved by DAQP's float build equals the double DAQP
+    Function within TOL_WHEEL_QP of m_max."""
+    w = craft.wheels
+    m_max = float(np.max(w.m_max))
+    f = conic_allocator_function(w, dt=0.5, plugin="daqp", fast_path=False)
+    rng = np.random.default_rng(41)
+    err = alpha = 0.0
+    for _ in range(200):
+        M = rng.uniform(0.1, 3.0) * float(np.sum(w.m_max)) * \
+            rng.normal(size=3) / 3
+        h = np.asarray(w.h_max) * rng.uniform(-1, 1, w.n_wheels)
+        M, h = (v.astype(np.float32).astype(float) for v in (M, h))
+        m, a, _ = f(M, h)
+        mc, ac, vc = daqp_single["wheel_qp"](M, h)
+        err = max(err, float(np.max(np.abs(mc - np.array(m).ravel()))))
+        alpha = max(alpha, abs(float(ac[0]) - float(a)))
+        assert vc[0] <= TOLERANCES["single"]["bound_tol"] * m_max
+    print(f"DAQP wheel_qp float vs double: {err / m_max:.1e} of m_max, "
+          f"alpha {alpha:.1e}")
+    assert err / m_max <= TOL_WHEEL_QP and alpha <= TOL_WHEEL_QP
+
+
+def test_single_export_duty_qp_vs_double_daqp(daqp_single, craft):
+    """The float export's duty_qp (qrqp: DAQP's float point fails the
+    duty certificate, `SINGLE_DUTY_QP_PLUGIN`) against the double export's
+    (DAQP): same status, duties within TOL_DUTY_QP, scaled violation
+    within duty_viol_tol."""
+    f = duty_qp_function(craft.thrusters, 2.0, 0.012, plugin="daqp")
+    rng = np.random.default_rng(5)
+    n = craft.thrusters.n
+    worst, wv, statuses = 0.0, 0.0, []
+    for i in range(200):
+        burn = rng.uniform(0.0, 0.5) if i % 3 == 0 else 0.0
+        theta = np.r_[burn, 0.01 * rng.normal(size=2),
+                      0.008 * rng.uniform(-1, 1, 3),
+                      1e-4 * rng.normal(size=3)]
+        theta = theta.astype(np.float32).astype(float)
+        d, _, _, st = f(theta, np.ones(n))
+        dc, _, vc, stc = daqp_single["duty_qp"](theta, np.ones(n))
+        statuses.append(int(st))
+        assert int(stc[0]) == int(st), (i, theta)
+        if int(st) <= 1:
+            worst = max(worst, float(np.max(np.abs(
+                dc - np.array(d).ravel()))))
+            wv = max(wv, float(vc[0]))
+    print(f"DAQP duty_qp float vs double: duty {worst:.2e}, violation "
+          f"{wv:.2e}, statuses {np.bincount(statuses)}")
+    assert wv <= TOLERANCES["single"]["duty_viol_tol"], wv
+    assert worst <= TOL_DUTY_QP, worst
+    assert statuses.count(0) > 20 and statuses.count(1) > 20

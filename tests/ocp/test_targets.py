@@ -173,3 +173,47 @@ def test_m7_condensed_closed_loop_equals_the_host(tmp_path):
     assert times["mpc_cond_rti_step"]["flag"] == 0
     rec = target.extras["memory"]["functions"]["mpc_cond_rti_step"]
     assert rec["heap"] is False
+
+
+#: The single-precision condensed RTI closed loop on the emulated M4F
+#: (demo craft, 90° slew, 80 steps of 0.5 s; `benchmarks.embedded`):
+#: measured final error 1.98e-2° (3.5e-4 rad; the double loop 1.1e-5°)
+#: and worst applied-step violation 4.7e-5 of the bound (torque m_max,
+#: momentum h_max; the double loop 1e-13). Bounds: 1e-3 rad, and 1e-4.
+M4F_SINGLE_FINAL_ERROR_RAD = 1e-3
+M4F_SINGLE_STEP_VIOLATION = 1e-4
+
+
+def test_m4f_single_condensed_closed_loop(tmp_path):
+    """The float export (DAQP's float build, static workspace) flown 80
+    steps on the emulated Cortex-M4F: reaches the target, leaves no bound
+    beyond the documented tolerance, no heap, no software double in the
+    MPC step, every call returning 0; wheel_qp and duty_qp equal the
+    double Functions within the float tolerances."""
+    res = export_c(tmp_path / "m4f", "demo", precision="single",
+                   mpc_variants=("mpc_cond_rti_step",), target="cortex-m4f",
+                   build=True, repeats=30)
+    assert res.extras["cflags"] == ["-DDAQP_SINGLE_PRECISION"]
+    times = run_target(res, timeout=600)
+    loop = times["closed_loop:mpc_cond_rti_step"]
+    assert np.deg2rad(loop["final_error_deg"]) <= M4F_SINGLE_FINAL_ERROR_RAD
+    text = times["_stdout"]["text"]
+    worst = float(text.split("closed_loop:mpc_cond_rti_step worst "
+                             "applied-step violation ")[1].split()[0])
+    assert worst <= M4F_SINGLE_STEP_VIOLATION, worst
+    for name in ("mpc_cond_rti_step", "wheel_qp", "duty_qp"):
+        assert times[name]["flag"] == 0, name
+    rec = res.extras["memory"]["functions"]["mpc_cond_rti_step"]
+    assert rec["heap"] is False
+    assert not [c for c in rec["library_calls"]
+                if c.startswith("__aeabi_d") or c == "sqrt"], rec
+    # the Functions in double arithmetic on the float-rounded inputs;
+    # tolerances of tests/ocp/test_single_precision.py (TOL_WHEEL_QP of
+    # m_max = 0.05, TOL_DUTY_QP)
+    for name, atol in (("wheel_qp", 1e-5 * 0.05), ("duty_qp", 1e-4)):
+        fn = res.functions[name]
+        ref = fn(*[np.asarray(a, float).astype(np.float32).astype(float)
+                   for a in res.samples[name]])
+        got = times[name]["outputs"]
+        np.testing.assert_allclose(got[0], np.asarray(ref[0]).ravel(),
+                                   rtol=0, atol=atol)
