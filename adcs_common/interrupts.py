@@ -83,7 +83,14 @@ class _QuietInterrupts:
         self._stream = stream
         self._held = ""
 
+    #: What solvers print about the interrupt they caught once Ctrl-C is
+    #: recorded (SUNDIALS through CasADi: "rhs failed: KeyboardInterrupt",
+    #: "... failed in an unrecoverable manner.").
+    _AFTER = ("KeyboardInterrupt", "failed in an unrecoverable manner")
+
     def write(self, text: str) -> int:
+        if _REQUESTED.is_set():
+            return self._write_after_interrupt(text)
         # CasADi writes its line in pieces: a line of CasADi's is held
         # until it is whole, anything else passes at once
         held = self._held + text
@@ -101,6 +108,15 @@ class _QuietInterrupts:
             if self._MARK not in line:
                 self._stream.write(line + nl)
             held = rest
+        return len(text)
+
+    def _write_after_interrupt(self, text: str) -> int:
+        """Whole lines only, the solvers' own interrupt lines dropped."""
+        held = self._held + text
+        *lines, self._held = held.split("\n")
+        for line in lines:
+            if not any(m in line for m in (self._MARK, *self._AFTER)):
+                self._stream.write(line + "\n")
         return len(text)
 
     def flush(self) -> None:
