@@ -69,6 +69,38 @@ def redistributed_pinv(array: WheelArray, torque: ArrayLike,
     numpy.ndarray, shape (N,)
         Wheel torques [N·m].
     """
+    return _redistribute(array, torque, lo, hi, _saturate_all)
+
+
+def _saturate_all(m, free, low, high, sat) -> bool:
+    """Clip every free violator and fix it (False: none violates)."""
+    bad = free & ((m < low) | (m > high))
+    if not bad.any():
+        return False
+    m[bad] = np.clip(m[bad], low[bad], high[bad])
+    sat |= bad
+    return True
+
+
+def _saturate_worst(m, free, low, high, sat) -> bool:
+    """Fix the free wheel most beyond its bound, relative to its range."""
+    over = np.where(free, np.maximum(m - high, low - m), -np.inf)
+    if not np.any(over > 0.0):
+        return False
+    span = np.maximum(high - low, 1e-300)
+    i = int(np.argmax(np.where(free, over / span, -np.inf)))
+    m[i] = high[i] if m[i] > high[i] else low[i]
+    sat[i] = True
+    return True
+
+
+def _redistribute(array, torque, lo, hi, saturate) -> np.ndarray:
+    """The generalised-inverse cascade both redistribution methods run.
+
+    ``m_F = A_F⁺ (M - A_S m_S)`` on the free wheels F, then
+    ``saturate(m, free, low, high, sat)`` moves violators into S (in
+    place) and says whether it moved any; at most N + 1 stages.
+    """
     A, M, low, high = problem(array, torque, lo, hi)
     n = A.shape[1]
     m = np.zeros(n)
@@ -80,11 +112,8 @@ def redistributed_pinv(array: WheelArray, torque: ArrayLike,
             break
         r = M - A[:, sat] @ m[sat]
         m[free] = pinv(A[:, free]) @ r
-        bad = free & ((m < low) | (m > high))
-        if not bad.any():
+        if not saturate(m, free, low, high, sat):
             break
-        m[bad] = np.clip(m[bad], low[bad], high[bad])
-        sat |= bad
     return np.clip(m, low, high)
 
 
@@ -115,25 +144,7 @@ def cascaded_inverse(array: WheelArray, torque: ArrayLike,
     numpy.ndarray, shape (N,)
         Wheel torques [N·m].
     """
-    A, M, low, high = problem(array, torque, lo, hi)
-    n = A.shape[1]
-    m = np.zeros(n)
-    sat = low == high
-    m[sat] = low[sat]
-    for _ in range(n + 1):
-        free = ~sat
-        if not free.any():
-            break
-        r = M - A[:, sat] @ m[sat]
-        m[free] = pinv(A[:, free]) @ r
-        over = np.where(free, np.maximum(m - high, low - m), -np.inf)
-        if not np.any(over > 0.0):
-            break
-        span = np.maximum(high - low, 1e-300)
-        i = int(np.argmax(np.where(free, over / span, -np.inf)))
-        m[i] = high[i] if m[i] > high[i] else low[i]
-        sat[i] = True
-    return np.clip(m, low, high)
+    return _redistribute(array, torque, lo, hi, _saturate_worst)
 
 
 def default_groups(array: WheelArray) -> tuple[tuple[int, ...], ...]:

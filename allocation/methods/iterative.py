@@ -17,20 +17,30 @@ from ..arrays import WheelArray
 from ._common import bounded_lsq, problem
 
 
+def _fixed_point_operator(A: np.ndarray, epsilon: float
+                          ) -> tuple[np.ndarray, float]:
+    """``(I - ηH (N, N), (1-ε)η)`` of the fixed-point iteration.
+
+    ``H = (1-ε) AᵀA + εI``, ``η = 1/|H|_F``; the iteration is
+    ``m ← sat[(1-ε)η AᵀM + (I - ηH) m]``.
+    """
+    if not 0.0 < epsilon < 1.0:
+        raise InvalidValueError(f"epsilon must lie in (0, 1), got {epsilon}")
+    n = A.shape[1]
+    H = (1.0 - epsilon) * A.T @ A + epsilon * np.eye(n)
+    eta = 1.0 / np.linalg.norm(H, "fro")
+    return np.eye(n) - eta * H, (1.0 - epsilon) * eta
+
+
 def fixed_point_batch(array: WheelArray, torques: ArrayLike,
                       epsilon: float = 1e-4, max_iter: int = 2000,
                       tol: float = 1e-12) -> np.ndarray:
     """`fixed_point` for demands (K, 3) [N·m] at once; torques (K, N)."""
     T = as_finite_array(torques, "torques", (None, 3))
     A, _, low, high = problem(array, np.zeros(3), None, None)
-    if not 0.0 < epsilon < 1.0:
-        raise InvalidValueError(f"epsilon must lie in (0, 1), got {epsilon}")
-    n = A.shape[1]
-    H = (1.0 - epsilon) * A.T @ A + epsilon * np.eye(n)
-    eta = 1.0 / np.linalg.norm(H, "fro")
-    step = np.eye(n) - eta * H                      # (N, N)
-    drive = (1.0 - epsilon) * eta * (T @ A)         # (K, N)
-    u = np.zeros((T.shape[0], n))
+    step, gain = _fixed_point_operator(A, epsilon)
+    drive = gain * (T @ A)                          # (K, N)
+    u = np.zeros((T.shape[0], A.shape[1]))
     lim = tol * float(np.max(array.m_max))
     for _ in range(max_iter):
         new = np.clip(drive + u @ step.T, low, high)
@@ -83,14 +93,9 @@ def fixed_point(array: WheelArray, torque: ArrayLike,
         Wheel torques [N·m].
     """
     A, M, low, high = problem(array, torque, lo, hi)
-    n = A.shape[1]
-    if not 0.0 < epsilon < 1.0:
-        raise InvalidValueError(f"epsilon must lie in (0, 1), got {epsilon}")
-    H = (1.0 - epsilon) * A.T @ A + epsilon * np.eye(n)
-    eta = 1.0 / np.linalg.norm(H, "fro")
-    step = np.eye(n) - eta * H
-    drive = (1.0 - epsilon) * eta * (A.T @ M)
-    u = np.clip(np.zeros(n), low, high)
+    step, gain = _fixed_point_operator(A, epsilon)
+    drive = gain * (A.T @ M)
+    u = np.clip(np.zeros(A.shape[1]), low, high)
     lim = tol * float(np.max(array.m_max))
     for _ in range(int(max_iter)):
         new = np.clip(drive + step @ u, low, high)

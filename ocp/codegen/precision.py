@@ -317,24 +317,28 @@ def double_math_symbols(obj: str | Path, nm: str = "nm") -> list[str]:
 def wheel_qp_options(precision: str = "double", plugin: str = "qrqp"
                      ) -> dict:
     """Keywords of `allocation.conic_allocator_function` for a precision."""
-    tol = tolerances(precision)
+    tol = tolerances(precision)                 # checks the name too
     if precision == "double":
         return {}
-    opts = ({"constr_viol_tol": tol["qrqp_tol"],
-             "dual_inf_tol": tol["qrqp_tol"]} if plugin == "qrqp" else
-            {"daqp": {"primal_tol": tol["daqp_primal_tol"]}})
-    return {"margin": tol["wheel_margin"], "plugin_options": opts}
+    return {"margin": tol["wheel_margin"],
+            "plugin_options": _conic_options(tol, plugin)}
+
+
+def _conic_options(tol: dict, plugin: str) -> dict:
+    """The conic's own stopping tolerances from a tolerance table."""
+    if plugin == "qrqp":
+        return {"constr_viol_tol": tol["qrqp_tol"],
+                "dual_inf_tol": tol["qrqp_tol"]}
+    return {"daqp": {"primal_tol": tol["daqp_primal_tol"]}}
 
 
 def duty_qp_options(precision: str = "double", plugin: str = "qrqp"
                     ) -> dict:
     """Keywords of `thrusters.qp.certified.certified_duty_function`."""
-    tol = tolerances(precision)
+    tol = tolerances(precision)                 # checks the name too
     if precision == "double":
         return {}
-    opts = ({"constr_viol_tol": tol["qrqp_tol"],
-             "dual_inf_tol": tol["qrqp_tol"]} if plugin == "qrqp" else
-            {"daqp": {"primal_tol": tol["daqp_primal_tol"]}})
+    opts = _conic_options(tol, plugin)
     return {"viol_tol": tol["duty_viol_tol"],
             "slack_tol": tol["duty_slack_tol"],
             "kkt_tol": tol["duty_kkt_tol"],

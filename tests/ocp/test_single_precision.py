@@ -210,6 +210,14 @@ def test_min_norm_and_wheel_qp_float_vs_double(single_lib, craft):
     assert err["alpha"] <= TOL_WHEEL_QP, err
 
 
+def float_cycle(rng, i: int) -> np.ndarray:
+    """A duty cycle's parameters (9,), a burn every third, float-exact."""
+    burn = rng.uniform(0.0, 0.5) if i % 3 == 0 else 0.0
+    theta = np.r_[burn, 0.01 * rng.normal(size=2),
+                  0.008 * rng.uniform(-1, 1, 3), 1e-4 * rng.normal(size=3)]
+    return theta.astype(np.float32).astype(float)
+
+
 def test_duty_qp_float_vs_double(single_lib, craft):
     f_double = duty_qp_function(craft.thrusters, 2.0, 0.012, plugin="qrqp")
     c = single_lib["c"]["duty_qp"]
@@ -217,11 +225,7 @@ def test_duty_qp_float_vs_double(single_lib, craft):
     worst, wv, statuses = 0.0, 0.0, []
     n = craft.thrusters.n
     for i in range(300):
-        burn = rng.uniform(0.0, 0.5) if i % 3 == 0 else 0.0
-        theta = np.r_[burn, 0.01 * rng.normal(size=2),
-                      0.008 * rng.uniform(-1, 1, 3),
-                      1e-4 * rng.normal(size=3)]
-        theta = theta.astype(np.float32).astype(float)
+        theta = float_cycle(rng, i)
         d, s, v, st = f_double(theta, np.ones(n))
         dc, sc, vc, stc = c(theta, np.ones(n))
         statuses.append(int(st))
@@ -328,11 +332,7 @@ def test_single_export_duty_qp_vs_double_daqp(daqp_single, craft):
     n = craft.thrusters.n
     worst, wv, statuses = 0.0, 0.0, []
     for i in range(200):
-        burn = rng.uniform(0.0, 0.5) if i % 3 == 0 else 0.0
-        theta = np.r_[burn, 0.01 * rng.normal(size=2),
-                      0.008 * rng.uniform(-1, 1, 3),
-                      1e-4 * rng.normal(size=3)]
-        theta = theta.astype(np.float32).astype(float)
+        theta = float_cycle(rng, i)
         d, _, _, st = f(theta, np.ones(n))
         dc, _, vc, stc = daqp_single["duty_qp"](theta, np.ones(n))
         statuses.append(int(st))
