@@ -26,6 +26,7 @@ import time
 
 import casadi as ca
 import numpy as np
+from tqdm.auto import tqdm
 
 from adcs_common.buffers import BoundCall
 from adcs_common.quaternion import quat_error_angle
@@ -91,7 +92,8 @@ def run(loops: int, steps: int, max_iter: int, seed: int = 0) -> list:
                        mpc_variants=VARIANTS, build=True)
         for name in VARIANTS:
             f = ca.external(name, str(res.shared_library))
-            runs = [fly(f, model, x0, steps, 0.5) for x0 in starts]
+            runs = [fly(f, model, x0, steps, 0.5) for x0 in tqdm(
+                starts, desc=name, disable=None, leave=False)]
             warm = np.concatenate([r["times"][1:] for r in runs])
             rows.append((name, {
                 "loops": loops, "steps": loops * steps,

@@ -37,6 +37,7 @@ import warnings
 
 import numpy as np
 from scipy.optimize import linprog, lsq_linear
+from tqdm.auto import tqdm
 
 from adcs.bench import kkt_residual
 from adcs_common.exceptions import AdcsError, SolverError
@@ -256,7 +257,9 @@ def run(n_wheels: int, n_duties: int, backends: list[str],
         res = []
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            for (arr, w, M, h), ref in zip(cases, refs):
+            for (arr, w, M, h), ref in tqdm(
+                    zip(cases, refs), total=len(cases), disable=None,
+                    desc=f"wheels {b}", leave=False):
                 key = id(arr)
                 if key not in allocs:
                     allocs = {key: QPAllocator(arr, w, solver=b)}
@@ -280,7 +283,9 @@ def run(n_wheels: int, n_duties: int, backends: list[str],
             t0 = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                res = [check_duty(alloc, c, r) for c, r in zip(some, refs)]
+                res = [check_duty(alloc, c, r) for c, r in tqdm(
+                    zip(some, refs), total=len(some), disable=None,
+                    desc=f"duties {b}", leave=False)]
             rows.append((f"duties: {name}", b, tally(res),
                          time.perf_counter() - t0))
     return rows
