@@ -270,7 +270,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
             rti = "rti" in name
             kw = ({"solver": "condensed", "qp_solver": condensed_plugin,
                    "solver_options": condensed_options(precision)}
-                  if "cond" in name else {"solver": "sqpmethod",
+                  if "cond" in name else {"solver": "stagewise"}
+                  if "_sw_" in name else {"solver": "sqpmethod",
                                           "expand": False})
             ctl = AttitudeMPC(model, horizon=horizon, dt=dt, rti=rti,
                               max_iter=mpc_max_iter, rate_max=rate_max,
@@ -282,9 +283,10 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
 
 
 #: MPC steps `export_c` can write: sqpmethod + qrqp to convergence and
-#: its RTI, the condensed SQP to convergence and its RTI.
+#: its RTI, the condensed SQP to convergence and its RTI, the stage-wise
+#: SQP (Riccati interior point, `ocp.mpc.stagewise`) and its RTI.
 MPC_VARIANTS = ("mpc_step", "mpc_rti_step", "mpc_cond_step",
-                "mpc_cond_rti_step")
+                "mpc_cond_rti_step", "mpc_sw_step", "mpc_sw_rti_step")
 
 
 def _check_variants(variants) -> tuple[str, ...]:

@@ -308,18 +308,31 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
         `condensed_qp.routed_qp`'s row test and qrqp tolerance (float
         exports raise them: `ocp.codegen.precision.TOLERANCES`).
     """
-    step_tol = as_finite_scalar(step_tol, "step_tol")
-    check_positive(step_tol, "step_tol")
-    if isinstance(anderson, bool) or not isinstance(
-            anderson, (int, np.integer)) or anderson < 0:
-        raise InvalidValueError(
-            f"anderson must be a non-negative int, got {anderson!r}")
     if mpc.model.thrusters is not None:
         raise InvalidValueError(
             "solver='condensed' handles wheel-only models; with thrusters "
             "use solver='sqpmethod'")
     plugin = plugin or condensed_qp_plugin()
     it = _iteration(mpc, plugin, row_tol=row_tol, qp_tol=qp_tol)
+    return sqp_step_functions(mpc, it, "mpc_cond", step_tol, anderson)
+
+
+def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
+                       step_tol: float, anderson: int
+                       ) -> tuple[ca.Function, ca.Function]:
+    """``(rti, step)`` Functions around one SQP iteration ``it``.
+
+    ``it(z, lam_x0, p) -> (z_new, lam_x, step, qp_kkt)`` (`_iteration`,
+    or the stage-wise one of `ocp.mpc.stagewise`); the Functions are
+    named ``prefix + "_rti"`` and ``prefix + "_step"`` and have
+    `STEP_NAMES`' inputs and outputs.
+    """
+    step_tol = as_finite_scalar(step_tol, "step_tol")
+    check_positive(step_tol, "step_tol")
+    if isinstance(anderson, bool) or not isinstance(
+            anderson, (int, np.integer)) or anderson < 0:
+        raise InvalidValueError(
+            f"anderson must be a non-negative int, got {anderson!r}")
     nx, nz, ng = mpc.model.nx, mpc.nz, mpc.ng
     x = ca.MX.sym("x", nx)
     qf = ca.MX.sym("qf", 4)
@@ -337,7 +350,7 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
                 *mpc.check_function(z, p), n, kkt]
 
     z1, lx1, _, kkt1 = it(z0, lx0, p)
-    rti = ca.Function("mpc_cond_rti", ins, outputs(z1, lx1, 1.0, kkt1),
+    rti = ca.Function(prefix + "_rti", ins, outputs(z1, lx1, 1.0, kkt1),
                       *STEP_NAMES)
     # the iterations nest: iteration k's Switch runs iteration k + 1 only
     # when its step was not small, so a converged plan returns through the
@@ -367,6 +380,6 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
     z, lx, count, kkt = inner(0, z0, lx0, 0.0, 0.0, p, *(
         [ca.MX.zeros(nz, m + 1), ca.MX.zeros(nz, m + 1), ca.MX.zeros(m + 1)]
         if m else []))
-    full = ca.Function("mpc_cond_step", ins, outputs(z, lx, count, kkt),
+    full = ca.Function(prefix + "_step", ins, outputs(z, lx, count, kkt),
                        *STEP_NAMES)
     return rti, full

@@ -69,6 +69,8 @@ from adcs_common.threads import new_lock, synchronized
 from .certificate import default_mpc_solver, qp_kkt_function
 from .condensed import (check_condensed_options, condensed_qp_plugin,
                         condensed_step_functions)
+from .stagewise import check_stagewise_options, stagewise_step_functions
+from .nlp_step import build_nlp_step
 from .plan import check_function, plan_bounds, shift_function
 from .problem import (
     BOUND_TOL,
@@ -78,6 +80,7 @@ from .problem import (
     QP_SOLVERS,
     MPC_SOLVERS,
     NLP_PLUGINS,
+    OWN_SQP_SOLVERS,
     QP_KKT_TOL,
     available_mpc_solvers,
     check_reachable,
@@ -115,20 +118,24 @@ class AttitudeMPC:
         Number of intervals N (>= 2).
     dt : float
         Sample time and interval length [s].
-    solver : {None, "condensed", "sqpmethod", "ipopt", "fatrop"}
+    solver : {None, "condensed", "stagewise", "sqpmethod", "ipopt", "fatrop"}
         NLP solver. None (default): `default_mpc_solver`, which is
         ``"condensed"`` for wheel-only models and ``"sqpmethod"`` with
         thrusters. ``"condensed"``: the toolbox's Gauss–Newton SQP whose
         QP keeps the controls only (`ocp.mpc.condensed`; wheel-only
         models), exact dense active set, each QP point certified by its
         KKT residual; its step Functions also return ``iterations``.
+        ``"stagewise"``: the same SQP and QP, kept stage-wise and solved
+        by a Riccati interior point (`ocp.mpc.stagewise`): cost and
+        generated code linear in the horizon, for long horizons.
         ``"sqpmethod"``: CasADi's Gauss–Newton SQP with a
         code-generatable conic (qrqp by default); with ``rti`` its QP
         point is certified too and a step that fails goes to the full
         SQP.
     qp_solver : {"qrqp", "daqp"}, optional
         Conic of ``"sqpmethod"`` (default ``"qrqp"``) or of
-        ``"condensed"`` (default daqp where the casadi wheel has it).
+        ``"condensed"`` (default daqp where the casadi wheel has it);
+        None with ``"stagewise"``.
     rti : bool
         Real-time iteration: one full SQP step per sample (``"sqpmethod"``
         only). When that step leaves the applied command or the next
@@ -154,7 +161,9 @@ class AttitudeMPC:
         forwarded untouched; for ``"condensed"``: ``{"step_tol": ...,
         "anderson": m}`` (`ocp.mpc.condensed.STEP_TOL`, the memory of the
         Anderson acceleration, `ocp.mpc.condensed.ANDERSON_MEMORY`; 0
-        turns it off).
+        turns it off); ``"stagewise"`` takes those and ``"ipm_tol"``,
+        ``"ipm_max_iter"`` (`ocp.mpc.stagewise_ipm.IPM_TOL`,
+        `IPM_MAX_ITER`).
 
     Raises
     ------
@@ -198,6 +207,10 @@ class AttitudeMPC:
         if solver not in available_mpc_solvers():
             raise SolverNotFound(solver, available_mpc_solvers(),
                                  f"the CasADi plugin {solver!r} is missing")
+        if solver == "stagewise" and qp_solver is not None:
+            raise InvalidValueError(
+                "solver='stagewise' solves its QP itself (a Riccati "
+                f"interior point): qp_solver must be None, got {qp_solver!r}")
         if qp_solver is None:
             qp_solver = "qrqp" if solver != "condensed" else (
                 condensed_qp_plugin())
@@ -210,10 +223,10 @@ class AttitudeMPC:
                                                for q in conics),
                 "qp_solver must be a code-generatable conic (the condensed "
                 "QP needs daqp: qrqp fails its certificate)")
-        if rti and solver not in ("sqpmethod", "condensed"):
+        if rti and solver not in ("sqpmethod", *OWN_SQP_SOLVERS):
             raise InvalidValueError(
-                f"rti=True needs solver='sqpmethod' or 'condensed', got "
-                f"{solver!r}")
+                "rti=True needs solver='sqpmethod', 'condensed' or "
+                f"'stagewise', got {solver!r}")
         max_iter = as_count(max_iter, "max_iter")
         self.model = model
         self.wheels = model.wheels
@@ -238,9 +251,10 @@ class AttitudeMPC:
         #: then declares convergence on points violating the QP constraints.
         self.regularization = 1e-4
         t0 = time.perf_counter()
-        self._build(as_options(solver_options) if solver == "condensed" else
-                    check_nlpsol_options(NLP_PLUGINS[solver], solver_options,
-                                         self.qp_solver or "qrqp"))
+        self._build(as_options(solver_options) if solver in OWN_SQP_SOLVERS
+                    else check_nlpsol_options(NLP_PLUGINS[solver],
+                                              solver_options,
+                                              self.qp_solver or "qrqp"))
         self.build_time = time.perf_counter() - t0
         self._plan: np.ndarray | None = None
         self._lam_x = np.zeros(self.nz)
@@ -300,6 +314,12 @@ class AttitudeMPC:
                 self, self.qp_solver, **user_options)
             self.step_function = self.rti_function if self.rti else full
             return
+        if self.solver == "stagewise":
+            check_stagewise_options(user_options)
+            self.rti_function, full = stagewise_step_functions(
+                self, **user_options)
+            self.step_function = self.rti_function if self.rti else full
+            return
         nlp = {"x": z, "p": p, "f": f, "g": gv}
         plugin = NLP_PLUGINS[self.solver]
         opts = merge_options(self._default_options(z, p, r, gv), user_options)
@@ -311,7 +331,7 @@ class AttitudeMPC:
             full = merge_options(opts, {"max_iter": self.fallback_max_iter,
                                  "max_iter_ls": 3})
             self.fallback = ca.nlpsol("mpc_nlp_full", plugin, nlp, full)
-        self._build_step(x_par, qf, tau, p)
+        build_nlp_step(self, x_par, qf, tau, p)
 
     def _objective(self, z, x_par, qf, tau):
         """Least-squares residuals ``r``, dynamics rows and the cost."""
@@ -350,54 +370,6 @@ class AttitudeMPC:
         thr = self.model.thrusters
         prop = np.zeros(0) if thr is None else thr.propellant_rate()
         return prop / prop.max() if prop.size else prop
-
-    def _build_step(self, x_par, qf, tau, p) -> None:
-        """Build the step Function: shift the warm start, solve, report."""
-        nz, us = self._nz, self._us
-        z_prev = ca.MX.sym("z_prev", nz)
-        lam_x_prev = ca.MX.sym("lam_x_prev", nz)
-        lam_g_prev = ca.MX.sym("lam_g_prev", self._ng)
-        sh = self.shift_function(x_par, z_prev, lam_x_prev, lam_g_prev)
-        sol = self.nlpsol(x0=sh[0], p=p, lbx=self.lbz, ubx=self.ubz,
-                          lbg=0, ubg=0, lam_x0=sh[1], lam_g0=sh[2])
-        zo, lxo, lgo = sol["x"], sol["lam_x"], sol["lam_g"]
-        names = (["x", "qf", "tau", "z_prev", "lam_x_prev", "lam_g_prev"],
-                 ["u", "z", "lam_x", "lam_g", "cost", "violation",
-                  "first_violation", "defect", "qp_kkt"])
-        # RTI: the one SQP step's QP point, certified (a converged SQP's
-        # last step is its QP's point too)
-        kkt = self.qp_kkt_function(sh[0], zo, lxo, lgo, p)
-        #: ``step_function`` without the RTI fallback: what `step` calls
-        #: (through a bound buffer) with ``rti=True``.
-        self.rti_function = ca.Function(
-            "mpc_rti_single",
-            [x_par, qf, tau, z_prev, lam_x_prev, lam_g_prev],
-            [zo[us[0]], zo, lxo, lgo, *self.check_function(zo, p), kkt],
-            *names)
-        if self.fallback is not None:
-            # evaluated only when the RTI step fails its check
-            a = [ca.MX.sym(n, s.sparsity()) for n, s in
-                 (("z0", z_prev), ("lx0", lam_x_prev), ("lg0", lam_g_prev),
-                  ("p", p), ("z", z_prev), ("lx", lam_x_prev),
-                  ("lg", lam_g_prev))]
-            fb = self.fallback(x0=a[0], p=a[3], lbx=self.lbz, ubx=self.ubz,
-                               lbg=0, ubg=0, lam_x0=a[1], lam_g0=a[2])
-            full = ca.Function("mpc_full", a,
-                               [fb["x"], fb["lam_x"], fb["lam_g"]])
-            keep = ca.Function("mpc_keep", a, [a[4], a[5], a[6]])
-            pick = ca.Function.if_else("mpc_pick", full, keep)
-            # the step is not its QP's solution, or leaves a bound: the
-            # full SQP from the same warm start
-            bad = ca.logic_or(self.check_function(zo, p)[2] > BOUND_TOL,
-                              ca.logic_not(kkt <= QP_KKT_TOL))
-            zo, lxo, lgo = pick(bad, sh[0], sh[1], sh[2], p, zo, lxo, lgo)
-            # the full SQP's plan is not one QP step from the warm start
-            kkt = ca.if_else(bad, np.nan, kkt)
-        chk = self.check_function(zo, p)
-        self.step_function = ca.Function(
-            "mpc_step",
-            [x_par, qf, tau, z_prev, lam_x_prev, lam_g_prev],
-            [zo[us[0]], zo, lxo, lgo, *chk, kkt], *names)
 
     def _default_options(self, z, p, r, g) -> dict:
         if self.solver == "ipopt":
@@ -511,12 +483,13 @@ class AttitudeMPC:
         p = np.r_[x, qf, tau]
         t0 = time.perf_counter()
         kkt = float("nan")
-        if self.rti or self.solver == "condensed":
+        own = self.solver in OWN_SQP_SOLVERS
+        if self.rti or own:
             # one buffered call: shift, SQP step(s), checks
             z, lam_x, lam_g, u, cost, viol, viol1, defect, *n = \
                 self._rti_call(x, qf, tau, z_prev)
             status, iters, kkt = "rti_step", 1, n[-1]
-            if self.solver == "condensed" and not self.rti:
+            if own and not self.rti:
                 iters = int(n[0])
                 status = ("converged" if iters < self.fallback_max_iter
                           else "iteration_limit")
@@ -549,7 +522,7 @@ class AttitudeMPC:
                          first_violation=viol1, defect=defect,
                          solve_time=solve_time, iterations=iters,
                          status=status, qp_kkt=kkt)
-        if check and self.solver == "condensed" and not kkt <= QP_KKT_TOL:
+        if check and own and not kkt <= QP_KKT_TOL:
             self.reset()
             raise SolverError(
                 f"MPC step ({self.name}): the QP's point fails its "
@@ -576,8 +549,8 @@ class AttitudeMPC:
         """Call `rti_function` (condensed: `step_function`) via a buffer."""
         call = self._rti_buffer
         if call is None:
-            f = self.step_function if self.solver == "condensed" else \
-                self.rti_function
+            f = self.step_function if self.solver in OWN_SQP_SOLVERS \
+                else self.rti_function
             call = self._rti_buffer = BoundCall(
                 f, tuple(np.zeros(f.nnz_in(i)) for i in range(f.n_in())),
                 tuple(np.zeros(f.nnz_out(i)) for i in range(f.n_out())))

@@ -41,9 +41,14 @@ DEFECT_TOL = 1e-6
 QP_KKT_TOL = 1e-6
 
 
-#: Every MPC solver name: the NLP plugins and ``"condensed"`` (the
-#: toolbox's Gauss–Newton SQP on the condensed QP, `ocp.mpc.condensed`).
-MPC_SOLVERS = (*NLP_PLUGINS, "condensed")
+#: Every MPC solver name: the NLP plugins, ``"condensed"`` (the toolbox's
+#: Gauss–Newton SQP on the condensed QP, `ocp.mpc.condensed`) and
+#: ``"stagewise"`` (the same SQP on the stage-wise QP, solved by a Riccati
+#: interior point, `ocp.mpc.stagewise`).
+MPC_SOLVERS = (*NLP_PLUGINS, "condensed", "stagewise")
+
+#: The toolbox's own SQPs (wheel-only models; no CasADi nlpsol).
+OWN_SQP_SOLVERS = ("condensed", "stagewise")
 
 
 def available_mpc_solvers() -> tuple[str, ...]:
@@ -52,7 +57,7 @@ def available_mpc_solvers() -> tuple[str, ...]:
     conic = any(ca.has_conic(q) for q in QP_SOLVERS)
     for name in MPC_SOLVERS:
         try:
-            ok = name == "condensed" or ca.has_nlpsol(NLP_PLUGINS[name])
+            ok = name in OWN_SQP_SOLVERS or ca.has_nlpsol(NLP_PLUGINS[name])
         except RuntimeError:
             ok = False
         if ok and (name not in ("sqpmethod", "condensed") or conic):

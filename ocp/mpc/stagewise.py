@@ -1,0 +1,194 @@
+"""The MPC's Gauss–Newton SQP on the stage-wise QP (cost linear in N).
+
+`AttitudeMPC` with ``solver="stagewise"`` solves the same optimal-control
+problem as ``"condensed"`` (same cost, bounds, RK4 multiple shooting and
+the same Gauss–Newton QP, so the same steps), but it keeps the QP in its
+stage-wise form, states and controls both, and solves it with a Riccati
+interior point (`ocp.mpc.stagewise_ipm`): work and generated code grow
+linearly in the horizon N, where the condensed QP grows as (N·n_u)².
+The linearisation, the stage costs and every sweep are CasADi ``map`` /
+``mapaccum`` of one stage's kernel, so the generated C loops over the
+stages instead of unrolling them.
+
+The condensed QP's exact active-set solve (DAQP) is faster at short
+horizons; the stage-wise interior point wins as N grows (docs/benchmarks.md
+measures where). Both certify their QP point (``qp_kkt``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from adcs_common.exceptions import InvalidValueError
+from .condensed import (ANDERSON_MEMORY, STEP_TOL, _kernels,
+                        sqp_step_functions)
+from .stagewise_ipm import IPM_MAX_ITER, IPM_TOL, BoxLayout, ipm_solve
+from .stagewise_kernels import nz_of, stage_kernels
+
+
+def _nz_kernels(kern: dict, nx: int, nu: int) -> tuple:
+    """The linearisation and the stage cost with matrices as nonzeros."""
+    x, u, tau = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("tau", 3)
+    F, A, B = kern["lin"](x, u, tau)
+    lin = ca.Function("sw_lin", [x, u, tau], [F, nz_of(A), nz_of(B)])
+    qf, a, c = ca.SX.sym("qf", 4), ca.SX.sym("a"), ca.SX.sym("c")
+    Q, q, _ = kern["stage"](x, qf, a, c)
+    stage = ca.Function("sw_stage", [x, qf, a, c], [nz_of(Q), q])
+    return lin, stage, A.sparsity(), B.sparsity(), Q.sparsity()
+
+
+def box_layout(mpc: Any) -> BoxLayout:
+    """The boxes of the stage-wise QP: torques, momenta (and rates)."""
+    model, wh = mpc.model, mpc.wheels
+    lo, hi = model.control_bounds()
+    nw = wh.n_wheels
+    bx = list(range(7, 7 + nw))
+    wx = 2.0 * np.asarray(wh.h_max, dtype=float)
+    if mpc.rate_max is not None:
+        bx = [4, 5, 6] + bx
+        wx = np.r_[np.full(3, 2.0 * mpc.rate_max), wx]
+    return BoxLayout(model.nx, model.nu, hi > lo, hi - lo, bx, wx)
+
+
+def _bound_values(mpc: Any, side: float) -> np.ndarray:
+    """The state bound on each component (−1: lower, +1: upper), (n_x,)."""
+    x = np.zeros(mpc.model.nx)
+    x[7:] = side * np.asarray(mpc.wheels.h_max, dtype=float)
+    if mpc.rate_max is not None:
+        x[4:7] = side * mpc.rate_max
+    return x
+
+
+class _Parts:
+    """The stage-wise QP's pieces for one MPC: kernels, boxes, solver."""
+
+    def __init__(self, mpc: Any, tol: float, max_iter: int) -> None:
+        model, wh, w = mpc.model, mpc.wheels, mpc.weights
+        nx, nu = model.nx, model.nu
+        kern = _kernels(mpc)
+        self.lin, self.stage, sp_a, sp_b, sp_q = _nz_kernels(kern, nx, nu)
+        self.m_max = np.asarray(wh.m_max, dtype=float)
+        self.r_diag = 2.0 * w.torque / self.m_max ** 2 + mpc.regularization
+        self.lay = box_layout(mpc)
+        lo, hi = model.control_bounds()
+        self.free = np.asarray(hi > lo)
+        self.kern = stage_kernels(sp_a, sp_b, sp_q, self.r_diag, self.free,
+                                  self.lay.bu, self.lay.bx)
+        self.ipm = ipm_solve(self.kern, self.lay, mpc.horizon, nx, nu,
+                             self.r_diag, max_iter, tol)
+
+
+def _qp_data(mpc: Any, parts: _Parts, z: ca.MX, p: ca.MX) -> tuple:
+    """``(X, U, xN, data)``: the plan's stages and its QP's data.
+
+    ``data = (dU0, dX0, A, B, Q, q, g, lo, hi)``, `ipm_solve`'s inputs:
+    the dynamics-feasible start (zero steps but the fixed controls, the
+    defects carried along), the stages' Jacobians and Hessians (as
+    nonzeros, one column per stage), gradients and scaled boxes.
+    """
+    model, w, N = mpc.model, mpc.weights, mpc.horizon
+    nx, nu = model.nx, model.nu
+    lay = parts.lay
+    qf, tau = p[nx:nx + 4], p[nx + 4:]
+    n_stage = N * (nx + nu)
+    Z = ca.reshape(z[:n_stage], nx + nu, N)
+    X, U, xN = Z[:nx, :], Z[nx:, :], z[n_stage:]
+    X1 = ca.horzcat(X[:, 1:], xN)
+    F, An, Bn = parts.lin.map(N)(X, U, tau)
+    a = ca.DM([[1.0] * (N - 1) + [0.0]])
+    c = ca.DM([[1.0] * (N - 1) + [w.terminal]])
+    Qn, q = parts.stage.map(N)(X1, qf, a, c)
+    g = ca.mtimes(_diag(2.0 * w.torque / parts.m_max ** 2), U)
+    u_lo, u_hi = (ca.repmat(ca.DM(v), 1, N) for v in model.control_bounds())
+    x_lo, x_hi = (ca.repmat(ca.DM(_bound_values(mpc, s)), 1, N)
+                  for s in (-1.0, 1.0))
+    lo = lay.values(u_lo - U, x_lo - X1)
+    hi = lay.values(u_hi - U, x_hi - X1)
+    dU0 = ca.mtimes(_diag((~parts.free).astype(float)), u_lo - U)
+    dX0 = parts.kern["roll"].mapaccum("sw_roll_N", N, 1)(
+        ca.DM.zeros(nx), An, Bn, dU0, F - X1)
+    return X, U, xN, (dU0, dX0, An, Bn, Qn, q, g, lo, hi)
+
+
+def _diag(v: np.ndarray) -> ca.DM:
+    """A constant sparse diagonal matrix."""
+    return ca.DM(ca.diag(ca.DM(np.asarray(v, dtype=float))))
+
+
+def stagewise_qp_function(mpc: Any) -> ca.Function:
+    """``sw_qp(z, p) -> (dU0, dX0, A, B, Q, q, g, lo, hi)``, for checks.
+
+    The stage-wise QP (`ocp.mpc.stagewise_ipm`) of the plan ``z`` (x_0
+    the measured state) and parameters ``p = (x, q_f, τ)``.
+    """
+    parts = _Parts(mpc, IPM_TOL, 1)
+    z = ca.MX.sym("z", mpc.nz)
+    p = ca.MX.sym("p", mpc.model.nx + 7)
+    return ca.Function("sw_qp", [z, p], list(_qp_data(mpc, parts, z, p)[3]))
+
+
+def stagewise_iteration(mpc: Any, tol: float = IPM_TOL,
+                        max_iter: int = IPM_MAX_ITER) -> ca.Function:
+    """``sw_iter(z, lam_x0, p) -> (z_new, lam_x, step, qp_kkt)``.
+
+    One Gauss–Newton SQP step (the condensed step's QP, stage-wise):
+    ``z`` a plan whose x_0 is the measured state (p's first n_x entries);
+    ``lam_x0`` is not used (an interior point starts cold); ``lam_x`` the
+    boxes' multipliers in z's layout; ``step = max |δu / m_max|``;
+    ``qp_kkt`` the interior point's KKT residual.
+    """
+    N, nx = mpc.horizon, mpc.model.nx
+    parts = _Parts(mpc, tol, max_iter)
+    lay = parts.lay
+    z = ca.MX.sym("z", mpc.nz)
+    lx0 = ca.MX.sym("lam_x", mpc.nz)
+    p = ca.MX.sym("p", nx + 7)
+    X, U, xN, data = _qp_data(mpc, parts, z, p)
+    dU, dX, lam, _, kkt = parts.ipm(*data)
+    z_new = ca.vertcat(
+        ca.vec(ca.vertcat(X + ca.horzcat(ca.DM.zeros(nx, 1), dX[:, :N - 1]),
+                          U + dU)), xN + dX[:, N - 1])
+    lam_u = ca.densify(ca.mtimes(lay.Eu.T, lam))
+    lam_xs = ca.densify(ca.mtimes(lay.Ex.T, lam))
+    lam_z = ca.vertcat(
+        ca.vec(ca.vertcat(ca.horzcat(ca.DM.zeros(nx, 1),
+                                     lam_xs[:, :N - 1]), lam_u)),
+        lam_xs[:, N - 1])
+    step = ca.mmax(ca.mtimes(_diag(1.0 / parts.m_max), ca.fabs(dU)))
+    return ca.Function("sw_iter", [z, lx0, p], [z_new, lam_z, step, kkt],
+                       ["z", "lam_x0", "p"],
+                       ["z_new", "lam_x", "step", "qp_kkt"])
+
+
+def check_stagewise_options(options: dict) -> None:
+    """Refuse ``solver_options`` the stage-wise SQP does not take."""
+    extra = set(options) - {"step_tol", "anderson", "ipm_tol",
+                            "ipm_max_iter"}
+    if extra:
+        raise InvalidValueError(
+            "solver='stagewise' takes solver_options 'step_tol', "
+            f"'anderson', 'ipm_tol' and 'ipm_max_iter': {sorted(extra)}")
+
+
+def stagewise_step_functions(mpc: Any, step_tol: float = STEP_TOL,
+                             anderson: int = ANDERSON_MEMORY,
+                             ipm_tol: float = IPM_TOL,
+                             ipm_max_iter: int = IPM_MAX_ITER
+                             ) -> tuple[ca.Function, ca.Function]:
+    """``(rti_function, step_function)`` of the stage-wise SQP.
+
+    The same Functions as `ocp.mpc.condensed.condensed_step_functions`
+    (inputs, outputs, RTI and the iterations to ``step_tol`` with
+    Anderson acceleration), named ``mpc_sw_rti`` and ``mpc_sw_step``;
+    ``ipm_tol`` and ``ipm_max_iter`` are the interior point's
+    (`ocp.mpc.stagewise_ipm.IPM_TOL`, `IPM_MAX_ITER`).
+    """
+    if mpc.model.thrusters is not None:
+        raise InvalidValueError(
+            "solver='stagewise' handles wheel-only models; with thrusters "
+            "use solver='sqpmethod'")
+    it = stagewise_iteration(mpc, ipm_tol, ipm_max_iter)
+    return sqp_step_functions(mpc, it, "mpc_sw", step_tol, anderson)

@@ -1,0 +1,232 @@
+"""A Riccati interior point for the MPC's stage-wise QP (loops over stages).
+
+The QP of one SQP iteration of `ocp.mpc.stagewise`, in the deviations
+δu_k (k = 0…N−1) and δx_k (k = 1…N) from the plan:
+
+.. math::
+    \\min\\ Σ_k ½δx_k^TQ_kδx_k + q_k^Tδx_k + ½δu_k^TRδu_k + g_k^Tδu_k
+    \\quad δx_{k+1} = A_kδx_k + B_kδu_k + d_k,\\ δx_0 = 0,
+    \\quad lo_k ≤ v_k ≤ hi_k,
+
+with ``v_k`` the boxed components of (δu_k, δx_{k+1}) scaled by their
+bounds' widths (torque, momentum and rate bounds are boxes). Mehrotra's
+predictor–corrector (Nocedal & Wright, *Numerical Optimization*, 2nd
+ed., Alg. 16.4) on the slacks and multipliers of the boxes; every
+iterate keeps the dynamics exactly, so each Newton system is the LQ
+problem of `ocp.mpc.stagewise_kernels`, solved by one Riccati factor
+(the predictor) and one more backward sweep (the corrector). Cost and
+generated code grow linearly in N: the sweeps are CasADi ``mapaccum`` of
+one stage's kernel, and the interior-point iterations nest as
+``if_else`` so that a converged solve skips the rest.
+
+The solve stops when its KKT residual (`IPM_TOL`) is met: the dual
+residual (the costate's reduced gradient, relative to ``1 + |g|``), the
+boxes' primal residual and every complementarity product ``s·λ``.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from .stagewise_kernels import reverse_columns
+
+#: KKT residual [scaled, 1] at which the interior point stops.
+IPM_TOL = 1e-13
+#: Interior-point iterations allowed per QP (the nested solve's depth).
+IPM_MAX_ITER = 40
+#: Fraction of the way to a box's boundary that one step may go.
+IPM_TAU = 0.995
+#: The initial slacks' floor and barrier parameter [scaled, 1].
+IPM_SLACK0, IPM_MU0 = 0.1, 10.0
+
+
+class BoxLayout:
+    """Which components carry boxes, their widths and selection matrices.
+
+    ``v = Eu δu + Ex δx`` (nb,) are the boxed components, each divided by
+    its bound's width (so a feasible v spans [lo, lo + 1]).
+    """
+
+    def __init__(self, nx: int, nu: int, free: np.ndarray,
+                 width_u: np.ndarray, bx: list[int],
+                 width_x: np.ndarray) -> None:
+        self.bu = [int(i) for i in np.flatnonzero(free)]
+        self.bx = list(bx)
+        self.nbu, self.nbx = len(self.bu), len(self.bx)
+        self.nb = self.nbu + self.nbx
+        wu = np.asarray(width_u, dtype=float)[self.bu]
+        wx = np.asarray(width_x, dtype=float)
+        eu = np.zeros((self.nb, nu))
+        ex = np.zeros((self.nb, nx))
+        for j, i in enumerate(self.bu):
+            eu[j, i] = 1.0 / wu[j]
+        for j, i in enumerate(self.bx):
+            ex[self.nbu + j, i] = 1.0 / wx[j]
+        self.Eu, self.Ex = ca.DM(eu).sparse(), ca.DM(ex).sparse()
+        self.Eu = ca.DM(ca.sparsify(ca.DM(eu)))
+        self.Ex = ca.DM(ca.sparsify(ca.DM(ex)))
+        inv2 = np.r_[1.0 / wu ** 2, 1.0 / wx ** 2]
+        self.sigma_scale = ca.DM(ca.sparsify(ca.DM(np.diag(inv2))))
+        self.width = np.r_[wu, wx]
+
+    def values(self, dU, dX):
+        """The scaled boxed components (nb × N) of controls and states."""
+        return ca.mtimes(self.Eu, dU) + ca.mtimes(self.Ex, dX)
+
+
+def _to_boundary(pairs: list, tau: float) -> ca.MX:
+    """Largest α ≤ 1 with ``v + α dv ≥ (1 − τ) v`` for every pair (v > 0).
+
+    ``α = 1 / max(1, max(−dv / (τ v)))``: one reduction per pair, no
+    element-wise branches.
+    """
+    worst = ca.MX(1.0)
+    for v, dv in pairs:
+        worst = ca.fmax(worst, ca.mmax(ca.vec(-dv / (tau * v))))
+    return 1.0 / worst
+
+
+def _dot(a, b):
+    return ca.sum1(ca.sum2(a * b))
+
+
+def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
+                  r_diag: np.ndarray) -> ca.Function:
+    """``sw_ipm_iter(state…, data…) -> (state…, kkt)``: one Mehrotra step.
+
+    The state is ``(dU (n_u × N), dX (n_x × N), Sl, Su, Ll, Lu (nb × N))``;
+    the data ``(A, B, Q (nonzeros × N), q (n_x × N), g (n_u × N), lo, hi
+    (nb × N), Ar, Br, Qr)`` (the last three reversed in time). ``kkt`` is
+    the new point's KKT residual (module doc).
+    """
+    nb = lay.nb
+    sym = ca.MX.sym
+    dU, dX = sym("dU", nu, N), sym("dX", nx, N)
+    Sl, Su, Ll, Lu = (sym(n, nb, N) for n in ("Sl", "Su", "Ll", "Lu"))
+    sp = {n: kern["ric"].sparsity_in(i) for n, i in
+          (("a", 2), ("b", 3), ("q", 4))}
+    A, B, Q = (sym(n, sp[n].nnz(), N) for n in ("a", "b", "q"))
+    Ar, Br, Qr = (sym(n + "r", sp[n].nnz(), N) for n in ("a", "b", "q"))
+    q, g = sym("q", nx, N), sym("g", nu, N)
+    lo, hi = sym("lo", nb, N), sym("hi", nb, N)
+    state = [dU, dX, Sl, Su, Ll, Lu]
+    data = [A, B, Q, q, g, lo, hi, Ar, Br, Qr]
+    R = ca.DM(ca.diag(ca.DM(r_diag)))
+    ric = kern["ric"].mapaccum("sw_ric_N", N, 2)
+    vec = kern["vec"].mapaccum("sw_vec_N", N, 1)
+    fwd = kern["fwd"].mapaccum("sw_fwd_N", N, 1)
+    qmul = kern["qmul"].map(N)
+    m = 2.0 * nb * N
+
+    V = lay.values(dU, dX)
+    rpl, rpu = V - lo - Sl, hi - V - Su
+    mu = (_dot(Sl, Ll) + _dot(Su, Lu)) / m
+    sig = ca.mtimes(lay.sigma_scale, Ll / Sl + Lu / Su)
+    gx = qmul(Q, dX) + q
+    gu = ca.mtimes(R, dU) + g
+
+    def sweep_in(beta):
+        qt = gx + ca.mtimes(lay.Ex.T, beta)
+        rt = gu + ca.mtimes(lay.Eu.T, beta)
+        return reverse_columns(qt), reverse_columns(rt)
+
+    def forward(kff_r, K):
+        dXn, dUn = fwd(ca.DM.zeros(nx), A, B, K, reverse_columns(kff_r))
+        dv = lay.values(dUn, dXn)
+        return dUn, dXn, dv + rpl, rpu - dv
+
+    qr, rr = sweep_in(Ll * rpl / Sl - Lu * rpu / Su)
+    _, _, Kr, kr, Lr = ric(ca.DM.zeros(nx * (nx + 1) // 2), ca.DM.zeros(nx),
+                           Ar, Br,
+                           Qr, reverse_columns(sig[lay.nbu:, :]),
+                           reverse_columns(sig[:lay.nbu, :]), qr, rr)
+    K = reverse_columns(Kr)
+    _, _, dSl_a, dSu_a = forward(kr, K)
+    dLl_a = -Ll - Ll * dSl_a / Sl
+    dLu_a = -Lu - Lu * dSu_a / Su
+    a_aff = _to_boundary([(Sl, dSl_a), (Su, dSu_a), (Ll, dLl_a),
+                          (Lu, dLu_a)], 1.0)
+    mu_aff = (_dot(Sl + a_aff * dSl_a, Ll + a_aff * dLl_a)
+              + _dot(Su + a_aff * dSu_a, Lu + a_aff * dLu_a)) / m
+    smu = (mu_aff / mu) ** 3 * mu
+    cl, cu = dSl_a * dLl_a, dSu_a * dLu_a
+    qr2, rr2 = sweep_in((Ll * rpl - smu + cl) / Sl
+                        - (Lu * rpu - smu + cu) / Su)
+    _, kr2 = vec(ca.DM.zeros(nx), Ar, Br, Kr, Lr, qr2, rr2)
+    ddU, ddX, dSl, dSu = forward(kr2, K)
+    dLl = -Ll + (smu - cl - Ll * dSl) / Sl
+    dLu = -Lu + (smu - cu - Lu * dSu) / Su
+    alpha = _to_boundary([(Sl, dSl), (Su, dSu), (Ll, dLl), (Lu, dLu)],
+                         IPM_TAU)
+    new = [dU + alpha * ddU, dX + alpha * ddX, Sl + alpha * dSl,
+           Su + alpha * dSu, Ll + alpha * dLl, Lu + alpha * dLu]
+    kkt = kkt_residual(kern, lay, N, nx, R, new, data)
+    return ca.Function("sw_ipm_iter", state + data, new + [kkt])
+
+
+def kkt_residual(kern: dict, lay: BoxLayout, N: int, nx: int, R, state,
+                 data) -> ca.MX:
+    """The KKT residual of an iterate (module doc), scaled, ≥ 0."""
+    dU, dX, Sl, Su, Ll, Lu = state
+    A, B, Q, q, g, lo, hi, Ar, Br, Qr = data
+    V = lay.values(dU, dX)
+    lam = Lu - Ll
+    gx = kern["qmul"].map(N)(Q, dX) + q + ca.mtimes(lay.Ex.T, lam)
+    gu = ca.mtimes(R, dU) + g + ca.mtimes(lay.Eu.T, lam)
+    costate = kern["costate"].mapaccum("sw_costate_N", N, 1)
+    _, rho = costate(ca.DM.zeros(nx), Ar, Br, reverse_columns(gx),
+                     reverse_columns(gu))
+    scale = 1.0 + ca.fmax(ca.mmax(ca.fabs(q)), ca.mmax(ca.fabs(g)))
+    dual = ca.mmax(ca.fabs(rho)) / scale
+    primal = ca.mmax(ca.fabs(ca.vertcat(ca.vec(V - lo - Sl),
+                                        ca.vec(hi - V - Su))))
+    comp = ca.mmax(ca.vertcat(ca.vec(Sl * Ll), ca.vec(Su * Lu)))
+    return ca.fmax(dual, ca.fmax(primal, comp))
+
+
+def ipm_solve(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
+              r_diag: np.ndarray, max_iter: int = IPM_MAX_ITER,
+              tol: float = IPM_TOL) -> ca.Function:
+    """``sw_ipm(dU0, dX0, A, B, Q, q, g, lo, hi) -> (dU, dX, lam, n, kkt)``.
+
+    Solves the QP (module doc) from the dynamics-feasible point ``(dU0,
+    dX0)``; ``lam`` (nb × N) are the boxes' multipliers ``λ_u − λ_l`` in
+    scaled units, ``n`` the iterations made, ``kkt`` the last residual
+    (above ``tol`` when ``max_iter`` iterations did not reach it).
+    """
+    it = ipm_iteration(kern, lay, N, nx, nu, r_diag)
+    nb = lay.nb
+    # fresh symbols: a call on the Function's own inputs would inline it
+    ins = [ca.MX.sym(it.name_in(i), it.sparsity_in(i))
+           for i in range(it.n_in())]
+    state, data = ins[:6], ins[6:]
+    n, kk = ca.MX.sym("n"), ca.MX.sym("kkt")
+    done = ca.Function("sw_done", [*state, n, kk, *data],
+                       [*state, n, kk])
+    inner = None
+    for k in range(max_iter - 1, -1, -1):
+        out = it(*state, *data)
+        new, kn = out[:6], out[6]
+        if inner is None:
+            res = [*new, n + 1, kn]
+        else:
+            res = inner(kn <= tol, *new, n + 1, kn, *data)
+        inner = ca.Function.if_else(
+            f"sw_ipm_{k}", done, ca.Function(f"sw_ipm_more_{k}",
+                                             [*state, n, kk, *data], res))
+    sym = ca.MX.sym
+    dU0, dX0 = sym("dU0", nu, N), sym("dX0", nx, N)
+    A, B, Q, q, g, lo, hi = (data[i] for i in range(7))
+    V0 = lay.values(dU0, dX0)
+    Sl = ca.fmax(V0 - lo, IPM_SLACK0)
+    Su = ca.fmax(hi - V0, IPM_SLACK0)
+    Ar, Br, Qr = (reverse_columns(M) for M in (A, B, Q))
+    out = inner(0, dU0, dX0, Sl, Su, IPM_MU0 / Sl, IPM_MU0 / Su, 0.0, 1.0,
+                A, B, Q, q, g, lo, hi, Ar, Br, Qr)
+    dU, dX, _, _, Ll, Lu, count, kkt = out
+    del nb
+    return ca.Function("sw_ipm", [dU0, dX0, A, B, Q, q, g, lo, hi],
+                       [dU, dX, Lu - Ll, count, kkt],
+                       ["dU0", "dX0", "A", "B", "Q", "q", "g", "lo", "hi"],
+                       ["dU", "dX", "lam", "iterations", "kkt"])

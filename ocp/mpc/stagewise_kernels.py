@@ -1,0 +1,140 @@
+"""Per-stage SX kernels of the stage-wise MPC QP and its Riccati solves.
+
+`ocp.mpc.stagewise` keeps the MPC's QP in its stage-wise form, states
+and controls both, and solves it by an interior point whose Newton
+systems are Riccati recursions (`ocp.mpc.stagewise_ipm`). Every kernel
+here is one stage's work; the caller runs it over the horizon with
+CasADi ``map`` / ``mapaccum``, so the generated C loops over the stages
+and its size does not grow with N.
+
+Matrices cross the kernels' boundaries as their nonzeros (dense column
+vectors, one column per stage), so a whole horizon is one dense matrix
+that a constant permutation reverses in time (`reverse_columns`).
+
+The recursion, for stage k with the value ``½xᵀPx + pᵀx`` of x_{k+1}
+(its own stage cost added first: ``P̂ = P + Q̃_{k+1}``, ``p̂ = p +
+q̃_{k+1}``):
+
+.. math::
+    R^e = \\tilde R + B^T \\hat P B = L L^T,\\quad
+    K = -(R^e)^{-1} B^T \\hat P A,\\quad
+    k_{ff} = -(R^e)^{-1}(\\tilde r + B^T \\hat p),
+
+    P_k = A^T \\hat P A + (B^T \\hat P A)^T K,\\quad
+    p_k = A^T \\hat p + K^T(\\tilde r + B^T \\hat p),
+
+and the step runs forward, ``Δu_k = K Δx_k + k_ff``, ``Δx_{k+1} = AΔx_k
++ BΔu_k`` from ``Δx_0 = 0``.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from .riccati import chol_lower, inv_lower
+
+
+def from_nz(name: str, sp: ca.Sparsity) -> tuple[ca.SX, ca.SX]:
+    """``(v, M)``: a symbol of sp's nonzeros and the matrix it fills."""
+    v = ca.SX.sym(name, sp.nnz())
+    return v, ca.SX(sp, v)
+
+
+def nz_of(M: ca.SX) -> ca.SX:
+    """The nonzeros of ``M`` as a column vector (its storage order)."""
+    return ca.vertcat(*[M.nz[i] for i in range(M.nnz())]) if M.nnz() \
+        else ca.SX(0, 1)
+
+
+def reverse_columns(M: ca.MX) -> ca.MX:
+    """``M`` (m × N, dense) with its columns in reverse order.
+
+    A product with the constant anti-diagonal permutation: in generated
+    C that is one loop and an index array of about 2N integers, shared
+    by every reversal of the same N, whatever m.
+    """
+    N = M.shape[1]
+    J = ca.DM(ca.Sparsity.triplet(N, N, list(range(N)),
+                                  list(range(N - 1, -1, -1))), 1.0)
+    return ca.mtimes(M, J)
+
+
+def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
+                  r_diag: np.ndarray, free: np.ndarray, bu: list[int],
+                  bx: list[int]) -> dict[str, ca.Function]:
+    """The kernels of one stage's Riccati step, rollout and costate.
+
+    Parameters
+    ----------
+    sp_a, sp_b, sp_q : casadi.Sparsity
+        Patterns of A_k (n_x × n_x), B_k (n_x × n_u) and Q_{k+1}.
+    r_diag : ndarray (n_u,)
+        Diagonal of the control Hessian R (torque weight plus ρ).
+    free : ndarray (n_u,) of bool
+        Controls that may move (a failed wheel's torque is fixed: its
+        column of B and its gradient are masked out of the recursion).
+    bu, bx : list of int
+        Components of u and of x that carry a box (their barrier
+        diagonals ``su``, ``sx`` are added to R and to Q).
+    """
+    nx, nu = sp_b.size1(), sp_b.size2()
+    an, A = from_nz("a", sp_a)
+    bn, B0 = from_nz("b", sp_b)
+    qn, Q = from_nz("q", sp_q)
+    mask = ca.DM(np.asarray(free, dtype=float))
+    B = ca.mtimes(B0, ca.diag(mask))
+    # P is symmetric: its lower triangle crosses the boundary, and only
+    # the lower triangle of P_k is computed
+    low = ca.Sparsity.lower(nx)
+    pl = ca.SX.sym("P", low.nnz())
+    P = ca.tril2symm(ca.SX(low, pl))
+    p = ca.SX.sym("p", nx)
+    sx = ca.SX.sym("sx", len(bx))
+    su = ca.SX.sym("su", len(bu))
+    qt = ca.SX.sym("qt", nx)
+    rt = ca.SX.sym("rt", nu)
+    Ph = P + Q
+    for j, i in enumerate(bx):
+        Ph[i, i] += sx[j]
+    Re = ca.diag(ca.DM(r_diag)) + ca.mtimes([B.T, Ph, B])
+    for j, i in enumerate(bu):
+        Re[i, i] += su[j]
+    Lit = inv_lower(chol_lower(Re)).T
+    Rinv = ca.mtimes(Lit, Lit.T)
+    PA = ca.mtimes(Ph, A)
+    BPA = ca.mtimes(B.T, PA)
+    K = -ca.mtimes(Rinv, BPA)
+    ph = p + qt
+    rhs = rt * mask + ca.mtimes(B.T, ph)
+    Pk = ca.mtimes(A.T, PA) + ca.mtimes(BPA.T, K)
+    ric = ca.Function(
+        "sw_ric", [pl, p, an, bn, qn, sx, su, qt, rt],
+        [nz_of(ca.project(ca.densify(Pk), low)),
+         ca.mtimes(A.T, ph) + ca.mtimes(K.T, rhs),
+         nz_of(ca.densify(K)), -ca.mtimes(Rinv, rhs),
+         nz_of(ca.densify(Lit))])
+    kn, Kd = from_nz("K", ca.Sparsity.dense(nu, nx))
+    ln, L = from_nz("L", ca.Sparsity.dense(nu, nu))
+    vec = ca.Function(
+        "sw_ricvec", [p, an, bn, kn, ln, qt, rt],
+        [ca.mtimes(A.T, ph) + ca.mtimes(Kd.T, rhs),
+         -ca.mtimes([L, L.T, rhs])])
+    dx = ca.SX.sym("dx", nx)
+    kff = ca.SX.sym("kff", nu)
+    du = ca.mtimes(Kd, dx) + kff
+    fwd = ca.Function("sw_fwd", [dx, an, bn, kn, kff],
+                      [ca.mtimes(A, dx) + ca.mtimes(B0, du), du])
+    psi = ca.SX.sym("psi", nx)
+    gx = ca.SX.sym("gx", nx)
+    gu = ca.SX.sym("gu", nu)
+    lam = psi + gx
+    costate = ca.Function("sw_costate", [psi, an, bn, gx, gu],
+                          [ca.mtimes(A.T, lam),
+                           (gu + ca.mtimes(B0.T, lam)) * mask])
+    qmul = ca.Function("sw_qmul", [qn, dx], [ca.mtimes(Q, dx)])
+    d = ca.SX.sym("d", nx)
+    roll = ca.Function("sw_roll", [dx, an, bn, kff, d],
+                       [ca.mtimes(A, dx) + ca.mtimes(B0, kff) + d])
+    return {"ric": ric, "vec": vec, "fwd": fwd, "costate": costate,
+            "qmul": qmul, "roll": roll}
