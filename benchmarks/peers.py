@@ -276,83 +276,20 @@ def acados_closed_loop(rti: bool = True, steps: int = 80) -> tuple:
     """Row of acados (HPIPM, Gauss–Newton) on the toolbox's MPC problem.
 
     The same dynamics (explicit RK4, one step per interval), the same
-    least-squares costs and weights, the same bounds; SQP_RTI or SQP to
-    1e-8. Needs an acados with ``acados_template`` (here the
-    ``comma-deps-acados`` wheel, whose libraries are loaded first).
+    least-squares costs and weights, the same bounds
+    (`benchmarks.peers_acados.acados_ocp_solver`); SQP_RTI or SQP to
+    1e-8, in the closed loop of `mpc_closed_loops` (CVODES plant), each
+    command compared with the toolbox's IPOPT MPC from the same state.
     """
-    import ctypes
-    import os
     import time
 
-    import acados
-    import casadi as ca
-
-    lib = acados.LIB_DIR
-    for name in ("libblasfeo.so", "libhpipm.so", "libqpOASES_e.so.3.1"):
-        if os.path.exists(os.path.join(lib, name)):
-            ctypes.CDLL(os.path.join(lib, name), mode=ctypes.RTLD_GLOBAL)
-    os.environ.setdefault("ACADOS_SOURCE_DIR", acados.DIR)
-    os.environ.setdefault("ACADOS_PYTHON_INTERFACE_PATH",
-                          acados.TEMPLATE_DIR)
-    os.environ.setdefault("TERA_PATH", acados.TERA_PATH)
-    from acados.acados_template import (AcadosModel, AcadosOcp,
-                                        AcadosOcpSolver)
-
     from adcs_common.quaternion import quat_conj, quat_mul
-    from ocp.mpc import AttitudeMPC, MPCWeights
+    from benchmarks.peers_acados import acados_ocp_solver
+    from ocp.mpc import AttitudeMPC
 
     model, qf = _mpc_problem()
-    w, wh, N, dt = MPCWeights(), model.wheels, 20, 0.5
-    x = ca.SX.sym("x", model.nx)
-    u = ca.SX.sym("u", model.nu)
-    am = AcadosModel()
-    am.name, am.x, am.u = "adcs_mpc", x, u
-    am.xdot = ca.SX.sym("xdot", model.nx)
-    am.f_expl_expr = model.dynamics(x, u, ca.DM.zeros(3))
-    am.f_impl_expr = am.xdot - am.f_expl_expr
-    qe = quat_mul(quat_conj(qf), x[:4])
-    mm, hm = np.asarray(wh.m_max), np.asarray(wh.h_max)
-    am.cost_y_expr = ca.vertcat(
-        np.sqrt(w.torque) * u / ca.DM(mm),
-        np.sqrt(w.momentum) * x[7:] / ca.DM(hm),
-        np.sqrt(w.attitude) * qe[1:], np.sqrt(w.rate) * x[4:7])
-    am.cost_y_expr_e = ca.vertcat(np.sqrt(w.terminal * w.attitude) * qe[1:],
-                                  np.sqrt(w.terminal * w.rate) * x[4:7])
-    o = AcadosOcp()
-    o.model = am
-    o.dims.N = N
-    o.cost.cost_type = o.cost.cost_type_e = "NONLINEAR_LS"
-    # acados's stage cost is ½|y|²_W times the interval dt, its terminal
-    # cost ½|y_e|²_We; ours is the plain sum of squares: W = 2/dt, We = 2
-    o.cost.W = (2.0 / dt) * np.eye(am.cost_y_expr.shape[0])
-    o.cost.W_e = 2.0 * np.eye(am.cost_y_expr_e.shape[0])
-    o.cost.yref = np.zeros(am.cost_y_expr.shape[0])
-    o.cost.yref_e = np.zeros(am.cost_y_expr_e.shape[0])
-    o.constraints.lbu, o.constraints.ubu = -mm, mm
-    o.constraints.idxbu = np.arange(model.nu)
-    o.constraints.lbx, o.constraints.ubx = -hm, hm
-    o.constraints.idxbx = np.arange(7, model.nx)
-    # ours bounds the last state's wheel momenta too
-    o.constraints.lbx_e, o.constraints.ubx_e = -hm, hm
-    o.constraints.idxbx_e = np.arange(7, model.nx)
-    o.constraints.x0 = model.state([1.0, 0.0, 0.0, 0.0])
-    opts = o.solver_options
-    opts.tf = N * dt
-    opts.qp_solver = "PARTIAL_CONDENSING_HPIPM"
-    opts.hessian_approx = "GAUSS_NEWTON"
-    opts.integrator_type = "ERK"
-    opts.sim_method_num_stages, opts.sim_method_num_steps = 4, 1
-    opts.nlp_solver_type = "SQP_RTI" if rti else "SQP"
-    # our Gauss–Newton Hessian's Levenberg–Marquardt term (1e-4), in
-    # acados's per-interval scaling
-    opts.levenberg_marquardt = 1e-4 / dt
-    if not rti:
-        opts.nlp_solver_max_iter, opts.tol = 50, 1e-8
-    tag = "rti" if rti else "sqp"
-    o.code_export_directory = tempfile.mkdtemp(prefix=f"adcs_acados_{tag}_")
-    solver = AcadosOcpSolver(o, json_file=os.path.join(
-        o.code_export_directory, "ocp.json"), verbose=False)
-    F = model.integrator(dt)
+    solver, _ = acados_ocp_solver(model, qf, 20, 0.5, rti=rti)
+    F = model.integrator(0.5)
     ref = AttitudeMPC(model, solver="ipopt")
     xk = model.state([1.0, 0.0, 0.0, 0.0])
     times, du = [], 0.0

@@ -33,8 +33,10 @@ from .stagewise_kernels import reverse_columns
 
 #: KKT residual [scaled, 1] at which the interior point stops.
 IPM_TOL = 1e-13
-#: Interior-point iterations allowed per QP (the nested solve's depth).
+#: Interior-point iterations allowed per QP (a multiple of `IPM_CHUNK`).
 IPM_MAX_ITER = 40
+#: Iterations per nested chunk of the solve (`ipm_solve`).
+IPM_CHUNK = 5
 #: Fraction of the way to a box's boundary that one step may go.
 IPM_TAU = 0.995
 #: The initial slacks' floor and barrier parameter [scaled, 1].
@@ -196,25 +198,33 @@ def ipm_solve(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     (above ``tol`` when ``max_iter`` iterations did not reach it).
     """
     it = ipm_iteration(kern, lay, N, nx, nu, r_diag)
-    nb = lay.nb
     # fresh symbols: a call on the Function's own inputs would inline it
     ins = [ca.MX.sym(it.name_in(i), it.sparsity_in(i))
            for i in range(it.n_in())]
     state, data = ins[:6], ins[6:]
     n, kk = ca.MX.sym("n"), ca.MX.sym("kkt")
-    done = ca.Function("sw_done", [*state, n, kk, *data],
-                       [*state, n, kk])
+    args = [*state, n, kk, *data]
+    done = ca.Function("sw_done", args, [*state, n, kk])
+    # chunks of nested iterations (a converged iterate skips the rest of
+    # its chunk), called one after another, each skipped once converged:
+    # every nesting level reserves its callee's arguments in the work
+    # vector, so the depth stays at IPM_CHUNK
+    depth = min(IPM_CHUNK, max_iter)
     inner = None
-    for k in range(max_iter - 1, -1, -1):
+    for k in range(depth - 1, -1, -1):
         out = it(*state, *data)
         new, kn = out[:6], out[6]
-        if inner is None:
-            res = [*new, n + 1, kn]
-        else:
-            res = inner(kn <= tol, *new, n + 1, kn, *data)
+        res = [*new, n + 1, kn] if inner is None else \
+            inner(kn <= tol, *new, n + 1, kn, *data)
         inner = ca.Function.if_else(
-            f"sw_ipm_{k}", done, ca.Function(f"sw_ipm_more_{k}",
-                                             [*state, n, kk, *data], res))
+            f"sw_ipm_{k}", done, ca.Function(f"sw_ipm_more_{k}", args, res))
+    chunk = ca.Function("sw_ipm_chunk", args, inner(0, *args))
+    skip = ca.Function.if_else("sw_ipm_skip", done, chunk)
+    cur = [*state, n, kk]
+    for j in range(0, max_iter, depth):
+        # the last chunk may run past max_iter by less than one chunk
+        cur = skip(cur[7] <= tol, *cur, *data)
+    loop = ca.Function("sw_ipm_loop", args, cur)
     sym = ca.MX.sym
     dU0, dX0 = sym("dU0", nu, N), sym("dX0", nx, N)
     A, B, Q, q, g, lo, hi = (data[i] for i in range(7))
@@ -222,10 +232,9 @@ def ipm_solve(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     Sl = ca.fmax(V0 - lo, IPM_SLACK0)
     Su = ca.fmax(hi - V0, IPM_SLACK0)
     Ar, Br, Qr = (reverse_columns(M) for M in (A, B, Q))
-    out = inner(0, dU0, dX0, Sl, Su, IPM_MU0 / Sl, IPM_MU0 / Su, 0.0, 1.0,
-                A, B, Q, q, g, lo, hi, Ar, Br, Qr)
+    out = loop(dU0, dX0, Sl, Su, IPM_MU0 / Sl, IPM_MU0 / Su, 0.0, 1.0,
+               A, B, Q, q, g, lo, hi, Ar, Br, Qr)
     dU, dX, _, _, Ll, Lu, count, kkt = out
-    del nb
     return ca.Function("sw_ipm", [dU0, dX0, A, B, Q, q, g, lo, hi],
                        [dU, dX, Lu - Ll, count, kkt],
                        ["dU0", "dX0", "A", "B", "Q", "q", "g", "lo", "hi"],
