@@ -294,7 +294,9 @@ def _add_export(sub) -> None:
     exp.add_argument("--mpc", default=None,
                      help="MPC variants to export (comma-separated, from "
                      "mpc_step, mpc_rti_step, mpc_cond_step, "
-                     "mpc_cond_rti_step; empty for none; default "
+                     "mpc_cond_rti_step, mpc_sw_step, mpc_sw_rti_step "
+                     "(stage-wise: for long horizons); empty for none; "
+                     "default "
                      "mpc_step,mpc_rti_step,mpc_cond_rti_step; "
                      "mpc_cond_rti_step with --precision single)")
     exp.add_argument("--precision", choices=("double", "single"),
