@@ -172,6 +172,7 @@ def _sweep(args: argparse.Namespace) -> int:
     from adcs_common.paths import output_folder
 
     from .sweep import SWEEPS, SweepCacheWarning, run_sweep
+    from .sweep.describe import describe
     from .sweep.plots import plot_sweep
 
     from ocp.spacecraft import load_spacecraft
@@ -196,6 +197,8 @@ def _sweep(args: argparse.Namespace) -> int:
         else:
             warnings.warn_explicit(w.message, w.category, w.filename,
                                    w.lineno)
+    describe(args.name, ds, args.spacecraft if args.name in (
+        "agility", "failures") else None, SWEEPS[args.name][2])
     ds.to_netcdf(out / f"{args.name}.nc", engine="scipy")
     plot_sweep(args.name, ds, out / f"{args.name}.png")
     failed = int((ds["error"] != "").sum())
