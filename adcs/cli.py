@@ -172,6 +172,7 @@ def _sweep(args: argparse.Namespace) -> int:
     from adcs_common.paths import output_folder
 
     from .sweep import SWEEPS, SweepCacheWarning, run_sweep
+    from .sweep.describe import describe
     from .sweep.plots import plot_sweep
 
     from ocp.spacecraft import load_spacecraft
@@ -196,6 +197,8 @@ def _sweep(args: argparse.Namespace) -> int:
         else:
             warnings.warn_explicit(w.message, w.category, w.filename,
                                    w.lineno)
+    describe(args.name, ds, args.spacecraft if args.name in (
+        "agility", "failures") else None, SWEEPS[args.name][2])
     ds.to_netcdf(out / f"{args.name}.nc", engine="scipy")
     plot_sweep(args.name, ds, out / f"{args.name}.png")
     failed = int((ds["error"] != "").sum())
@@ -325,9 +328,42 @@ def _add_export(sub) -> None:
     exp.set_defaults(func=_export)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the house rule: a usage mistake is one line, exit 2.
+
+    The line names the command that was mistyped (``adcs report``, not
+    ``adcs``) and carries that command's usage on the same line;
+    subcommand parsers inherit the class.
+    """
+
+    def error(self, message: str):  # type: ignore[override]
+        """Print ``<prog>: error: <message>; usage: ...`` and exit 2."""
+        usage = " ".join(self.format_usage().split())
+        self.exit(2, f"{self.prog}: error: {message}; {usage}\n")
+
+    def parse_known_args(self, args=None, namespace=None):  # type: ignore
+        """As argparse's; stray arguments after a subcommand are its error.
+
+        argparse reports them from the top-level parser, with the
+        top-level usage; here the subcommand's parser does.
+        """
+        argv = list(sys.argv[1:] if args is None else args)
+        ns, extras = super().parse_known_args(argv, namespace)
+        for action in self._actions:
+            if not extras or not isinstance(action,
+                                            argparse._SubParsersAction):
+                continue
+            name = getattr(ns, action.dest, None)
+            sub = action.choices.get(name)
+            if sub is not None and name in argv and all(
+                    x in argv[argv.index(name) + 1:] for x in extras):
+                sub.error("unrecognized arguments: " + " ".join(extras))
+        return ns, extras
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser of ``adcs``."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="adcs", description="ADCS optimal-control and allocation "
         "toolbox: design studies, benchmarks, code export.")
     parser.add_argument("--version", action="version",

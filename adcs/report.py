@@ -142,24 +142,73 @@ def verdict(paper: float | str | None, ours: float, *,
     return f"not met: |Δ| = {_num(diff)} > {_num(limit)}" + why
 
 
+def limit_text(paper: float | str | None, *, tol: float | None = None,
+               rel: float | None = None, bound: float | None = None,
+               erratum: str = "") -> str:
+    """The bound or tolerance a row is judged by, as the table prints it.
+
+    ``≤ b`` for a bound; ``±t`` for an absolute tolerance; ``±r %
+    (±t)`` for a relative one (``t`` in the quantity's unit); ``—`` when
+    the row has none (an erratum, or no tolerance stated).
+    """
+    if erratum:
+        return "—"
+    if bound is not None:
+        return f"≤ {_num(bound)}"
+    if not isinstance(paper, (int, float)):
+        return "—"
+    if tol is not None:
+        return f"±{_num(tol)}"
+    if rel is not None:
+        return f"±{100 * rel:g} % (±{_num(rel * abs(float(paper)))})"
+    return "—"
+
+
 def paper_row(quantity: str, paper: float | str | None, ours: float,
               note: str = "", *, tol: float | None = None,
               rel: float | None = None, bound: float | None = None,
               erratum: str = "", reason: str = "") -> list[Any]:
     """Row of `PAPER_COLUMNS`: the figures, the bound and a verdict.
 
-    A bound goes in its own column (``≤ b``); the verdict is `verdict`'s.
+    The bound or tolerance used goes in its own column (`limit_text`:
+    ``≤ b``, ``±t`` or ``±r % (±t)``); the verdict is `verdict`'s.
     """
     diff = (ours - paper if isinstance(paper, (int, float))
             and isinstance(ours, (int, float)) else float("nan"))
     return [quantity, "—" if paper is None else paper,
-            "" if bound is None else f"≤ {_num(bound)}", ours, diff,
+            limit_text(paper, tol=tol, rel=rel, bound=bound,
+                       erratum=erratum), ours, diff,
             verdict(paper, ours, tol=tol, rel=rel, bound=bound,
                     erratum=erratum, reason=reason), note]
 
 
-PAPER_COLUMNS = ["quantity", "paper", "bound", "ours", "ours − paper",
-                 "verdict", "note"]
+PAPER_COLUMNS = ["quantity", "paper", "bound or tolerance", "ours",
+                 "ours − paper", "verdict", "note"]
+
+
+def shared_reasons(reasons: Sequence[str], *, at_least: int = 2
+                   ) -> tuple[list[str], str]:
+    """State a reason given for several rows once, under the table.
+
+    Returns ``(per_row, note)``: each reason given for ``at_least`` rows
+    or more becomes ``"see note a"`` (b, c, ... for the next ones) in
+    ``per_row``, and ``note`` holds ``"Note a: <reason>."`` once each;
+    the other reasons are kept as they are.
+    """
+    counts: dict[str, int] = {}
+    for r in reasons:
+        if r:
+            counts[r] = counts.get(r, 0) + 1
+    letters: dict[str, str] = {}
+    for r in reasons:
+        if r and counts[r] >= at_least and r not in letters \
+                and len(letters) < 26:
+            letters[r] = "abcdefghijklmnopqrstuvwxyz"[len(letters)]
+    per_row = [f"see note {letters[r]}" if r in letters else r
+               for r in reasons]
+    note = " ".join(f"Note {k}: {r.rstrip('.')}." for r, k in
+                    letters.items())
+    return per_row, note
 
 
 @dataclass(frozen=True)

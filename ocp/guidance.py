@@ -62,6 +62,7 @@ def _wheel_pattern(wheels: WheelArray, demand: np.ndarray
                   A_eq=A_eq, b_eq=demand, bounds=fixed + [(0, None)],
                   method="highs")
     if res.status != 0:
+        wheels.require_full_rank()      # rank < 3: say so, not HiGHS
         raise InfeasibleError(
             "wheels: the working wheels cannot produce a torque along the "
             f"eigenaxis (linprog: {res.message})", problem=demand)
@@ -251,6 +252,9 @@ def eigenaxis_slew(inertia: ArrayLike | Spacecraft, q0: ArrayLike, qf: ArrayLike
         bounds, zero quaternions).
     InfeasibleError
         The actuators cannot turn the body about the eigenaxis.
+    RankError
+        They cannot, and the working wheels span fewer than 3 axes (the
+        message gives the rank and the failed wheels, 1-based).
     """
     inertia, wheels, rate_max = slew_parts(inertia, wheels, rate_max)
     J = check_inertia(inertia)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -14,8 +15,10 @@ from .core import (
     CONTROLS,
     TOL,
     BenchRow,
+    Corrections,
     Progress,
     _split,
+    explain,
     kkt_residual,
     quiet,
     timed_row,
@@ -90,7 +93,7 @@ def bench_wheels(backends: Sequence[str] | None = None, reps: int = 200,
         "wheels", names,
         lambda base, opts: QPAllocator(arr, solver=base,
                                        solver_options=opts),
-        lambda alloc: (lambda M: alloc.allocate(M).torques),
+        lambda alloc, watch: (lambda M: watch(alloc.allocate(M)).torques),
         demands, refs, cert, bar, budget)
 
 
@@ -100,8 +103,10 @@ def _backend_rows(problem: str, names: list[str], build: Any,
     """Time every backend of ``names`` on ``cases`` (one row each).
 
     ``build(base, options)`` makes the allocator (a backend it cannot
-    make is reported as not available and skipped); ``solver_of(alloc)``
-    returns the function `timed_row` times.
+    make is reported as not available and skipped); ``solver_of(alloc,
+    watch)`` returns the function `timed_row` times, passing each result
+    through ``watch`` (a `Corrections`: a control row's note says what
+    the certificate corrected, as counted).
     """
     bar.add(len(names) * len(cases))
     rows = []
@@ -109,8 +114,11 @@ def _backend_rows(problem: str, names: list[str], build: Any,
         base, opts = _split(name)
         try:
             alloc = build(base, opts)
-            row = timed_row(problem, name, cases, refs, solver_of(alloc),
-                            certify, bar, budget)
+            watch = Corrections()
+            row = timed_row(problem, name, cases, refs,
+                            solver_of(alloc, watch), certify, bar, budget)
+            if name.endswith("@loose"):
+                row = replace(row, note=explain(row, budget, watch))
         except (KeyboardInterrupt, RuntimeError, AdcsError, TypeError,
                 ValueError) as exc:
             if not interrupted(exc):
@@ -212,7 +220,8 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
         "thrusters", names,
         lambda base, opts: DutyCycleAllocator(
             unit, 2.0, h_max, solver=base, solver_options=opts, **kw),
-        lambda alloc: (lambda th: duty_point(alloc.solve_theta(th))),
+        lambda alloc, watch: (lambda th: duty_point(
+            watch(alloc.solve_theta(th)))),
         thetas, refs,
         lambda th, x: kkt_residual(qp.P, data(th)[0], C, data(th)[1],
                                    data(th)[2], x), bar, budget)

@@ -23,11 +23,15 @@ from adcs.report import (
     StudyContext,
     Table,
     paper_row,
+    verdict,
 )
 
 #: -Bdot gain of the detumbling runs [A·m²·s/T] (saturates at 3.2 A·m²).
 DETUMBLE_GAIN = 5e5
 SETTLED = np.deg2rad(1.0)
+#: [2]'s pitch offset at k = 0.1 A·m² [deg], printed to the degree, and
+#: the tolerance that printing gives it [deg]
+PITCH_PAPER_DEG, PITCH_TOL_DEG = 6.0, 0.5
 
 
 def _settle_time(t: np.ndarray, rate: np.ndarray) -> float:
@@ -96,14 +100,19 @@ def pitch_offset(ctx: StudyContext, orbit: CircularOrbit, inertia):
         late = r.t > n_orbits / 2 * orbit.period
         sim = float(np.degrees(r.angles[late, 0].mean()))
         eq = float(np.degrees(pitch_offset_eq37(orbit, inertia, k)))
-        paper = 6.0 if k == 0.1 else "—"
-        rows.append([f"k = {k} A·m²", paper, eq, sim, sim - eq])
+        paper = PITCH_PAPER_DEG if k == 0.1 else "—"
+        judged = (verdict(paper, sim, tol=PITCH_TOL_DEG) if k == 0.1
+                  else "—")
+        rows.append([f"k = {k} A·m²", paper,
+                     f"±{PITCH_TOL_DEG:g}" if k == 0.1 else "—", eq, sim,
+                     sim - eq, judged])
         sims.append(sim)
         theory.append(eq)
     table = Table(
         "Pitch offset with the boom, a 0.05 N·m·s pitch wheel and -Bdot "
-        "(eq. 3.7)", ["dipole scale", "paper [deg]", "eq. (3.7) [deg]",
-                      "simulation, mean α [deg]", "sim − eq. (3.7)"], rows,
+        "(eq. 3.7)", ["dipole scale", "paper [deg]", "tolerance [deg]",
+                      "eq. (3.7) [deg]", "simulation, mean α [deg]",
+                      "sim − eq. (3.7)", "verdict"], rows,
         "k in eq. (3.7) is the -Bdot dipole scale (gain × B0 ω0), not a "
         "constant dipole along the boom: held in the orbit frame the "
         "field turns at ω0 and -Bdot then gives a constant pitch torque "
@@ -111,7 +120,9 @@ def pitch_offset(ctx: StudyContext, orbit: CircularOrbit, inertia):
         "and 6° (A, B, C) = ("
         + ", ".join(f"{v:.2f}" for v in inertia) + ") kg·m², "
         "so the 6° row checks the inference; the others test eq. (3.7) "
-        "against the nonlinear 3-D model.", digits=3)
+        "against the nonlinear 3-D model. The paper prints 6° to the "
+        f"degree: the simulation is judged to ±{PITCH_TOL_DEG:g}°, the "
+        "rounding of that figure.", digits=3)
     fig, ax = plt.subplots(figsize=(5, 3.6))
     ax.plot(dipoles, theory, "k-", label="eq. (3.7)")
     ax.plot(dipoles, sims, "o", label="simulation")
@@ -152,25 +163,65 @@ def boundary(ctx: StudyContext, orbit: CircularOrbit, inertia) -> Table:
                  "inferred, [2] does not give it).", digits=3)
 
 
+def _reach_time(t: np.ndarray, h: np.ndarray, limit: float) -> float:
+    """Time the ramp ``h(t)`` reaches ``limit`` [s] (NaN: never).
+
+    Extrapolated along the ramp from the last output sample below the
+    limit (its slope from that sample and the one before), so the time
+    is not rounded up to the output grid.
+    """
+    at = np.flatnonzero(np.abs(h) >= limit - 1e-9)
+    if at.size == 0:
+        return float("nan")
+    k = int(at[0])
+    if k == 0:
+        return float(t[0])
+    j = max(k - 2, 0)
+    slope = (abs(h[k - 1]) - abs(h[j])) / (t[k - 1] - t[j]) if k > 1 \
+        else (abs(h[k]) - abs(h[k - 1])) / (t[k] - t[k - 1])
+    if not slope > 0:
+        return float(t[k])
+    return float(t[k - 1] + (limit - abs(h[k - 1])) / slope)
+
+
+#: pitch-wheel spin-up of Fig. 8: torque [N·m] and momentum limit [N·m·s]
+SPIN_TORQUE, SPIN_LIMIT = 2.2e-4, 0.05
+
+
 def spin_up(ctx: StudyContext, orbit: CircularOrbit, inertia):
     """Pitch-wheel spin-up with -Bdot at full dipole (paper Fig. 8)."""
     n_orbits = 4 if ctx.quick else 8
     cfg = ChibisConfig(inertia=inertia, bdot_gain=1e7,
-                       spin_torque=(0, 2.2e-4, 0), spin_limit=0.05)
+                       spin_torque=(0, SPIN_TORQUE, 0),
+                       spin_limit=SPIN_LIMIT)
     r = simulate(cfg, initial_state(cfg, (5, 5, 5), (0.15, 0.15, 0.15)),
                  n_orbits * orbit.period, n_out=1200)
     tilt = np.degrees(np.arccos(np.clip(
         np.cos(r.angles[:, 1]) * np.cos(r.angles[:, 2]), -1, 1)))
-    t_full = float(r.t[np.argmax(np.abs(r.H[:, 1]) >= 0.05 - 1e-9)])
-    rows = [["wheel momentum reached [N·m·s]", 0.05, float(r.H[-1, 1]),
-             "2.2e-4 N·m, limit 0.05"],
-            ["time to reach it [s]", 0.05 / 2.2e-4, t_full, ""],
-            [f"wheel-axis tilt from the orbit normal after {n_orbits} "
-             "orbits [deg]", "→ 0", float(tilt[-1]), "-Bdot saturating "
-             f"at {MAX_DIPOLE} A·m²"]]
+    t_full = _reach_time(r.t, r.H[:, 1], SPIN_LIMIT)
+    step = float(r.t[1] - r.t[0])
+    rows = [
+        paper_row("wheel momentum reached [N·m·s]", SPIN_LIMIT,
+                  float(r.H[-1, 1]), f"{SPIN_TORQUE:g} N·m, limit "
+                  f"{SPIN_LIMIT:g}", rel=1e-3, reason="the torque stops "
+                  "at the limit within one integrator step"),
+        paper_row("time to reach it [s]", SPIN_LIMIT / SPIN_TORQUE, t_full,
+                  "paper: limit / torque; ours: the simulated ramp, "
+                  f"output every {step:.1f} s", rel=0.01,
+                  reason="the wheel torque is not the constant "
+                  f"{SPIN_TORQUE:g} N·m of Fig. 8"),
+        paper_row(f"wheel-axis tilt from the orbit normal after "
+                  f"{n_orbits} orbits [deg]", "→ 0", float(tilt[-1]),
+                  f"-Bdot saturating at {MAX_DIPOLE} A·m²",
+                  reason="[2] shows a trend towards 0, not a figure")]
     return Table("Pitch-wheel spin-up with the boom deployed (Fig. 8)",
-                 ["quantity", "paper", "ours", "note"], rows, digits=4), \
-        float(tilt[-1])
+                 PAPER_COLUMNS, rows,
+                 "The momentum is compared to ±0.1 % of the limit and the "
+                 "time to ±1 %: with a constant torque both follow from "
+                 "Fig. 8's torque and limit. The time is read off the "
+                 "simulated ramp (extrapolated from the last output "
+                 "sample below the limit, not rounded up to the "
+                 f"{step:.1f} s output grid).", digits=4), float(tilt[-1])
 
 
 def failure_table(ctx: StudyContext, orbit: CircularOrbit, inertia) -> Table:

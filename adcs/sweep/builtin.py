@@ -85,7 +85,12 @@ def craft_inputs(row: dict) -> dict:
 
 def agility_case(spacecraft: str, axis: int, angle_deg: float,
                  N: int) -> dict:
-    """Eigenaxis and time-optimal slew times about a body axis."""
+    """Eigenaxis and time-optimal slew times about a body axis.
+
+    ``axis``: index (0-based) of `fibonacci_axes`; the case also returns
+    that axis's direction (``axis_x``, ``axis_y``, ``axis_z``). Times in
+    seconds.
+    """
     from ocp import eigenaxis_slew, quat_from_axis_angle, time_optimal_slew
 
     sc = _craft(spacecraft)
@@ -94,7 +99,9 @@ def agility_case(spacecraft: str, axis: int, angle_deg: float,
     qf = quat_from_axis_angle(directions[axis], np.deg2rad(angle_deg))
     eig = eigenaxis_slew(sc, q0, qf)
     opt = time_optimal_slew(sc, q0, qf, N=N)
-    return {"eigenaxis_T": eig.T, "time_optimal_T": opt.T,
+    x, y, z = (float(v) for v in directions[axis])
+    return {"axis_x": x, "axis_y": y, "axis_z": z,
+            "eigenaxis_T": eig.T, "time_optimal_T": opt.T,
             "saving": 1.0 - opt.T / eig.T, "success": float(opt.success)}
 
 

@@ -336,27 +336,40 @@ def _same(v) -> str:
 
 
 def spacecraft_to_toml(sc: Spacecraft) -> str:
-    """TOML of ``sc`` in the general form (axes, custom thrusters).
+    """TOML of ``sc``: its layouts with their parameters where they fit.
 
-    Numbers are written with ``repr``: reading the text back gives the
-    same craft (thrust levels to the last bit of ``thrust / pressure``).
+    The wheels as a layout (``pyramid = { delta_deg = 55.0, ... }``) and
+    a six-thruster unit with its ``R`` and ``L`` when reading that back
+    gives the same arrays exactly (`toml_layout`); otherwise the general
+    form (axes, custom thrusters). Numbers are written with ``repr``:
+    reading the text back gives the same craft (thrust levels to the last
+    bit of ``thrust / pressure``).
     """
+    from .toml_layout import degrees, six_unit_lines, wheel_layout
+
     w = sc.wheels
     lines = [f"name = {_string(sc.name)}"]
     if sc.description:
         lines.append(f"description = {_string(sc.description)}")
-    lines.append(f"inertia = {_vec(sc.inertia)}   # kg·m²")
+    J = sc.inertia
+    diagonal = np.array_equal(J, np.diag(np.diag(J)))
+    lines.append(f"inertia = {_vec(np.diag(J) if diagonal else J)}   "
+                 f"# kg·m²{', diagonal' if diagonal else ''}")
     if sc.rate_max is not None:
-        lines.append(f"rate_max_deg = {_num(np.rad2deg(sc.rate_max))}")
-    lines += ["", "[wheels]",
-              f"axes = {_vec(w.axes.T)}",
-              f"h_max = {_same(w.h_max)}   # N·m·s",
-              f"m_max = {_same(w.m_max)}   # N·m",
-              f"names = {_strings(w.names)}"]
+        lines.append(f"rate_max_deg = {_num(degrees(sc.rate_max))}")
+    limits = [f"h_max = {_same(w.h_max)}   # N·m·s",
+              f"m_max = {_same(w.m_max)}   # N·m"]
     if w.failed:
-        lines.append(f"failed = [{', '.join(str(i + 1) for i in w.failed)}]")
+        limits.append(f"failed = [{', '.join(str(i + 1) for i in w.failed)}]")
+    layout = wheel_layout(w, limits)
+    lines += ["", "[wheels]"] + (layout or [
+        f"axes = {_vec(w.axes.T)}", *limits,
+        f"names = {_strings(w.names)}"])
     t = sc.thrusters
-    if t is not None:
+    unit = None if t is None else six_unit_lines(t)
+    if unit is not None:
+        lines += ["", "[thrusters]", *unit]
+    elif t is not None:
         lines += ["", "[thrusters]", 'kind = "custom"',
                   f"positions = {_vec(t.positions.T)}   # m",
                   f"directions = {_vec(t.directions.T)}",

@@ -1,6 +1,7 @@
 """Optimizer comparison: certified answers, table, JSON and plot."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -72,6 +73,33 @@ def test_fast_wrong_answers_are_reported_wrong():
     # this row had KKT residuals over 1e-3 and wrong answers)
     assert loose.wrong == 0
     assert loose.max_kkt <= 1e-6
+    # the note states what was measured, not what should happen
+    counted = re.search(r"the certificate corrected (\d+) of (\d+) of its "
+                        r"points by more than 1e-06 \(largest move "
+                        r"([0-9.e+-]+)\) and refused (\d+); after it the "
+                        r"bench's check found 0 of 12 wrong", loose.note)
+    assert counted, loose.note
+    assert int(counted[2]) == 12 and 1 <= int(counted[1]) <= 12
+    assert 1e-6 < float(counted[3]) < 0.1
+    assert "must" not in loose.note
+
+
+def test_the_certificate_reports_how_far_it_moved_a_point():
+    from allocation import QPAllocator
+
+    from adcs.bench.problems import wheel_problem
+
+    arr, demands = wheel_problem(None, 3, seed=0)     # bounds active
+    loose = QPAllocator(arr, solver="osqp", solver_options={
+        "eps_abs": 1e-3, "eps_rel": 1e-3, "polishing": False})
+    exact = QPAllocator(arr, solver="daqp")
+    moves = []
+    for M in demands:
+        res = loose.allocate(M)
+        moves.append(res.extras["certificate"]["moved"])
+        np.testing.assert_allclose(res.torques, exact.allocate(M).torques,
+                                   atol=1e-9)
+    assert max(moves) > 1e-6          # OSQP's loose point was corrected
 
 
 def test_ctrl_c_keeps_the_finished_rows_and_exits_130(tmp_path, capsys,

@@ -381,3 +381,59 @@ def test_cli_says_which_chunks_failed_verification(tmp_path, capsys):
     after = xr.load_dataset(tmp_path / "accuracy.nc")
     np.testing.assert_array_equal(after["angle_p95_deg"].values,
                                   before["angle_p95_deg"].values)
+
+
+# -- #26: the dataset says what it holds; the plot tells its axes apart ---
+def test_a_sweep_dataset_has_units_craft_and_version(tmp_path):
+    from adcs import __version__
+    from adcs.sweep.builtin import fibonacci_axes
+
+    assert main(["sweep", "agility", "--quick", "--sync", "--out",
+                 str(tmp_path), "--no-progress"]) == 0
+    ds = xr.load_dataset(tmp_path / "agility.nc")
+    assert ds.attrs["adcs_toolbox_version"] == __version__
+    assert ds.attrs["sweep"] == "agility"
+    assert ds.attrs["spacecraft"] == "demo"
+    assert ds.attrs["spacecraft_name"] == "demo"
+    assert ds.attrs["created_utc"].endswith("Z")
+    for var, units in (("eigenaxis_T", "s"), ("time_optimal_T", "s"),
+                       ("angle_deg", "deg"), ("saving", "1")):
+        assert ds[var].attrs["units"] == units, var
+    assert "0-based" in ds["axis"].attrs["long_name"]
+    # each case carries its axis's direction
+    for a, x, y, z in zip(ds["axis"].values, ds["axis_x"].values,
+                          ds["axis_y"].values, ds["axis_z"].values):
+        np.testing.assert_allclose([x, y, z], fibonacci_axes()[a],
+                                   rtol=0, atol=1e-15)
+
+
+def test_the_agility_legend_numbers_axes_from_1_in_distinct_styles():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from adcs.sweep.builtin import fibonacci_axes
+    from adcs.sweep.plots import sweep_figure
+
+    dirs = fibonacci_axes()
+    axis = np.repeat(np.arange(12), 2)
+    ds = xr.Dataset({
+        "axis": ("case", axis), "angle_deg": ("case", np.tile([30.0, 90.0],
+                                                              12)),
+        "time_optimal_T": ("case", 10.0 + axis + np.tile([0.0, 5.0], 12)),
+        "axis_x": ("case", dirs[axis, 0]), "axis_y": ("case", dirs[axis, 1]),
+        "axis_z": ("case", dirs[axis, 2]), "error": ("case", [""] * 24)})
+    fig = sweep_figure("agility", ds)
+    ax = fig.axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels[0].startswith("axis 1 (") and labels[-1].startswith(
+        "axis 12 (")
+    x, y, z = dirs[0]
+    assert labels[0] == f"axis 1 ({x:+.2f}, {y:+.2f}, {z:+.2f})"
+    lines = ax.get_lines()
+    colours = {tuple(np.round(line.get_color(), 6)) for line in lines}
+    looks = {(tuple(np.round(line.get_color(), 6)), line.get_linestyle(),
+              line.get_marker()) for line in lines}
+    assert len(lines) == 12 and len(colours) == 12 and len(looks) == 12
+    plt.close(fig)

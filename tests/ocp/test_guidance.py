@@ -121,3 +121,14 @@ def test_eigenaxis_trajectory_plot_shows_wheels():
     fig = eigenaxis_slew(J_METEOR, Q0, qf, wheels=arr).trajectory(50).plot()
     assert len(fig.axes[3].get_lines()) == 4  # one momentum line per wheel
     assert "eigenaxis" in fig.axes[0].get_title()
+
+
+def test_eigenaxis_on_two_working_wheels_names_the_rank():
+    from adcs_common.exceptions import RankError
+
+    wheels = WheelArray.pyramid(h_max=1.0, m_max=0.1).with_failed(0, 2)
+    with pytest.raises(RankError, match=r"rank 2 < 3 \(failed wheels "
+                       r"\[1, 3\]\)"):
+        eigenaxis_slew(np.diag([3.0, 2.5, 3.5]), Q0,
+                       quat_from_axis_angle([1, 1, 1], np.pi / 2),
+                       wheels=wheels)

@@ -215,3 +215,107 @@ def test_names_and_descriptions_with_quotes_survive_the_file(tmp_path):
     odd.save(tmp_path / "odd.toml")
     back = load_spacecraft(tmp_path / "odd.toml")
     assert (back.name, back.description) == (odd.name, odd.description)
+
+
+# -- #26: save writes back the layout and its parameters ------------------
+USER_FILE = """
+name = "user"
+inertia = [120.0, 95.0, 80.0]
+rate_max_deg = 2.5
+[wheels]
+pyramid = { delta_deg = 50.5, gamma_deg = 40.25 }
+h_max = 4.0
+m_max = 0.2
+failed = [2]
+[thrusters]
+kind = "six_thruster_unit"
+R = 0.3
+L = 0.4
+thrust = 0.5
+min_on_time = 0.03
+"""
+
+
+def _same_craft(a, b, axes_atol: float = 0.0) -> None:
+    """Equal to the last bit (the axes form: its axes to ``axes_atol``)."""
+    np.testing.assert_array_equal(a.inertia, b.inertia)
+    assert a.rate_max == b.rate_max
+    np.testing.assert_allclose(a.wheels.axes, b.wheels.axes, rtol=0,
+                               atol=axes_atol)
+    for k in ("h_max", "m_max"):
+        np.testing.assert_array_equal(getattr(a.wheels, k),
+                                      getattr(b.wheels, k))
+    assert a.wheels.failed == b.wheels.failed
+    assert a.wheels.names == b.wheels.names
+    if a.thrusters is not None:
+        for k in ("positions", "directions", "pressure_slope", "correction",
+                  "center_of_mass"):
+            np.testing.assert_array_equal(getattr(a.thrusters, k),
+                                          getattr(b.thrusters, k))
+        assert a.thrusters.min_on_time == b.thrusters.min_on_time
+        assert a.thrusters.pairs == b.thrusters.pairs
+
+
+def test_save_writes_the_layout_and_its_parameters(tmp_path):
+    sc = spacecraft_from_toml(USER_FILE, "user.toml")
+    path = tmp_path / "user.toml"
+    sc.save(path)
+    text = path.read_text()
+    for line in ("inertia = [120.0, 95.0, 80.0]", "rate_max_deg = 2.5",
+                 "pyramid = { delta_deg = 50.5, gamma_deg = 40.25 }",
+                 "failed = [2]", 'kind = "six_thruster_unit"', "R = 0.3",
+                 "L = 0.4", "thrust = 0.5", "min_on_time = 0.03"):
+        assert line in text, (line, text)
+    for expanded in ("axes =", "positions =", "directions =", "names =",
+                     "open_delay"):
+        assert expanded not in text, (expanded, text)
+    back = load_spacecraft(path)
+    _same_craft(back, sc)
+    assert back.to_toml() == text                 # a fixed point
+
+
+@pytest.mark.parametrize("wheels, line", [
+    (WheelArray.pyramid(np.deg2rad(60.0), np.deg2rad(30.0), h_max=1.0,
+                        m_max=0.1),
+     "pyramid = { delta_deg = 60.0, gamma_deg = 30.0 }"),
+    (WheelArray.orthogonal_plus_skew(skew="equal_angle"),
+     'orthogonal_plus_skew = { skew = "equal_angle" }'),
+    (WheelArray.orthogonal_plus_skew(phi2=np.deg2rad(30.0),
+                                     phi3=np.deg2rad(20.0)),
+     'orthogonal_plus_skew = { skew = "paper", phi2_deg = 30.0, '
+     'phi3_deg = 20.0 }'),
+    (WheelArray.orthogonal_pairs(h_max=0.05, m_max=2e-4),
+     "orthogonal_pairs = {}"),
+])
+def test_a_layout_built_in_python_is_saved_as_that_layout(wheels, line,
+                                                          tmp_path):
+    sc = Spacecraft("py", np.diag([3.0, 2.5, 3.5]), wheels)
+    sc.save(tmp_path / "py.toml")
+    text = (tmp_path / "py.toml").read_text()
+    assert line in text and "axes =" not in text, text
+    _same_craft(load_spacecraft(tmp_path / "py.toml"), sc)
+
+
+def test_arrays_no_layout_gives_are_saved_as_axes(tmp_path):
+    """Mounting errors, renamed wheels, a moved thruster: general form."""
+    wheels = WheelArray.pyramid(d_delta=[1e-3, 0, 0, 0], h_max=1.0,
+                                m_max=0.1)
+    unit = six_thruster_unit()
+    pos = np.array(unit.positions)
+    pos[0, [0, 3]] += 0.01                # D1 and its pair D4: 1 cm in x
+    from dataclasses import replace
+
+    sc = Spacecraft("odd", np.diag([3.0, 2.5, 3.5]), wheels,
+                    replace(unit, positions=pos))
+    sc.save(tmp_path / "odd.toml")
+    text = (tmp_path / "odd.toml").read_text()
+    assert "axes =" in text and 'kind = "custom"' in text
+    assert "pyramid" not in text and "six_thruster_unit" not in text
+    # the axes form normalises the axes again on reading: 1 ulp
+    _same_craft(load_spacecraft(tmp_path / "odd.toml"), sc, 2.3e-16)
+    named = Spacecraft("named", np.eye(3), WheelArray.from_axes(
+        WheelArray.pyramid().axes, names=("A", "B", "C", "D")))
+    named.save(tmp_path / "named.toml")
+    text = (tmp_path / "named.toml").read_text()
+    assert 'names = ["A", "B", "C", "D"]' in text and "pyramid" in text
+    _same_craft(load_spacecraft(tmp_path / "named.toml"), named)
