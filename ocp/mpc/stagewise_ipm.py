@@ -94,20 +94,22 @@ def _dot(a, b):
 
 
 def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
-                  r_diag: np.ndarray) -> ca.Function:
+                  r_diag: np.ndarray, flags: np.ndarray) -> ca.Function:
     """``sw_ipm_iter(state…, data…) -> (state…, kkt)``: one Mehrotra step.
 
     The state is ``(dU (n_u × N), dX (n_x × N), Sl, Su, Ll, Lu (nb × N))``;
     the data ``(A, B, Q (nonzeros × N), q (n_x × N), g (n_u × N), lo, hi
     (nb × N), Ar, Br, Qr)`` (the last three reversed in time). ``kkt`` is
-    the new point's KKT residual (module doc).
+    the new point's KKT residual (module doc). ``flags`` (N,) are 1 where
+    a stage chooses its control and 0 where it holds the one before it
+    (move blocking, `stagewise_kernels.stage_kernels`).
     """
     nb = lay.nb
     sym = ca.MX.sym
     dU, dX = sym("dU", nu, N), sym("dX", nx, N)
     Sl, Su, Ll, Lu = (sym(n, nb, N) for n in ("Sl", "Su", "Ll", "Lu"))
     sp = {n: kern["ric"].sparsity_in(i) for n, i in
-          (("a", 2), ("b", 3), ("q", 4))}
+          (("a", 5), ("b", 6), ("q", 7))}
     A, B, Q = (sym(n, sp[n].nnz(), N) for n in ("a", "b", "q"))
     Ar, Br, Qr = (sym(n + "r", sp[n].nnz(), N) for n in ("a", "b", "q"))
     q, g = sym("q", nx, N), sym("g", nu, N)
@@ -115,9 +117,11 @@ def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     state = [dU, dX, Sl, Su, Ll, Lu]
     data = [A, B, Q, q, g, lo, hi, Ar, Br, Qr]
     R = ca.DM(ca.diag(ca.DM(r_diag)))
-    ric = kern["ric"].mapaccum("sw_ric_N", N, 2)
-    vec = kern["vec"].mapaccum("sw_vec_N", N, 1)
-    fwd = kern["fwd"].mapaccum("sw_fwd_N", N, 1)
+    ric = kern["ric"].mapaccum("sw_ric_N", N, 5)
+    vec = kern["vec"].mapaccum("sw_vec_N", N, 2)
+    fwd = kern["fwd"].mapaccum("sw_fwd_N", N, 2)
+    s, sr = ca.DM(flags).T, ca.DM(flags[::-1]).T
+    zx, zu = ca.DM.zeros(nx), ca.DM.zeros(nu)
     qmul = kern["qmul"].map(N)
     m = 2.0 * nb * N
 
@@ -134,15 +138,16 @@ def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
         return reverse_columns(qt), reverse_columns(rt)
 
     def forward(kff_r, K):
-        dXn, dUn = fwd(ca.DM.zeros(nx), A, B, K, reverse_columns(kff_r))
+        dXn, _, dUn = fwd(zx, zu, A, B, K, reverse_columns(kff_r), s)
         dv = lay.values(dUn, dXn)
         return dUn, dXn, dv + rpl, rpu - dv
 
     qr, rr = sweep_in(Ll * rpl / Sl - Lu * rpu / Su)
-    _, _, Kr, kr, Lr = ric(ca.DM.zeros(nx * (nx + 1) // 2), ca.DM.zeros(nx),
-                           Ar, Br,
-                           Qr, reverse_columns(sig[lay.nbu:, :]),
-                           reverse_columns(sig[:lay.nbu, :]), qr, rr)
+    *_, Kr, kr, Lr, Mr = ric(
+        ca.DM.zeros(nx * (nx + 1) // 2), zx, ca.DM.zeros(nx, nu),
+        ca.DM.zeros(nu, nu), zu, Ar, Br, Qr,
+        reverse_columns(sig[lay.nbu:, :]), reverse_columns(sig[:lay.nbu, :]),
+        qr, rr, sr)
     K = reverse_columns(Kr)
     _, _, dSl_a, dSu_a = forward(kr, K)
     dLl_a = -Ll - Ll * dSl_a / Sl
@@ -155,7 +160,7 @@ def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     cl, cu = dSl_a * dLl_a, dSu_a * dLu_a
     qr2, rr2 = sweep_in((Ll * rpl - smu + cl) / Sl
                         - (Lu * rpu - smu + cu) / Su)
-    _, kr2 = vec(ca.DM.zeros(nx), Ar, Br, Kr, Lr, qr2, rr2)
+    _, _, kr2 = vec(zx, zu, Ar, Br, Mr, Lr, qr2, rr2, sr)
     ddU, ddX, dSl, dSu = forward(kr2, K)
     dLl = -Ll + (smu - cl - Ll * dSl) / Sl
     dLu = -Lu + (smu - cu - Lu * dSu) / Su
@@ -163,22 +168,27 @@ def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
                          IPM_TAU)
     new = [dU + alpha * ddU, dX + alpha * ddX, Sl + alpha * dSl,
            Su + alpha * dSu, Ll + alpha * dLl, Lu + alpha * dLu]
-    kkt = kkt_residual(kern, lay, N, nx, R, new, data)
+    kkt = kkt_residual(kern, lay, N, (nx, nu), R, new, data, sr)
     return ca.Function("sw_ipm_iter", state + data, new + [kkt])
 
 
-def kkt_residual(kern: dict, lay: BoxLayout, N: int, nx: int, R, state,
-                 data) -> ca.MX:
-    """The KKT residual of an iterate (module doc), scaled, ≥ 0."""
+def kkt_residual(kern: dict, lay: BoxLayout, N: int, dims: tuple, R,
+                 state, data, flags_r) -> ca.MX:
+    """The KKT residual of an iterate (module doc), scaled, ≥ 0.
+
+    ``dims`` is ``(n_x, n_u)``, ``flags_r`` the move-blocking flags
+    reversed in time (a held control's gradient joins its block's).
+    """
+    nx, nu = dims
     dU, dX, Sl, Su, Ll, Lu = state
     A, B, Q, q, g, lo, hi, Ar, Br, Qr = data
     V = lay.values(dU, dX)
     lam = Lu - Ll
     gx = kern["qmul"].map(N)(Q, dX) + q + ca.mtimes(lay.Ex.T, lam)
     gu = ca.mtimes(R, dU) + g + ca.mtimes(lay.Eu.T, lam)
-    costate = kern["costate"].mapaccum("sw_costate_N", N, 1)
-    _, rho = costate(ca.DM.zeros(nx), Ar, Br, reverse_columns(gx),
-                     reverse_columns(gu))
+    costate = kern["costate"].mapaccum("sw_costate_N", N, 2)
+    *_, rho = costate(ca.DM.zeros(nx), ca.DM.zeros(nu), Ar, Br,
+                      reverse_columns(gx), reverse_columns(gu), flags_r)
     scale = 1.0 + ca.fmax(ca.mmax(ca.fabs(q)), ca.mmax(ca.fabs(g)))
     dual = ca.mmax(ca.fabs(rho)) / scale
     primal = ca.mmax(ca.fabs(ca.vertcat(ca.vec(V - lo - Sl),
@@ -189,15 +199,20 @@ def kkt_residual(kern: dict, lay: BoxLayout, N: int, nx: int, R, state,
 
 def ipm_solve(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
               r_diag: np.ndarray, max_iter: int = IPM_MAX_ITER,
-              tol: float = IPM_TOL) -> ca.Function:
+              tol: float = IPM_TOL, flags: np.ndarray | None = None
+              ) -> ca.Function:
     """``sw_ipm(dU0, dX0, A, B, Q, q, g, lo, hi) -> (dU, dX, lam, n, kkt)``.
 
     Solves the QP (module doc) from the dynamics-feasible point ``(dU0,
     dX0)``; ``lam`` (nb × N) are the boxes' multipliers ``λ_u − λ_l`` in
     scaled units, ``n`` the iterations made, ``kkt`` the last residual
     (above ``tol`` when ``max_iter`` iterations did not reach it).
+    ``flags`` (N,): 1 where a stage chooses its control, 0 where it holds
+    the one before (move blocking; default: every stage chooses); the
+    start must hold them too.
     """
-    it = ipm_iteration(kern, lay, N, nx, nu, r_diag)
+    flags = np.ones(N) if flags is None else np.asarray(flags, float)
+    it = ipm_iteration(kern, lay, N, nx, nu, r_diag, flags)
     # fresh symbols: a call on the Function's own inputs would inline it
     ins = [ca.MX.sym(it.name_in(i), it.sparsity_in(i))
            for i in range(it.n_in())]

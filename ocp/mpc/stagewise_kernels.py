@@ -62,7 +62,8 @@ def reverse_columns(M: ca.MX) -> ca.MX:
 
 def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
                   r_diag: np.ndarray, free: np.ndarray, bu: list[int],
-                  bx: list[int]) -> dict[str, ca.Function]:
+                  bx: list[int], blocked: bool = False
+                  ) -> dict[str, ca.Function]:
     """The kernels of one stage's Riccati step, rollout and costate.
 
     Parameters
@@ -77,6 +78,13 @@ def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
     bu, bx : list of int
         Components of u and of x that carry a box (their barrier
         diagonals ``su``, ``sx`` are added to R and to Q).
+    blocked : bool
+        Move blocking: a stage whose flag ``s`` is 0 holds the control of
+        the stage before it. The recursion then carries the value's terms
+        in that held control v (``Pxv``, ``Pvv``, ``pv``) back to the
+        block's first stage (``s = 1``), where v is chosen. Without
+        blocking every stage chooses (``s = 1``) and those terms vanish
+        from the kernels.
     """
     nx, nu = sp_b.size1(), sp_b.size2()
     an, A = from_nz("a", sp_a)
@@ -90,6 +98,12 @@ def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
     pl = ca.SX.sym("P", low.nnz())
     P = ca.tril2symm(ca.SX(low, pl))
     p = ca.SX.sym("p", nx)
+    held = [ca.SX.sym("Pxv", nx, nu), ca.SX.sym("Pvv", nu, nu),
+            ca.SX.sym("pv", nu)]
+    s = ca.SX.sym("s")
+    Pxv, Pvv, pv = held if blocked else (ca.SX(nx, nu), ca.SX(nu, nu),
+                                         ca.SX(nu, 1))
+    flag = s if blocked else 1.0
     sx = ca.SX.sym("sx", len(bx))
     su = ca.SX.sym("su", len(bu))
     qt = ca.SX.sym("qt", nx)
@@ -97,41 +111,50 @@ def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
     Ph = P + Q
     for j, i in enumerate(bx):
         Ph[i, i] += sx[j]
-    Re = ca.diag(ca.DM(r_diag)) + ca.mtimes([B.T, Ph, B])
+    PhB = ca.mtimes(Ph, B)
+    Mxv = ca.mtimes(A.T, PhB + Pxv)
+    Re = (ca.diag(ca.DM(r_diag)) + ca.mtimes(B.T, PhB) + Pvv
+          + ca.mtimes(B.T, Pxv) + ca.mtimes(Pxv.T, B))
     for j, i in enumerate(bu):
         Re[i, i] += su[j]
     Lit = inv_lower(chol_lower(Re)).T
     Rinv = ca.mtimes(Lit, Lit.T)
-    PA = ca.mtimes(Ph, A)
-    BPA = ca.mtimes(B.T, PA)
-    K = -ca.mtimes(Rinv, BPA)
+    K = -ca.mtimes(Rinv, Mxv.T)
     ph = p + qt
-    rhs = rt * mask + ca.mtimes(B.T, ph)
-    Pk = ca.mtimes(A.T, PA) + ca.mtimes(BPA.T, K)
+    rhs = rt * mask + ca.mtimes(B.T, ph) + pv
+    Pk = ca.mtimes(A.T, ca.mtimes(Ph, A)) + flag * ca.mtimes(Mxv, K)
+    keep = 1.0 - flag
     ric = ca.Function(
-        "sw_ric", [pl, p, an, bn, qn, sx, su, qt, rt],
+        "sw_ric", [pl, p, *held, an, bn, qn, sx, su, qt, rt, s],
         [nz_of(ca.project(ca.densify(Pk), low)),
-         ca.mtimes(A.T, ph) + ca.mtimes(K.T, rhs),
+         ca.mtimes(A.T, ph) + flag * ca.mtimes(K.T, rhs),
+         ca.densify(keep * Mxv), ca.densify(keep * Re),
+         ca.densify(keep * rhs),
          nz_of(ca.densify(K)), -ca.mtimes(Rinv, rhs),
-         nz_of(ca.densify(Lit))])
-    kn, Kd = from_nz("K", ca.Sparsity.dense(nu, nx))
+         nz_of(ca.densify(Lit)), nz_of(ca.densify(Mxv))])
     ln, L = from_nz("L", ca.Sparsity.dense(nu, nu))
+    mn, M = from_nz("M", ca.Sparsity.dense(nx, nu))
+    kv = -ca.mtimes([L, L.T, rhs])
     vec = ca.Function(
-        "sw_ricvec", [p, an, bn, kn, ln, qt, rt],
-        [ca.mtimes(A.T, ph) + ca.mtimes(Kd.T, rhs),
-         -ca.mtimes([L, L.T, rhs])])
+        "sw_ricvec", [p, held[2], an, bn, mn, ln, qt, rt, s],
+        [ca.mtimes(A.T, ph) + flag * ca.mtimes(M, kv),
+         ca.densify(keep * rhs), kv])
+    kn, Kd = from_nz("K", ca.Sparsity.dense(nu, nx))
     dx = ca.SX.sym("dx", nx)
+    v = ca.SX.sym("v", nu)
     kff = ca.SX.sym("kff", nu)
-    du = ca.mtimes(Kd, dx) + kff
-    fwd = ca.Function("sw_fwd", [dx, an, bn, kn, kff],
-                      [ca.mtimes(A, dx) + ca.mtimes(B0, du), du])
+    du = flag * (ca.mtimes(Kd, dx) + kff) + keep * v
+    fwd = ca.Function("sw_fwd", [dx, v, an, bn, kn, kff, s],
+                      [ca.mtimes(A, dx) + ca.mtimes(B0, du), du, du])
     psi = ca.SX.sym("psi", nx)
     gx = ca.SX.sym("gx", nx)
     gu = ca.SX.sym("gu", nu)
     lam = psi + gx
-    costate = ca.Function("sw_costate", [psi, an, bn, gx, gu],
-                          [ca.mtimes(A.T, lam),
-                           (gu + ca.mtimes(B0.T, lam)) * mask])
+    total = (gu + ca.mtimes(B0.T, lam)) * mask + (held[2] if blocked
+                                                  else 0.0)
+    costate = ca.Function("sw_costate", [psi, held[2], an, bn, gx, gu, s],
+                          [ca.mtimes(A.T, lam), ca.densify(keep * total),
+                           ca.densify(flag * total)])
     qmul = ca.Function("sw_qmul", [qn, dx], [ca.mtimes(Q, dx)])
     d = ca.SX.sym("d", nx)
     roll = ca.Function("sw_roll", [dx, an, bn, kff, d],
