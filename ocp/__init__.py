@@ -5,6 +5,7 @@ the project's docs (docs/references.md and docs/theory.md in the
 repository; the misprints the code corrects are in docs/errata.md).
 """
 
+from adcs_common.version import version as _version
 from adcs_common.quaternion import (
     quat_conj,
     quat_error_angle,
@@ -94,6 +95,9 @@ from .slews import (
     min_energy_slew,
     time_optimal_slew,
 )
+
+#: The toolbox's version (one source: `adcs_common.version`).
+__version__ = _version()
 
 __all__ = [
     "AttitudeMPC",
