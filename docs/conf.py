@@ -2,6 +2,7 @@
 
 import os
 import shutil
+import sys
 from pathlib import Path
 
 from adcs.provenance import version as _version
@@ -19,7 +20,10 @@ shutil.copytree(_here.parent / "notebooks", _here / "notebooks",
 project = "adcs-toolbox"
 author = "The adcs-toolbox developers"
 release = _version()
-extensions = ["sphinx.ext.autodoc", "sphinx.ext.napoleon", "myst_nb"]
+# the API page's generator (docs/_ext/public_api.py)
+sys.path.insert(0, str(_here / "_ext"))
+extensions = ["sphinx.ext.autodoc", "sphinx.ext.napoleon", "myst_nb",
+              "public_api"]
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb",
                  ".ipynb": "myst-nb"}
 # the notebooks are executed by the build (small settings, as in the
