@@ -72,6 +72,30 @@ def _undocumented(html: str) -> list[str]:
     return missing
 
 
+def _dead_links(site: Path) -> list[str]:
+    """Links of the built pages that name no file or no anchor of theirs
+    (``href="#../docs/references.md"`` was one: a page link the build
+    could not resolve)."""
+    dead = []
+    ids: dict[Path, set[str]] = {}
+    for page in sorted(site.rglob("*.html")):
+        for href in re.findall(r'href="([^"]+)"', page.read_text()):
+            if re.match(r"^[a-z][a-z0-9+.-]*:", href) or href.startswith(
+                    ("//", "?")):
+                continue
+            file, _, anchor = href.split("?")[0].partition("#")
+            target = (page.parent / file).resolve() if file else page
+            if not target.exists():
+                dead.append(f"{page.name}: {href}")
+            elif anchor and target.suffix == ".html":
+                if target not in ids:
+                    ids[target] = set(re.findall(r'id="([^"]+)"',
+                                                 target.read_text()))
+                if anchor not in ids[target]:
+                    dead.append(f"{page.name}: {href}")
+    return dead
+
+
 def test_the_public_names_are_all_there_to_check():
     names = _public_names()
     assert len(names) > 300
@@ -132,6 +156,7 @@ def test_docs_build_without_warnings(tmp_path):
                  "export_c", "run_bench"):
         assert name in api
     assert _undocumented(api) == []
+    assert _dead_links(tmp_path / "html") == []
     # the notebooks are executed by the build: their pages carry figures
     pages = sorted((tmp_path / "html" / "notebooks").glob("*.html"))
     assert len(pages) >= 12
