@@ -17,6 +17,7 @@ from adcs_common.quaternion import (
 )
 from .codegen import (
     CompilerNotFound,
+    DriverCheckError,
     ExportResult,
     build_exported,
     daqp_available,
@@ -104,6 +105,7 @@ __all__ = [
     "BdotRun",
     "ClosedLoopResult",
     "CompilerNotFound",
+    "DriverCheckError",
     "EARTH_DIPOLE",
     "EARTH_MU",
     "EigenaxisSlew",

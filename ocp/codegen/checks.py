@@ -54,8 +54,8 @@ LOOP_DEFAULT_STEPS = 80
 #: Tolerances of the loop check, per precision: ``final_error`` [rad] of
 #: the attitude at the end of the loop, ``violation`` the largest scaled
 #: bound violation of an applied step (the MPC's ``first_violation``:
-#: torque over m_max, momentum over h_max). Double: measured ~1e-7 rad
-#: and 1e-13 on the demo craft; single (`benchmarks.embedded`, the M4F):
+#: torque over m_max, momentum over h_max). Double: measured 2.4e-6°
+#: (4e-8 rad) and 1.8e-13 on the demo craft; single (`benchmarks.embedded`, the M4F):
 #: 3.5e-4 rad and 4.7e-5 (tests/ocp/test_targets.py).
 LOOP_TOLERANCES: dict[str, dict[str, float]] = {
     "double": {"final_error": math.radians(0.01), "violation": 1e-6},
