@@ -1,7 +1,8 @@
 """`adcs`: the application: command line, report, studies, benchmarks."""
 
-from .provenance import version
+from adcs_common.version import version
 
+#: The toolbox's version (one source: `adcs_common.version`).
 __version__ = version()
 
 __all__ = ["__version__"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import errno
+import math
 import os
 import sys
 import warnings
@@ -76,6 +77,7 @@ def _add_cluster_options(parser: argparse.ArgumentParser,
 def _export(args: argparse.Namespace) -> int:
     from allocation import WheelArray
 
+    from ocp.codegen.checks import DriverCheckError
     from ocp.codegen.export import export_c, run_driver
     from ocp.spacecraft import load_spacecraft
 
@@ -97,7 +99,7 @@ def _export(args: argparse.Namespace) -> int:
                    mpc_variants=variants, precision=args.precision,
                    build=args.build or args.run,
                    cc=args.cc, progress=args.build or args.run,
-                   target=args.target)
+                   target=args.target, loop_steps=args.loop_steps)
     for p in (res.source, res.header, res.driver, res.makefile,
               res.makefile.with_name("CMakeLists.txt"), res.readme):
         print(f"  wrote {p}")
@@ -105,18 +107,39 @@ def _export(args: argparse.Namespace) -> int:
         print(f"  wrote {res.out_dir / 'daqp'}/ (DAQP's C sources, MIT "
               f"licence; static workspace "
               f"{res.extras['daqp_static_bytes']} bytes)")
+    if variants:
+        print("  driver's closed loop: "
+              + _loop_text(res.extras["closed_loop"]))
     if args.target != "host":
         return _export_target(args, res)
     if "warnings" in res.extras:
         print(f"  built with {args.cc} (-Wall -Wextra): "
               f"{res.extras['warnings']} warnings")
     if args.run:
-        _print_driver(run_driver(res))
+        try:
+            times = run_driver(res)
+        except DriverCheckError as exc:     # the table, then the verdict
+            times = exc.times
+        return _print_driver(times, res.extras.get("closed_loop"))
     return 0
+
+
+def _loop_text(plan: dict) -> str:
+    """The length of the driver's closed loop and where it comes from."""
+    from ocp.codegen.checks import LOOP_SLEW_FACTOR
+
+    text = (f"{plan['steps']} steps × {plan['dt']:g} s = "
+            f"{plan['seconds']:g} s")
+    if plan["slew_time"] == plan["slew_time"]:          # not NaN
+        text += (f" (eigenaxis slew {plan['slew_time']:.3g} s; default "
+                 f"{LOOP_SLEW_FACTOR:g} times that)")
+    tol = math.degrees(plan["final_error_tol"])
+    return text + f", passes within {tol:.2g}° of the target"
 
 
 def _export_target(args: argparse.Namespace, res) -> int:
     """The Cortex-M part of ``adcs export``: files, build, run, tables."""
+    from ocp.codegen.checks import DriverCheckError, driver_verdict
     from ocp.codegen.memory import format_memory
     from ocp.codegen.target import format_counts, run_target
 
@@ -128,31 +151,39 @@ def _export_target(args: argparse.Namespace, res) -> int:
           f"-Werror): {res.extras['warnings']} warnings")
     print(f"  wrote {res.out_dir / f'memory_{args.target}.json'}")
     if args.run:
-        times = run_target(res)
-        print(format_counts(times, args.target))
+        try:
+            times = run_target(res)
+        except DriverCheckError as exc:     # the tables, then the verdict
+            times = exc.times
+        plan = res.extras.get("closed_loop")
+        table = format_counts(times, args.target, plan).splitlines()
+        print("\n".join(table[:-1]))
         print(format_memory(res.extras["memory"], times))
+        passed, line = driver_verdict(times, plan)
+        print(line)
+        return 0 if passed else 1
     return 0
 
 
-def _print_driver(times: dict) -> None:
-    """Print the driver's timings (first call, median, worst), checks."""
+def _print_driver(times: dict, plan: dict | None = None) -> int:
+    """Print the driver's timings (first call, median, worst) and the
+    verdict of its checks; return the exit status (1: a check failed)."""
+    from ocp.codegen.checks import driver_verdict, loop_line
+
     print(f"{'function':30s} {'first call':>11s} {'median':>10s} "
           f"{'worst':>10s}  [µs]")
-    failed = []
     for name, t in times.items():
         if name.startswith("_"):
             continue
         first = t.get("first_us", float("nan"))
         print(f"{name:30s} {first:11.3f} {t['median_us']:10.3f} "
               f"{t['max_us']:10.3f}")
-        if t.get("flag", 0):
-            failed.append(name)
         if "final_error_deg" in t:
-            print(f"{'':30s} closed loop ends {t['final_error_deg']:.2e}° "
-                  "from the target; worst step after the cold first: "
-                  f"{t.get('max_warm_us', float('nan')):.1f} µs")
-    print("driver checks: " + ("every call returned 0" if not failed else
-                               "nonzero return from " + ", ".join(failed)))
+            print(f"{'':30s} {loop_line(t)}; worst step after the cold "
+                  f"first: {t.get('max_warm_us', float('nan')):.1f} µs")
+    passed, line = driver_verdict(times, plan)
+    print(line)
+    return 0 if passed else 1
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -314,6 +345,11 @@ def _add_export(sub) -> None:
                      help="compile the driver and a shared library (gcc)")
     exp.add_argument("--run", action="store_true",
                      help="build and run the driver, print timings")
+    exp.add_argument("--loop-steps", type=int, default=None,
+                     help="steps of the driver's closed loops (default: "
+                     "2.5 times the craft's eigenaxis slew time of the "
+                     "demo slew); the driver's check fails when a loop "
+                     "ends off its target")
     exp.add_argument("--cc", default="gcc",
                      help="C compiler of --build/--run (default gcc)")
     exp.add_argument("--target", default="host",

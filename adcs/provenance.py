@@ -9,6 +9,8 @@ import subprocess
 from importlib import metadata
 from pathlib import Path
 
+from adcs_common.version import version as _version
+
 __all__ = ["provenance", "version"]
 
 #: Packages whose versions a report records.
@@ -17,11 +19,8 @@ PACKAGES = ("adcs-toolbox", "casadi", "numpy", "scipy", "daqp", "osqp",
 
 
 def version() -> str:
-    """Return the installed toolbox's version ("unknown" if not installed)."""
-    try:
-        return metadata.version("adcs-toolbox")
-    except metadata.PackageNotFoundError:
-        return "unknown"
+    """Return the toolbox's version (`adcs_common.version.version`)."""
+    return _version()
 
 
 def _git_commit() -> str | None:

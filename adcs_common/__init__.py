@@ -10,6 +10,7 @@ from .exceptions import (
     InvalidValueError,
     ThreadOwnershipError,
 )
+from .version import version as _version
 from .validation import (
     as_finite_array,
     as_finite_scalar,
@@ -17,6 +18,10 @@ from .validation import (
     check_nonnegative,
     check_positive,
 )
+
+#: The toolbox's version (`adcs_common.version.version`), shared by
+#: every package.
+__version__ = _version()
 
 __all__ = [
     "AdcsError",

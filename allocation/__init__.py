@@ -5,6 +5,7 @@ the project's docs (docs/references.md and docs/theory.md in the
 repository; the misprints the code corrects are in docs/errata.md).
 """
 
+from adcs_common.version import version as _version
 from .accuracy import (
     AccuracyResult,
     ErrorSummary,
@@ -79,6 +80,9 @@ from .symbolic import (
     sign_matrix_function,
     weighted_function,
 )
+
+#: The toolbox's version (one source: `adcs_common.version`).
+__version__ = _version()
 
 __all__ = [
     "AccuracyResult",

@@ -9,8 +9,9 @@ in the export, its workspace static) for the target, cross-compiles it
 driver on qemu-system-arm (``-icount shift=0``): the figures are
 instruction counts (SysTick, one tick per 40 instructions, checked on a
 known loop), not cycles. Prints the first call, median, worst and mean
-count per function, the 80-step closed loop of the MPC step, and the
-memory table (`ocp.codegen.memory`). ``--quick``: no MPC step.
+count per function, the closed loop of the MPC step (sized from the
+craft: `ocp.codegen.checks`), and the memory table
+(`ocp.codegen.memory`). ``--quick``: no MPC step.
 ``--precision single``: the float export (`ocp.codegen.precision`;
 DAQP's float build), e.g. with ``--target cortex-m4f``, whose FPU is
 single precision only.

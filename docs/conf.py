@@ -2,6 +2,7 @@
 
 import os
 import shutil
+import sys
 from pathlib import Path
 
 from adcs.provenance import version as _version
@@ -10,16 +11,26 @@ os.environ.setdefault("ADCS_NOTEBOOK_SMALL", "1")
 # the kernels draw inline so that the pages carry the figures (CI exports
 # MPLBACKEND=Agg, which would draw nothing)
 os.environ["MPLBACKEND"] = "module://matplotlib_inline.backend_inline"
-# the notebooks live at the top of the repository: copy them in
+# the notebooks live at the top of the repository: copy them in. Their
+# links to the pages are written for the repository (notebooks/ ->
+# ../docs/x.md); in the copy, docs/notebooks/, the page is ../x.md
 _here = Path(__file__).resolve().parent
 shutil.copytree(_here.parent / "notebooks", _here / "notebooks",
                 dirs_exist_ok=True,
                 ignore=shutil.ignore_patterns(".ipynb_checkpoints"))
+for _nb in (_here / "notebooks").glob("*.ipynb"):
+    _text = _nb.read_text(encoding="utf-8")
+    if "](../docs/" in _text:
+        _nb.write_text(_text.replace("](../docs/", "](../"),
+                       encoding="utf-8")
 
 project = "adcs-toolbox"
 author = "The adcs-toolbox developers"
 release = _version()
-extensions = ["sphinx.ext.autodoc", "sphinx.ext.napoleon", "myst_nb"]
+# the API page's generator (docs/_ext/public_api.py)
+sys.path.insert(0, str(_here / "_ext"))
+extensions = ["sphinx.ext.autodoc", "sphinx.ext.napoleon", "myst_nb",
+              "public_api"]
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb",
                  ".ipynb": "myst-nb"}
 # the notebooks are executed by the build (small settings, as in the
@@ -40,6 +51,7 @@ myst_heading_anchors = 3
 # every package re-exports the shared error types and several classes have
 # a field named like another's (``n``): Sphinx then finds more than one
 # target for a short name in a docstring and warns; the names are the
-# toolbox's own, documented once (adcs_common.exceptions)
-suppress_warnings = ["myst.xref_missing", "ref.python"]
+# toolbox's own, documented once (adcs_common.exceptions). Links between
+# pages are not suppressed: a missing one fails the -W build
+suppress_warnings = ["ref.python"]
 html_theme = "alabaster"

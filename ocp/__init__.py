@@ -5,6 +5,7 @@ the project's docs (docs/references.md and docs/theory.md in the
 repository; the misprints the code corrects are in docs/errata.md).
 """
 
+from adcs_common.version import version as _version
 from adcs_common.quaternion import (
     quat_conj,
     quat_error_angle,
@@ -16,6 +17,7 @@ from adcs_common.quaternion import (
 )
 from .codegen import (
     CompilerNotFound,
+    DriverCheckError,
     ExportResult,
     build_exported,
     daqp_available,
@@ -95,11 +97,15 @@ from .slews import (
     time_optimal_slew,
 )
 
+#: The toolbox's version (one source: `adcs_common.version`).
+__version__ = _version()
+
 __all__ = [
     "AttitudeMPC",
     "BdotRun",
     "ClosedLoopResult",
     "CompilerNotFound",
+    "DriverCheckError",
     "EARTH_DIPOLE",
     "EARTH_MU",
     "EigenaxisSlew",

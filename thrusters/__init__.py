@@ -5,6 +5,7 @@ the project's docs (docs/references.md and docs/theory.md in the
 repository; the misprints the code corrects are in docs/errata.md).
 """
 
+from adcs_common.version import version as _version
 from .exceptions import (
     AdcsError,
     InfeasibleError,
@@ -51,6 +52,9 @@ from .unit import (
     ThrusterSet,
     six_thruster_unit,
 )
+
+#: The toolbox's version (one source: `adcs_common.version`).
+__version__ = _version()
 
 __all__ = [
     "AdcsError",

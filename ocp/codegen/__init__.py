@@ -1,5 +1,6 @@
 """C code generation: export, build and run the generated solvers."""
 
+from .checks import DriverCheckError
 from .export import (
     CompilerNotFound,
     ExportResult,
@@ -18,6 +19,7 @@ from .export import (
 
 __all__ = [
     "CompilerNotFound",
+    "DriverCheckError",
     "ExportResult",
     "build_exported",
     "daqp_available",

@@ -6,6 +6,7 @@ import re
 import subprocess
 from adcs_common.codegen import compile_c
 from adcs_common.exceptions import AdcsError, InvalidValueError
+from .checks import DriverCheckError, loop_failures, parse_loop_line
 from .result import OPT_FLAGS, SOURCE, ExportResult
 
 
@@ -70,9 +71,19 @@ def build_exported(res: ExportResult, cc: str = "gcc",
                            "shared_library": lib, "extras": extras})
 
 
-def run_driver(res: ExportResult, timeout: float = 300.0
-               ) -> dict[str, dict[str, float]]:
+def run_driver(res: ExportResult, timeout: float = 300.0,
+               check: bool = True) -> dict[str, dict[str, float]]:
     """Run the built driver; return its timings per function.
+
+    Parameters
+    ----------
+    res : ExportResult
+        A built export (``export_c(..., build=True)``).
+    timeout : float
+        Seconds the driver may run.
+    check : bool
+        Raise `DriverCheckError` when a closed loop fails its check
+        (`ocp.codegen.checks`); False returns the figures all the same.
 
     Returns
     -------
@@ -83,21 +94,45 @@ def run_driver(res: ExportResult, timeout: float = 300.0
         ``closed_loop:<name>``: the per-step times of the closed loop the
         driver runs with the generated RK4 as plant, ``max_warm_us`` (the
         worst step after the cold first one) and the final error angle
-        ``final_error_deg``.
+        ``final_error_deg``, and the check's ``loop_*`` figures:
+        ``loop_steps``, ``loop_dt`` and ``loop_seconds`` [s] (its length),
+        ``loop_final_error_deg``, ``loop_tolerance_deg``,
+        ``loop_worst_violation``, ``loop_violation_tolerance``,
+        ``loop_finite``, ``loop_flag`` and ``loop_ok`` (1: passed).
+
+    Raises
+    ------
+    DriverCheckError
+        ``check`` and a closed loop failed its check (its ``times``:
+        what this function would have returned).
+    AdcsError
+        The driver failed otherwise.
     """
     if res.executable is None:
         raise InvalidValueError(
             "res has no executable: call export_c(..., build=True)")
     proc = subprocess.run([str(res.executable)], capture_output=True,
                           text=True, timeout=timeout)
-    if proc.returncode != 0:
+    out = _parse_driver(proc.stdout)
+    failures = loop_failures(out, res.extras.get("closed_loop"))
+    if proc.returncode != 0 and not failures:
         raise AdcsError(f"driver failed ({proc.returncode}): "
                         f"{proc.stderr[-2000:]}")
+    if failures and check:
+        raise DriverCheckError("driver check failed: closed loop "
+                               + "; ".join(failures), out, failures)
+    return out
+
+
+def _parse_driver(text: str) -> dict[str, dict[str, float]]:
+    """The host driver's figures (`run_driver`) from its output."""
     out: dict[str, dict[str, float]] = {}
     pat = re.compile(r"^TIME (\S+)(?: first_us=(\S+))? median_us=(\S+) "
                      r"max_us=(\S+) calls=(\d+)(?: flag=(\d+))?"
                      r"(?: final_error_deg=(\S+))?(?: max_warm_us=(\S+))?")
-    for line in proc.stdout.splitlines():
+    for line in text.splitlines():
+        if parse_loop_line(line, out):
+            continue
         m = pat.match(line)
         if m:
             rec = {"median_us": float(m[3]), "max_us": float(m[4]),
@@ -110,6 +145,6 @@ def run_driver(res: ExportResult, timeout: float = 300.0
                 rec["final_error_deg"] = float(m[7])
             if m[8] is not None:
                 rec["max_warm_us"] = float(m[8])
-            out[m[1]] = rec
-    out["_stdout"] = {"text": proc.stdout}  # type: ignore[dict-item]
+            out.setdefault(m[1], {}).update(rec)
+    out["_stdout"] = {"text": text}  # type: ignore[dict-item]
     return out

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from importlib import resources
 
 import casadi as ca
 import numpy as np
 from ocp.models.rigid import SpacecraftModel
+from .checks import loop_plan
 from .precision import README_SINGLE
 from .result import OPT_FLAGS, SOURCE
 
@@ -51,22 +53,23 @@ def _driver_sizes(fns: dict[str, ca.Function], repeats: int,
         f"#define ADCS_LOOP_N {loop}"])
 
 
-#: Steps of the driver's closed loops.
-LOOP_STEPS = 80
-
-
 def _driver_source(fns: dict[str, ca.Function],
                    samples: dict[str, list[np.ndarray]], repeats: int,
                    model: SpacecraftModel, dt: float,
                    precision: str = "double",
-                   head: str | None = None) -> str:
+                   head: str | None = None,
+                   loop: dict | None = None) -> str:
     """Text of a driver: ``head`` (the host's by default, or a target's
     from `ocp.codegen.target`), the shared body with its static arrays,
-    the calls, the loops; sample inputs as float literals in single
-    ``precision``."""
+    the calls, the loops (length and check: ``loop``, default
+    `ocp.codegen.checks.loop_plan`); sample inputs as float literals in
+    single ``precision``."""
+    if loop is None:
+        loop = loop_plan(model, samples, dt, precision=precision)
+    steps = loop["steps"]
     lines = [_DRIVER_HEAD if head is None else head,
              _DRIVER_BODY.replace("/* @SIZES@ */", _driver_sizes(
-                 fns, repeats, LOOP_STEPS))]
+                 fns, repeats, steps))]
     calls = []
     for name, f in fns.items():
         for j in range(f.n_out()):
@@ -101,7 +104,9 @@ def _driver_source(fns: dict[str, ca.Function],
                 f"  bad |= closed_loop(\"{name}\", {name}, {name}_work, "
                 f"{name}_checkout, {name}_release, {name}_in0, {name}_in1,"
                 f" {f.nnz_in(0)}, {f.nnz_in(3)}, {f.nnz_in(5)}, "
-                f"{model.nu}, {dt!r}, {LOOP_STEPS});")
+                f"{model.nu}, {loop['dt']!r}, {steps}, "
+                f"{math.degrees(loop['final_error_tol'])!r}, "
+                f"{float(loop['violation_tol'])!r});")
     main = ("int main(void) {\n  int bad = 0;\n  driver_init();\n"
             + "\n".join(calls) + "\n" + "\n".join(loops)
             + "\n  fflush(stdout);\n  return bad;\n}\n")

@@ -62,6 +62,7 @@ from thrusters import ThrusterSet
 from ocp.models.rigid import SpacecraftModel, rigid_spacecraft
 from ocp.spacecraft import load_spacecraft
 from .build import build_exported, run_driver
+from .checks import check_loop_steps, loop_plan
 from .daqp_static import (
     DAQP_DIR,
     DAQP_SOURCES,
@@ -312,6 +313,30 @@ def _target_plugins(target: str, out: Path, wheel: str | None,
     return wheel, duty, None
 
 
+def _craft_parts(spacecraft, wheels, thrusters, inertia, rate_max
+                 ) -> tuple[WheelArray, ThrusterSet | None, Any,
+                            float | None]:
+    """``(wheels, thrusters, inertia, rate_max)`` of `export_c`'s
+    arguments: those of ``spacecraft`` (a `Spacecraft`, a catalogue name
+    or a TOML file), or those given; checked."""
+    if spacecraft is not None:
+        if wheels is not None or thrusters is not None or inertia is not None:
+            raise InvalidValueError(
+                "give spacecraft= or wheels=/thrusters=/inertia=, not both")
+        sc = load_spacecraft(spacecraft)
+        wheels, thrusters, inertia = sc.wheels, sc.thrusters, sc.inertia
+        if rate_max is None:
+            rate_max = sc.rate_max
+    elif not isinstance(wheels, WheelArray):
+        raise InvalidValueError(
+            f"give spacecraft= or wheels= (a WheelArray), got wheels of "
+            f"type {type(wheels).__name__}")
+    if thrusters is not None and not isinstance(thrusters, ThrusterSet):
+        raise InvalidValueError(
+            f"thrusters must be a ThrusterSet, got {type(thrusters).__name__}")
+    return wheels, thrusters, inertia, rate_max
+
+
 def _renamed(f: ca.Function, name: str) -> ca.Function:
     """``f`` wrapped under a new name (C symbol)."""
     args = f.mx_in()
@@ -386,6 +411,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              target: str = "host", precision: str = "double",
              build: bool = False,
              cc: str = "gcc", repeats: int = 1000,
+             loop_steps: int | None = None,
              progress: bool = False) -> ExportResult:
     """Generate C for the toolbox's laws, QPs, model and MPC step.
 
@@ -467,6 +493,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         Calls per function timed by the driver (a Cortex-M driver: a
         tenth, at least 3; instruction counts do not vary between calls
         on the same input).
+    loop_steps : int, optional
+        Steps of the driver's closed loops (default: sized from the craft,
+        `ocp.codegen.checks.loop_plan`: 2.5 times its eigenaxis slew
+        time). The driver fails its check, and `run_driver` raises
+        `ocp.codegen.checks.DriverCheckError`, when a loop ends beyond
+        its tolerance of the target, breaks a bound or goes NaN.
     progress : bool
         Show a progress bar during the build.
 
@@ -480,24 +512,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         ``build`` is True and ``cc`` is not on PATH (the sources are
         written first).
     """
-    if spacecraft is not None:
-        if wheels is not None or thrusters is not None or inertia is not None:
-            raise InvalidValueError(
-                "give spacecraft= or wheels=/thrusters=/inertia=, not both")
-        sc = load_spacecraft(spacecraft)
-        wheels, thrusters, inertia = sc.wheels, sc.thrusters, sc.inertia
-        if rate_max is None:
-            rate_max = sc.rate_max
-    elif not isinstance(wheels, WheelArray):
-        raise InvalidValueError(
-            f"give spacecraft= or wheels= (a WheelArray), got wheels of "
-            f"type {type(wheels).__name__}")
-    if thrusters is not None and not isinstance(thrusters, ThrusterSet):
-        raise InvalidValueError(
-            f"thrusters must be a ThrusterSet, got {type(thrusters).__name__}")
+    wheels, thrusters, inertia, rate_max = _craft_parts(
+        spacecraft, wheels, thrusters, inertia, rate_max)
     out = output_folder(out_dir, "out_dir")
     if int(repeats) < 1:
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
+    check_loop_steps(loop_steps)
     mpc_variants = _check_variants(mpc_variants)
     cortex_m = check_target(target) != "host"
     if precision == "single":     # DAQP's float point fails duty's check
@@ -521,9 +541,11 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         precision=precision)
     daqp_patched, patched, daqp_conics, solver_sources = _write_source(
         fns, out, qrqp_reuse_factorization, precision)
+    loop = loop_plan(model, samples, dt, rate_max=rate_max,
+                     horizon=horizon, steps=loop_steps, precision=precision)
     driver = out / "main.c"
     driver.write_text(_driver_source(fns, samples, int(repeats), model,
-                                     dt, precision))
+                                     dt, precision, loop=loop))
     # DAQP's float build with float casadi_real (c_float: 4 bytes)
     cflags = [DAQP_SINGLE_FLAG] if precision == "single" and daqp_conics \
         else []
@@ -550,11 +572,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
                                "daqp_static": daqp_conics,
                                "daqp_static_bytes": static_bytes,
                                "precision": precision,
+                               "closed_loop": loop,
                                "cflags": cflags, "ldflags": ["-lm"]})
     if cortex_m:
         res = write_target_files(res, target, _driver_source(
             fns, samples, max(int(repeats) // 10, 3), model, dt,
-            precision, head=target_head()))
+            precision, head=target_head(), loop=loop))
         return build_target(res) if build else res
     if build:
         return build_exported(res, cc=cc, progress=progress)

@@ -424,7 +424,8 @@ for `wheel_qp` and the MPC step) is its single-precision build:
 it. The MPC step is the condensed RTI step (`mpc_cond_rti_step`) with
 float tolerances (row test 1e-6, step 1e-5); check its `qp_kkt` against
 1e-4 rather than 1e-6, and its `first_violation` against 1e-4 (scaled;
-4.7e-5 measured over the driver's 80-step closed loop, 1e-13 in double).
+4.7e-5 measured over the driver's closed loop of 80 steps, 1e-13 in
+double; the driver fails its check above 1e-4, `ocp.codegen.checks`).
 The QP outputs equal the double export's within float rounding: check
 `violation` against 1e-5 (scaled) rather than 1e-6. Build with
 `-Wdouble-promotion` to see any double left.

@@ -254,8 +254,14 @@ def test_driver_runs_and_times(exported):
         assert t[name]["median_us"] > 0.0
         assert t[name].get("flag", 0) == 0     # every call returned 0
     assert t["duty_qp"]["first_us"] > 0.0
-    # the C closed loop (RK4 plant, 80 steps of 0.5 s) ends on target
+    # the C closed loop (RK4 plant, 86 steps of 0.5 s: 2.5 times the
+    # 17.2 s eigenaxis slew) ends on target and passes its check
     assert t["closed_loop:mpc_rti_step"]["final_error_deg"] < 1e-2
+    for name in ("mpc_rti_step", "mpc_cond_rti_step", "mpc_cond_step"):
+        loop = t[f"closed_loop:{name}"]
+        assert loop["loop_ok"] == 1 and loop["calls"] == 86
+        assert loop["loop_seconds"] == 43.0
+        assert loop["loop_worst_violation"] < 1e-9
     # closed forms are sub-microsecond, the MPC step is milliseconds
     assert t["min_norm"]["median_us"] < 5.0
     assert t["wheel_qp"]["median_us"] < 50.0

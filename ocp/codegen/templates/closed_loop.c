@@ -1,6 +1,10 @@
 /* Closed loop: mpc step -> plant (the generated rk4) -> next state, with
  * the solution fed back as warm start; times every MPC step. The state,
- * plan and multipliers live in static arrays of ADCS_LOOP_N reals. */
+ * plan and multipliers live in static arrays of ADCS_LOOP_N reals.
+ * Its check (ocp.codegen.checks): the final error angle within tol_deg,
+ * every applied step's scaled bound violation within tol_viol, nothing
+ * NaN, every step returning 0; "LOOP" prints the figures, "FAIL" why the
+ * check failed, and closed_loop then returns 1 (the driver exits 1). */
 static casadi_real cl_x[ADCS_LOOP_N], cl_xn[ADCS_LOOP_N], cl_z[ADCS_LOOP_N],
     cl_lx[ADCS_LOOP_N], cl_lg[ADCS_LOOP_N], cl_u[ADCS_LOOP_N];
 
@@ -8,9 +12,9 @@ static int closed_loop(const char* name, eval_t f, work_t work,
                        checkout_t checkout, release_t release,
                        const casadi_real* x0, const casadi_real* qf,
                        int nx, int nz, int ng, int nu, double dt,
-                       int steps) {
+                       int steps, double tol_deg, double tol_viol) {
   casadi_real tau[3] = {0, 0, 0}, h = dt, cost, viol, viol1, defect;
-  int k, i, mem, pmem;
+  int k, i, mem, pmem, flag = 0, finite = 1, ok;
   double worst = 0.0, dot = 0.0, nq = 0.0, err, tmax = 0.0, twarm = 0.0;
   if (check_work(name, work, 8, 8, steps) || check_work("rk4", rk4_work,
       4, 1, steps) || nx > ADCS_LOOP_N || nz > ADCS_LOOP_N
@@ -35,9 +39,10 @@ static int closed_loop(const char* name, eval_t f, work_t work,
     drv_res[3] = cl_lg; drv_res[4] = &cost; drv_res[5] = &viol;
     drv_res[6] = &viol1; drv_res[7] = &defect;
     t0 = clock_now();
-    f(drv_arg, drv_res, drv_iw, drv_w, mem);
+    flag |= f(drv_arg, drv_res, drv_iw, drv_w, mem);
     drv_t[k] = clock_now() - t0;
-    if (viol1 > worst) worst = viol1;
+    if (!isfinite((double)viol1)) finite = 0;   /* NaN > worst is false */
+    else if (viol1 > worst) worst = viol1;
     drv_arg[0] = cl_x; drv_arg[1] = cl_u; drv_arg[2] = tau; drv_arg[3] = &h;
     drv_res[0] = cl_xn;
     rk4(drv_arg, drv_res, drv_iw, drv_w, pmem);
@@ -46,21 +51,39 @@ static int closed_loop(const char* name, eval_t f, work_t work,
   release(mem);
   rk4_release(pmem);
   for (i = 0; i < 4; ++i) { dot += cl_x[i] * qf[i]; nq += cl_x[i] * cl_x[i]; }
+  for (i = 0; i < nx; ++i) if (!isfinite((double)cl_x[i])) finite = 0;
   dot = fabs(dot) / sqrt(nq);
   if (dot > 1.0) dot = 1.0;
   err = 2.0 * acos(dot) * 57.295779513082323;
+  ok = finite && err <= tol_deg && worst <= tol_viol && flag == 0;
   for (k = 0; k < steps; ++k) if (drv_t[k] > tmax) tmax = drv_t[k];
   /* the first step starts cold (x0 everywhere, no multipliers) */
   for (k = 1; k < steps; ++k) if (drv_t[k] > twarm) twarm = drv_t[k];
   sort_doubles(drv_t, steps);
   printf("TIME closed_loop:%s median_" TIME_UNIT "=%.3f max_" TIME_UNIT
-         "=%.3f calls=%d final_error_deg=%.3e max_warm_" TIME_UNIT
-         "=%.3f\n", name, drv_t[steps / 2], tmax, steps, err, twarm);
+         "=%.3f calls=%d flag=%d final_error_deg=%.3e max_warm_" TIME_UNIT
+         "=%.3f\n", name, drv_t[steps / 2], tmax, steps, flag, err, twarm);
   printf("STATE closed_loop:%s:", name);
   for (i = 0; i < nx; ++i) printf(" %.17g", (double)cl_x[i]);
   printf("\n");
   printf("  closed_loop:%s worst applied-step violation %.3e\n", name,
          (double)worst);
-  return 0;
+  printf("LOOP closed_loop:%s steps=%d dt=%.17g seconds=%.17g "
+         "final_error_deg=%.17g tolerance_deg=%.17g worst_violation=%.17g "
+         "violation_tolerance=%.17g finite=%d flag=%d ok=%d\n", name,
+         steps, dt, steps * dt, err, tol_deg, worst, tol_viol, finite, flag,
+         ok);
+  if (!finite)
+    printf("FAIL closed_loop:%s goes NaN\n", name);
+  if (finite && !(err <= tol_deg))
+    printf("FAIL closed_loop:%s ends %.3g deg from the target after %d "
+           "steps x %g s = %g s (tolerance %.3g deg)\n", name, err, steps,
+           dt, steps * dt, tol_deg);
+  if (finite && !(worst <= tol_viol))
+    printf("FAIL closed_loop:%s breaks a bound (worst applied-step "
+           "violation %.3g > %.3g)\n", name, (double)worst, tol_viol);
+  if (flag) printf("FAIL closed_loop:%s has a step returning %d\n", name,
+                   flag);
+  return !ok;
 }
 
