@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Any
+from typing import Any, Sequence
 
 import casadi as ca
 import numpy as np
@@ -69,7 +69,8 @@ from adcs_common.threads import new_lock, synchronized
 from .certificate import default_mpc_solver, qp_kkt_function
 from .condensed import (check_condensed_options, condensed_qp_plugin,
                         condensed_step_functions)
-from .stagewise import check_stagewise_options, stagewise_step_functions
+from .stagewise import (block_lengths, check_stagewise_options,
+                        stagewise_step_functions)
 from .nlp_step import build_nlp_step
 from .plan import check_function, plan_bounds, shift_function
 from .problem import (
@@ -164,6 +165,12 @@ class AttitudeMPC:
         turns it off); ``"stagewise"`` takes those and ``"ipm_tol"``,
         ``"ipm_max_iter"`` (`ocp.mpc.stagewise_ipm.IPM_TOL`,
         `IPM_MAX_ITER`).
+    move_blocks : int or sequence of int, optional
+        Move blocking (``"stagewise"`` only): the control is held over
+        blocks of stages, ``M`` blocks as even as possible (the shorter
+        ones first) or the given block lengths (summing to the horizon).
+        The number of free controls falls from N to M; the work per stage
+        stays (`ocp.mpc.stagewise`).
 
     Raises
     ------
@@ -180,7 +187,8 @@ class AttitudeMPC:
                  weights: MPCWeights | None = None,
                  rate_max: float | None = None, max_iter: int = 50,
                  expand: bool = True,
-                 solver_options: dict | None = None) -> None:
+                 solver_options: dict | None = None,
+                 move_blocks: int | Sequence[int] | None = None) -> None:
         self._lock = new_lock()
         self._owner: int | None = None
         if isinstance(model, Spacecraft):
@@ -245,6 +253,8 @@ class AttitudeMPC:
             check_positive(self.rate_max, "rate_max")
         self.max_iter = 1 if self.rti else int(max_iter)
         self.fallback_max_iter = int(max_iter)
+        #: Lengths of the move blocks (stages per held control), or None.
+        self.move_blocks = block_lengths(move_blocks, self.horizon, solver)
         self.expand = bool(expand)
         #: Levenberg–Marquardt term added to the Gauss–Newton Hessian: the
         #: GN Hessian is singular (no cost on ``|q|`` or on x_0), and qrqp

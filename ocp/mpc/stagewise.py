@@ -62,6 +62,53 @@ def _bound_values(mpc: Any, side: float) -> np.ndarray:
     return x
 
 
+def block_lengths(blocks: Any, horizon: int, solver: str
+                  ) -> tuple[int, ...] | None:
+    """Check ``move_blocks`` of an `AttitudeMPC`; the block lengths.
+
+    None: no blocking. An int M (1 ≤ M ≤ N): M blocks as even as
+    possible, the shorter ones first (the near future keeps the finer
+    control). A sequence: the lengths themselves (positive ints summing
+    to N).
+    """
+    if blocks is None:
+        return None
+    if solver != "stagewise":
+        raise InvalidValueError(
+            f"move_blocks needs solver='stagewise', got {solver!r}")
+    if isinstance(blocks, (int, np.integer)) and not isinstance(blocks,
+                                                                bool):
+        m = int(blocks)
+        if not 1 <= m <= horizon:
+            raise InvalidValueError(
+                f"move_blocks must be between 1 and the horizon {horizon},"
+                f" got {m}")
+        return tuple(int(n) for n in sorted(
+            len(a) for a in np.array_split(np.arange(horizon), m)))
+    try:
+        lengths = tuple(blocks)
+    except TypeError:
+        raise InvalidValueError(
+            "move_blocks must be an int or a sequence of block lengths, "
+            f"got {blocks!r}") from None
+    if not lengths or not all(
+            isinstance(n, (int, np.integer)) and not isinstance(n, bool)
+            and n >= 1 for n in lengths) or sum(lengths) != horizon:
+        raise InvalidValueError(
+            "move_blocks must be positive ints summing to the horizon "
+            f"{horizon}, got {blocks!r}")
+    return tuple(int(n) for n in lengths)
+
+
+def block_flags(lengths: tuple[int, ...] | None, horizon: int
+                ) -> np.ndarray:
+    """1 at each block's first stage, 0 where a stage holds (N,)."""
+    flags = np.zeros(horizon) if lengths else np.ones(horizon)
+    if lengths:
+        flags[np.r_[0, np.cumsum(lengths)[:-1]]] = 1.0
+    return flags
+
+
 class _Parts:
     """The stage-wise QP's pieces for one MPC: kernels, boxes, solver."""
 
@@ -75,10 +122,13 @@ class _Parts:
         self.lay = box_layout(mpc)
         lo, hi = model.control_bounds()
         self.free = np.asarray(hi > lo)
+        blocks = getattr(mpc, "move_blocks", None)
+        self.flags = block_flags(blocks, mpc.horizon)
         self.kern = stage_kernels(sp_a, sp_b, sp_q, self.r_diag, self.free,
-                                  self.lay.bu, self.lay.bx)
+                                  self.lay.bu, self.lay.bx,
+                                  blocked=blocks is not None)
         self.ipm = ipm_solve(self.kern, self.lay, mpc.horizon, nx, nu,
-                             self.r_diag, max_iter, tol)
+                             self.r_diag, max_iter, tol, self.flags)
 
 
 def _qp_data(mpc: Any, parts: _Parts, z: ca.MX, p: ca.MX) -> tuple:
@@ -107,7 +157,15 @@ def _qp_data(mpc: Any, parts: _Parts, z: ca.MX, p: ca.MX) -> tuple:
                   for s in (-1.0, 1.0))
     lo = lay.values(u_lo - U, x_lo - X1)
     hi = lay.values(u_hi - U, x_hi - X1)
-    dU0 = ca.mtimes(_diag((~parts.free).astype(float)), u_lo - U)
+    # the start holds the blocks: each stage takes its block's first
+    # control (a product with the constant 0/1 holder matrix)
+    first = np.maximum.accumulate(np.where(parts.flags > 0,
+                                           np.arange(N), 0))
+    hold = ca.DM(ca.Sparsity.triplet(N, N, list(first), list(range(N))),
+                 1.0)
+    dU0 = (ca.mtimes(_diag((~parts.free).astype(float)), u_lo - U)
+           + ca.mtimes(_diag(parts.free.astype(float)),
+                       ca.mtimes(U, hold) - U))
     dX0 = parts.kern["roll"].mapaccum("sw_roll_N", N, 1)(
         ca.DM.zeros(nx), An, Bn, dU0, F - X1)
     return X, U, xN, (dU0, dX0, An, Bn, Qn, q, g, lo, hi)

@@ -162,3 +162,61 @@ def _generated_lines(horizon):
 def test_generated_code_does_not_grow_with_the_horizon():
     n20, n100 = _generated_lines(20), _generated_lines(100)
     assert n100 <= 2.0 * n20, (n20, n100)      # 23.5k and 36.6k lines
+
+
+def test_move_blocking_step_equals_the_dense_blocked_qp():
+    """δu = T v + c (T the blocks, c the start's offset to them): the
+    condensed QP of `test_condensed` in v, solved by DAQP."""
+    import daqp
+    from test_condensed import _dense_qp
+
+    blocks = (1, 2, 3, 4, 5, 5)
+    sw = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="stagewise",
+                     rti=True, move_blocks=blocks)
+    cond = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="condensed",
+                       rti=True)
+    first = np.repeat(np.r_[0, np.cumsum(blocks)[:-1]], blocks)
+    T = np.kron(np.eye(20)[:, first].T @ np.eye(20)[:, np.r_[0, np.cumsum(
+        blocks)[:-1]]], np.eye(4))
+    for x, z_prev in _states(cond, MODEL.state([1.0, 0.0, 0.0, 0.0]), QF,
+                             4):
+        p = np.r_[x, QF, np.zeros(3)]
+        z0 = np.array(cond.shift_function(x, z_prev, np.zeros(cond.nz),
+                                          np.zeros(cond.ng))[0]).ravel()
+        H, g, A, lba, uba, lo, hi, Gz, ez = _dense_qp(cond, z0, p)
+        ubar = np.concatenate([z0[s] for s in cond._us])
+        c = ubar[np.repeat(first, 4) * 4 + np.tile(np.arange(4), 20)] - ubar
+        Hv, gv = T.T @ H @ T, T.T @ (g + H @ c)
+        Cv = np.vstack([T, A @ T])
+        v, _, flag, _ = daqp.solve(Hv, gv, Cv, np.r_[hi - c, uba - A @ c],
+                                   np.r_[lo - c, lba - A @ c])
+        assert flag == 1
+        ref = z0 + Gz @ (T @ v + c) + ez
+        out = sw.rti_function(x, QF, np.zeros(3), z_prev,
+                              np.zeros(sw.nz), np.zeros(sw.ng))
+        assert float(out[-1]) <= 1e-12
+        np.testing.assert_allclose(np.asarray(out[1]).ravel(), ref,
+                                   rtol=0, atol=1e-10)
+        u = np.asarray(out[1]).ravel()
+        U = np.stack([u[s] for s in sw._us])
+        for k in range(20):          # every stage holds its block's first
+            np.testing.assert_allclose(U[k], U[first[k]], rtol=0, atol=1e-15)
+
+
+def test_move_blocks_are_checked():
+    assert AttitudeMPC(MODEL, horizon=20, solver="stagewise",
+                       move_blocks=6).move_blocks == (3, 3, 3, 3, 4, 4)
+    for bad in (0, 21, (5, 5), (10, 10.0), "4"):
+        with pytest.raises(InvalidValueError, match="move_blocks"):
+            AttitudeMPC(MODEL, horizon=20, solver="stagewise",
+                        move_blocks=bad)
+    with pytest.raises(InvalidValueError, match="stagewise"):
+        AttitudeMPC(MODEL, horizon=20, solver="condensed", move_blocks=4)
+
+
+def test_a_blocked_closed_loop_reaches_the_target():
+    mpc = AttitudeMPC(MODEL, horizon=40, dt=0.5, solver="stagewise",
+                      rti=True, move_blocks=8)
+    r = simulate_mpc(mpc, [1, 0, 0, 0], QF, t_final=40.0)
+    assert r.final_error < np.deg2rad(0.01)       # 2.8e-3 deg seen
+    assert r.momentum_violation <= 1e-12 and r.torque_violation <= 1e-12
