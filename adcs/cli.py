@@ -99,7 +99,8 @@ def _export(args: argparse.Namespace) -> int:
                    mpc_variants=variants, precision=args.precision,
                    build=args.build or args.run,
                    cc=args.cc, progress=args.build or args.run,
-                   target=args.target, loop_steps=args.loop_steps)
+                   target=args.target, loop_steps=args.loop_steps,
+                   mpc_move_blocks=args.move_blocks)
     for p in (res.source, res.header, res.driver, res.makefile,
               res.makefile.with_name("CMakeLists.txt"), res.readme):
         print(f"  wrote {p}")
@@ -325,6 +326,9 @@ def _add_export(sub) -> None:
                      help="sample time [s]")
     exp.add_argument("--horizon", type=int, default=20,
                      help="MPC horizon (intervals)")
+    exp.add_argument("--move-blocks", type=int, default=None,
+                     help="stage-wise MPC steps: hold the control over this "
+                     "many blocks of stages (move blocking)")
     exp.add_argument("--mpc", default=None,
                      help="MPC variants to export (comma-separated, from "
                      "mpc_step, mpc_rti_step, mpc_cond_step, "

@@ -191,7 +191,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                       duty_qp_plugin: str | None = "qrqp",
                       rate_max: float | None = None,
                       condensed_qp_plugin: str | None = None,
-                      precision: str = "double"
+                      precision: str = "double",
+                      mpc_move_blocks: Any = None
                       ) -> tuple[dict[str, ca.Function],
                                  dict[str, list[np.ndarray]],
                                  SpacecraftModel]:
@@ -271,7 +272,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
             rti = "rti" in name
             kw = ({"solver": "condensed", "qp_solver": condensed_plugin,
                    "solver_options": condensed_options(precision)}
-                  if "cond" in name else {"solver": "stagewise"}
+                  if "cond" in name else {"solver": "stagewise",
+                                          "move_blocks": mpc_move_blocks}
                   if "_sw_" in name else {"solver": "sqpmethod",
                                           "expand": False})
             ctl = AttitudeMPC(model, horizon=horizon, dt=dt, rti=rti,
@@ -403,6 +405,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              horizon: int = 20, mpc_max_iter: int = 50,
              mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step",
                                           "mpc_cond_rti_step"),
+             mpc_move_blocks: Any = None,
              wheel_qp_plugin: str | None = None,
              wheel_qp_fast_path: bool = True,
              duty_qp_plugin: str | None = None,
@@ -440,6 +443,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     mpc_max_iter : int
         SQP iteration limit of ``mpc_step`` and ``mpc_cond_step`` (and of
         ``mpc_rti_step``'s fallback).
+    mpc_move_blocks : int or sequence of int, optional
+        Move blocking of the stage-wise steps (`AttitudeMPC` ``move_blocks``).
     mpc_variants : sequence of str
         MPC steps to export (`MPC_VARIANTS`): ``"mpc_step"`` (sqpmethod +
         qrqp to convergence), ``"mpc_rti_step"`` (one SQP step per
@@ -531,10 +536,15 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     condensed = _resolve_wheel_qp_plugin(condensed, "condensed_qp_plugin")
     check_single(check_precision(precision), {
         "condensed_qp_plugin": condensed}, mpc_variants)
+    if mpc_move_blocks is not None and not any("_sw_" in v
+                                               for v in mpc_variants):
+        raise InvalidValueError(
+            "mpc_move_blocks applies to the stage-wise MPC steps "
+            "(mpc_sw_step, mpc_sw_rti_step): export one of them")
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
-        mpc_max_iter=mpc_max_iter,
+        mpc_max_iter=mpc_max_iter, mpc_move_blocks=mpc_move_blocks,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
         rate_max=rate_max, condensed_qp_plugin=condensed,

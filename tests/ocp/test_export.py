@@ -31,7 +31,8 @@ def exported(tmp_path_factory):
     arr = WheelArray.pyramid(h_max=0.2, m_max=0.05)
     return export_c(out, wheels=arr, thrusters=six_thruster_unit(),
                     mpc_variants=("mpc_rti_step", "mpc_cond_rti_step",
-                                  "mpc_cond_step"),
+                                  "mpc_cond_step", "mpc_sw_rti_step",
+                                  "mpc_sw_step"),
                     build=True, repeats=200)
 
 
@@ -257,7 +258,8 @@ def test_driver_runs_and_times(exported):
     # the C closed loop (RK4 plant, 86 steps of 0.5 s: 2.5 times the
     # 17.2 s eigenaxis slew) ends on target and passes its check
     assert t["closed_loop:mpc_rti_step"]["final_error_deg"] < 1e-2
-    for name in ("mpc_rti_step", "mpc_cond_rti_step", "mpc_cond_step"):
+    for name in ("mpc_rti_step", "mpc_cond_rti_step", "mpc_cond_step",
+                 "mpc_sw_rti_step", "mpc_sw_step"):
         loop = t[f"closed_loop:{name}"]
         assert loop["loop_ok"] == 1 and loop["calls"] == 86
         assert loop["loop_seconds"] == 43.0
@@ -272,15 +274,22 @@ def test_driver_runs_and_times(exported):
     assert cond["median_us"] < t["closed_loop:mpc_rti_step"]["median_us"]
     full = t["closed_loop:mpc_cond_step"]
     assert full["final_error_deg"] < 1e-3
+    # the stage-wise steps end where the condensed ones do
+    for sw, cn in (("mpc_sw_rti_step", "mpc_cond_rti_step"),
+                   ("mpc_sw_step", "mpc_cond_step")):
+        assert abs(t[f"closed_loop:{sw}"]["final_error_deg"]
+                   - t[f"closed_loop:{cn}"]["final_error_deg"]) < 1e-6
 
 
-@pytest.mark.parametrize("name", ["mpc_cond_rti_step", "mpc_cond_step"])
+@pytest.mark.parametrize("name", ["mpc_cond_rti_step", "mpc_cond_step",
+                                  "mpc_sw_rti_step", "mpc_sw_step"])
 def test_generated_condensed_step_equals_casadi_in_closed_loop(exported,
                                                                 name):
     """80 steps of the slew: the warm-started C returns what Python does.
 
     (DAQP starts from the shifted active set; ``mpc_cond_step`` iterates
-    to convergence with Anderson acceleration.)
+    to convergence with Anderson acceleration; the stage-wise steps run
+    their Riccati interior point, `ocp.mpc.stagewise`.)
     """
     from ocp.codegen.patches import patch_daqp_warm_start
 
