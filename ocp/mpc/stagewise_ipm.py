@@ -77,20 +77,44 @@ class BoxLayout:
         return ca.mtimes(self.Eu, dU) + ca.mtimes(self.Ex, dX)
 
 
-def _to_boundary(pairs: list, tau: float) -> ca.MX:
+def _smax(a, b):
+    """max(a, b) of SX scalars as a branch (no libm call in C)."""
+    return ca.if_else(a > b, a, b)
+
+
+def box_kernels(nb: int) -> dict[str, ca.Function]:
+    """One stage's element-wise interior-point work on its nb boxes.
+
+    ``ratio(Sl, Su, Ll, Lu, dSl, dSu, dLl, dLu) -> max(−dv / v)`` over
+    the four pairs (the step to the boundary, `_to_boundary`);
+    ``mu(…, a) -> Σ (v + a dv)·(w + a dw)`` over both complementarity
+    pairs; ``step(…, a) -> (Sl, Su, Ll, Lu) + a (dSl, …), max s·λ``.
+    Mapped over the stages: one loop, no temporaries per operation.
+    """
+    vs = [ca.SX.sym(n, nb) for n in ("Sl", "Su", "Ll", "Lu")]
+    ds = [ca.SX.sym("d" + n, nb) for n in ("Sl", "Su", "Ll", "Lu")]
+    a = ca.SX.sym("a")
+    worst = ca.SX(-1e300)
+    for v, d in zip(vs, ds):
+        for i in range(nb):
+            worst = _smax(worst, -d[i] / v[i])
+    new = [v + a * d for v, d in zip(vs, ds)]
+    prod = ca.vertcat(new[0] * new[2], new[1] * new[3])
+    comp = prod[0]
+    for i in range(1, 2 * nb):
+        comp = _smax(comp, prod[i])
+    return {"ratio": ca.Function("sw_ratio", vs + ds, [worst]),
+            "mu": ca.Function("sw_mu", vs + ds + [a], [ca.sum1(prod)]),
+            "step": ca.Function("sw_step", vs + ds + [a], new + [comp])}
+
+
+def _to_boundary(ratio: ca.Function, vs: list, ds: list, tau: float
+                 ) -> ca.MX:
     """Largest α ≤ 1 with ``v + α dv ≥ (1 − τ) v`` for every pair (v > 0).
 
-    ``α = 1 / max(1, max(−dv / (τ v)))``: one reduction per pair, no
-    element-wise branches.
+    ``α = 1 / max(1, max(−dv / v) / τ)``.
     """
-    worst = ca.MX(1.0)
-    for v, dv in pairs:
-        worst = ca.fmax(worst, ca.mmax(ca.vec(-dv / (tau * v))))
-    return 1.0 / worst
-
-
-def _dot(a, b):
-    return ca.sum1(ca.sum2(a * b))
+    return 1.0 / ca.fmax(1.0, ca.mmax(ratio(*vs, *ds)) / tau)
 
 
 def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
@@ -114,7 +138,8 @@ def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     Ar, Br, Qr = (sym(n + "r", sp[n].nnz(), N) for n in ("a", "b", "q"))
     q, g = sym("q", nx, N), sym("g", nu, N)
     lo, hi = sym("lo", nb, N), sym("hi", nb, N)
-    state = [dU, dX, Sl, Su, Ll, Lu]
+    rd, rp = sym("rd"), sym("rp")
+    state = [dU, dX, Sl, Su, Ll, Lu, rd, rp]
     data = [A, B, Q, q, g, lo, hi, Ar, Br, Qr]
     R = ca.DM(ca.diag(ca.DM(r_diag)))
     ric = kern["ric"].mapaccum("sw_ric_N", N, 5)
@@ -127,7 +152,7 @@ def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
 
     V = lay.values(dU, dX)
     rpl, rpu = V - lo - Sl, hi - V - Su
-    mu = (_dot(Sl, Ll) + _dot(Su, Lu)) / m
+    mu = (ca.sum1(ca.sum2(Sl * Ll)) + ca.sum1(ca.sum2(Su * Lu))) / m
     sig = ca.mtimes(lay.sigma_scale, Ll / Sl + Lu / Su)
     gx = qmul(Q, dX) + q
     gu = ca.mtimes(R, dU) + g
@@ -152,10 +177,11 @@ def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     _, _, dSl_a, dSu_a = forward(kr, K)
     dLl_a = -Ll - Ll * dSl_a / Sl
     dLu_a = -Lu - Lu * dSu_a / Su
-    a_aff = _to_boundary([(Sl, dSl_a), (Su, dSu_a), (Ll, dLl_a),
-                          (Lu, dLu_a)], 1.0)
-    mu_aff = (_dot(Sl + a_aff * dSl_a, Ll + a_aff * dLl_a)
-              + _dot(Su + a_aff * dSu_a, Lu + a_aff * dLu_a)) / m
+    box = {k: f.map(N) for k, f in box_kernels(nb).items()}
+    vs = [Sl, Su, Ll, Lu]
+    ds_a = [dSl_a, dSu_a, dLl_a, dLu_a]
+    a_aff = _to_boundary(box["ratio"], vs, ds_a, 1.0)
+    mu_aff = ca.sum2(box["mu"](*vs, *ds_a, a_aff)) / m
     smu = (mu_aff / mu) ** 3 * mu
     cl, cu = dSl_a * dLl_a, dSu_a * dLu_a
     qr2, rr2 = sweep_in((Ll * rpl - smu + cl) / Sl
@@ -164,17 +190,21 @@ def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     ddU, ddX, dSl, dSu = forward(kr2, K)
     dLl = -Ll + (smu - cl - Ll * dSl) / Sl
     dLu = -Lu + (smu - cu - Lu * dSu) / Su
-    alpha = _to_boundary([(Sl, dSl), (Su, dSu), (Ll, dLl), (Lu, dLu)],
-                         IPM_TAU)
-    new = [dU + alpha * ddU, dX + alpha * ddX, Sl + alpha * dSl,
-           Su + alpha * dSu, Ll + alpha * dLl, Lu + alpha * dLu]
-    kkt = kkt_residual(kern, lay, N, (nx, nu), R, new, data, sr)
+    ds = [dSl, dSu, dLl, dLu]
+    alpha = _to_boundary(box["ratio"], vs, ds, IPM_TAU)
+    *boxes, comp = box["step"](*vs, *ds, alpha)
+    new = [dU + alpha * ddU, dX + alpha * ddX, *boxes]
+    # a QP's stationarity and box residuals are linear in the iterate:
+    # a step α scales both by 1 − α (no costate sweep per iteration)
+    new += [(1.0 - alpha) * rd, (1.0 - alpha) * rp]
+    kkt = ca.fmax(ca.mmax(comp), ca.fmax(new[6], new[7]))
     return ca.Function("sw_ipm_iter", state + data, new + [kkt])
 
 
 def kkt_residual(kern: dict, lay: BoxLayout, N: int, dims: tuple, R,
-                 state, data, flags_r) -> ca.MX:
-    """The KKT residual of an iterate (module doc), scaled, ≥ 0.
+                 state, data, flags_r) -> tuple[ca.MX, ca.MX, ca.MX]:
+    """The KKT residual of an iterate (module doc): its dual, primal and
+    complementarity parts, scaled, ≥ 0.
 
     ``dims`` is ``(n_x, n_u)``, ``flags_r`` the move-blocking flags
     reversed in time (a held control's gradient joins its block's).
@@ -194,7 +224,7 @@ def kkt_residual(kern: dict, lay: BoxLayout, N: int, dims: tuple, R,
     primal = ca.mmax(ca.fabs(ca.vertcat(ca.vec(V - lo - Sl),
                                         ca.vec(hi - V - Su))))
     comp = ca.mmax(ca.vertcat(ca.vec(Sl * Ll), ca.vec(Su * Lu)))
-    return ca.fmax(dual, ca.fmax(primal, comp))
+    return dual, primal, comp
 
 
 def ipm_solve(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
@@ -216,7 +246,7 @@ def ipm_solve(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     # fresh symbols: a call on the Function's own inputs would inline it
     ins = [ca.MX.sym(it.name_in(i), it.sparsity_in(i))
            for i in range(it.n_in())]
-    state, data = ins[:6], ins[6:]
+    state, data = ins[:8], ins[8:]
     n, kk = ca.MX.sym("n"), ca.MX.sym("kkt")
     args = [*state, n, kk, *data]
     done = ca.Function("sw_done", args, [*state, n, kk])
@@ -228,7 +258,7 @@ def ipm_solve(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     inner = None
     for k in range(depth - 1, -1, -1):
         out = it(*state, *data)
-        new, kn = out[:6], out[6]
+        new, kn = out[:8], out[8]
         res = [*new, n + 1, kn] if inner is None else \
             inner(kn <= tol, *new, n + 1, kn, *data)
         inner = ca.Function.if_else(
@@ -238,7 +268,7 @@ def ipm_solve(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     cur = [*state, n, kk]
     for j in range(0, max_iter, depth):
         # the last chunk may run past max_iter by less than one chunk
-        cur = skip(cur[7] <= tol, *cur, *data)
+        cur = skip(cur[9] <= tol, *cur, *data)
     loop = ca.Function("sw_ipm_loop", args, cur)
     sym = ca.MX.sym
     dU0, dX0 = sym("dU0", nu, N), sym("dX0", nx, N)
@@ -247,9 +277,17 @@ def ipm_solve(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     Sl = ca.fmax(V0 - lo, IPM_SLACK0)
     Su = ca.fmax(hi - V0, IPM_SLACK0)
     Ar, Br, Qr = (reverse_columns(M) for M in (A, B, Q))
-    out = loop(dU0, dX0, Sl, Su, IPM_MU0 / Sl, IPM_MU0 / Su, 0.0, 1.0,
-               A, B, Q, q, g, lo, hi, Ar, Br, Qr)
-    dU, dX, _, _, Ll, Lu, count, kkt = out
+    data = [A, B, Q, q, g, lo, hi, Ar, Br, Qr]
+    R = ca.DM(ca.diag(ca.DM(r_diag)))
+    start = [dU0, dX0, Sl, Su, IPM_MU0 / Sl, IPM_MU0 / Su]
+    sr = ca.DM(flags[::-1]).T
+    rd0, rp0, _ = kkt_residual(kern, lay, N, (nx, nu), R, start, data, sr)
+    out = loop(*start, rd0, rp0, 0.0, 1.0, *data)
+    dU, dX, Sl, Su, Ll, Lu, _, _, count, _ = out
+    # the certificate: the residual recomputed at the point returned
+    dual, primal, comp = kkt_residual(kern, lay, N, (nx, nu), R,
+                                      [dU, dX, Sl, Su, Ll, Lu], data, sr)
+    kkt = ca.fmax(dual, ca.fmax(primal, comp))
     return ca.Function("sw_ipm", [dU0, dX0, A, B, Q, q, g, lo, hi],
                        [dU, dX, Lu - Ll, count, kkt],
                        ["dU0", "dX0", "A", "B", "Q", "q", "g", "lo", "hi"],
