@@ -17,11 +17,16 @@ problem of `ocp.mpc.stagewise_kernels`, solved by one Riccati factor
 (the predictor) and one more backward sweep (the corrector). Cost and
 generated code grow linearly in N: the sweeps are CasADi ``mapaccum`` of
 one stage's kernel, and the interior-point iterations nest as
-``if_else`` so that a converged solve skips the rest.
+``if_else`` in chunks (`IPM_CHUNK`) so that a converged solve skips the
+rest.
 
 The solve stops when its KKT residual (`IPM_TOL`) is met: the dual
 residual (the costate's reduced gradient, relative to ``1 + |g|``), the
-boxes' primal residual and every complementarity product ``s·λ``.
+boxes' primal residual and every complementarity product ``s·λ``. The
+first two are linear in the iterate, so a step of length α scales them
+by 1 − α: they are computed at the start and carried, and the residual
+that the solve returns (its certificate, ``qp_kkt``) is recomputed in
+full at the point returned.
 """
 
 from __future__ import annotations
