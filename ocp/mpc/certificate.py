@@ -18,19 +18,29 @@ from ocp.models.rigid import SpacecraftModel
 from .problem import available_mpc_solvers
 
 
-def default_mpc_solver(model: SpacecraftModel) -> str:
+#: Horizons above this take ``"stagewise"`` by default: the condensed
+#: step grows as N² and the stage-wise one as N; measured side by side in
+#: C on the demo slew they cross between N = 20 (condensed 0.13 ms,
+#: stage-wise 0.21 ms) and N = 50 (0.68 ms, 0.52 ms), at about N = 40
+#: (docs/benchmarks.md, long horizons).
+LONG_HORIZON = 40
+
+
+def default_mpc_solver(model: SpacecraftModel, horizon: int = 20) -> str:
     """The MPC solver `AttitudeMPC` takes when none is named.
 
-    ``"condensed"`` for a wheel-only model: on the 80-step saturated slew
-    each of its 160 RTI and SQP steps was its QP's exact solution and its
-    converged plans equal IPOPT's to 3.3e-6, while sqpmethod + qrqp
+    For a wheel-only model, ``"condensed"`` up to `LONG_HORIZON` stages
+    and ``"stagewise"`` beyond (the same SQP and QP; the faster one at
+    that horizon, measured). On the 80-step saturated slew each of the
+    condensed SQP's 160 RTI and SQP steps was its QP's exact solution and
+    its converged plans equal IPOPT's to 3.3e-6, while sqpmethod + qrqp
     returned a step that was not its QP's solution in 2 of 160 (off by up
     to 0.083 m_max, bounds kept); it is also faster in C
     (docs/benchmarks.md). ``"sqpmethod"`` for a model with thrusters (the
-    condensed SQP handles wheels only).
+    toolbox's own SQPs handle wheels only).
     """
     if model.thrusters is None and "condensed" in available_mpc_solvers():
-        return "condensed"
+        return "stagewise" if horizon > LONG_HORIZON else "condensed"
     return "sqpmethod"
 
 

@@ -121,8 +121,8 @@ class AttitudeMPC:
         Sample time and interval length [s].
     solver : {None, "condensed", "stagewise", "sqpmethod", "ipopt", "fatrop"}
         NLP solver. None (default): `default_mpc_solver`, which is
-        ``"condensed"`` for wheel-only models and ``"sqpmethod"`` with
-        thrusters. ``"condensed"``: the toolbox's Gauss–Newton SQP whose
+        ``"condensed"`` for wheel-only models up to 40 stages,
+        ``"stagewise"`` beyond, and ``"sqpmethod"`` with thrusters. ``"condensed"``: the toolbox's Gauss–Newton SQP whose
         QP keeps the controls only (`ocp.mpc.condensed`; wheel-only
         models), exact dense active set, each QP point certified by its
         KKT residual; its step Functions also return ``iterations``.
@@ -199,12 +199,12 @@ class AttitudeMPC:
             raise InvalidValueError(
                 "model must be a SpacecraftModel with a wheel array "
                 "(rigid_spacecraft(inertia, wheels))")
-        if solver is None:
-            solver = default_mpc_solver(model)
         if (not isinstance(horizon, (int, np.integer)) or isinstance(
                 horizon, bool) or horizon < 2):
             raise InvalidValueError(
                 f"horizon must be an integer >= 2, got {horizon!r}")
+        if solver is None:
+            solver = default_mpc_solver(model, horizon)
         self.dt = as_finite_scalar(dt, "dt")
         check_positive(self.dt, "dt")
         if not isinstance(solver, str) or solver not in MPC_SOLVERS:

@@ -220,3 +220,13 @@ def test_a_blocked_closed_loop_reaches_the_target():
     r = simulate_mpc(mpc, [1, 0, 0, 0], QF, t_final=40.0)
     assert r.final_error < np.deg2rad(0.01)       # 2.8e-3 deg seen
     assert r.momentum_violation <= 1e-12 and r.torque_violation <= 1e-12
+
+
+def test_the_default_solver_follows_the_horizon():
+    from ocp.mpc import default_mpc_solver
+    from ocp.mpc.certificate import LONG_HORIZON
+
+    assert default_mpc_solver(MODEL) == "condensed"
+    assert default_mpc_solver(MODEL, LONG_HORIZON) == "condensed"
+    assert default_mpc_solver(MODEL, LONG_HORIZON + 1) == "stagewise"
+    assert AttitudeMPC(MODEL, horizon=60, rti=True).solver == "stagewise"
