@@ -25,7 +25,8 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError
 from .condensed import (ANDERSON_MEMORY, STEP_TOL, _kernels,
                         sqp_step_functions)
-from .stagewise_ipm import IPM_MAX_ITER, IPM_TOL, BoxLayout, ipm_solve
+from .stagewise_ipm import (IPM_MAX_ITER, IPM_TOL, BoxLayout, Tree,
+                            ipm_solve)
 from .stagewise_kernels import nz_of, stage_kernels
 
 
@@ -124,17 +125,17 @@ class _Parts:
         self.free = np.asarray(hi > lo)
         blocks = getattr(mpc, "move_blocks", None)
         self.flags = block_flags(blocks, mpc.horizon)
-        self.kern = stage_kernels(sp_a, sp_b, sp_q, self.r_diag, self.free,
+        self.kern = stage_kernels(sp_a, sp_b, sp_q, self.free,
                                   self.lay.bu, self.lay.bx,
                                   blocked=blocks is not None)
-        self.ipm = ipm_solve(self.kern, self.lay, mpc.horizon, nx, nu,
-                             self.r_diag, max_iter, tol, self.flags)
+        self.ipm = ipm_solve(self.kern, self.lay, Tree(mpc.horizon), nx,
+                             nu, max_iter, tol, self.flags)
 
 
 def _qp_data(mpc: Any, parts: _Parts, z: ca.MX, p: ca.MX) -> tuple:
     """``(X, U, xN, data)``: the plan's stages and its QP's data.
 
-    ``data = (dU0, dX0, A, B, Q, q, g, lo, hi)``, `ipm_solve`'s inputs:
+    ``data = (dU0, dX0, A, B, Q, q, g, r, lo, hi)``, `ipm_solve`'s inputs:
     the dynamics-feasible start (zero steps but the fixed controls, the
     defects carried along), the stages' Jacobians and Hessians (as
     nonzeros, one column per stage), gradients and scaled boxes.
@@ -168,7 +169,8 @@ def _qp_data(mpc: Any, parts: _Parts, z: ca.MX, p: ca.MX) -> tuple:
                        ca.mtimes(U, hold) - U))
     dX0 = parts.kern["roll"].mapaccum("sw_roll_N", N, 1)(
         ca.DM.zeros(nx), An, Bn, dU0, F - X1)
-    return X, U, xN, (dU0, dX0, An, Bn, Qn, q, g, lo, hi)
+    r = ca.repmat(ca.DM(parts.r_diag), 1, N)
+    return X, U, xN, (dU0, dX0, An, Bn, Qn, q, g, r, lo, hi)
 
 
 def _diag(v: np.ndarray) -> ca.DM:
@@ -177,7 +179,7 @@ def _diag(v: np.ndarray) -> ca.DM:
 
 
 def stagewise_qp_function(mpc: Any) -> ca.Function:
-    """``sw_qp(z, p) -> (dU0, dX0, A, B, Q, q, g, lo, hi)``, for checks.
+    """``sw_qp(z, p) -> (dU0, dX0, A, B, Q, q, g, r, lo, hi)``, for checks.
 
     The stage-wise QP (`ocp.mpc.stagewise_ipm`) of the plan ``z`` (x_0
     the measured state) and parameters ``p = (x, q_f, τ)``.

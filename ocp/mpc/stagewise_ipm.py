@@ -34,7 +34,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .stagewise_kernels import reverse_columns
+from .stagewise_kernels import reverse_columns, root_kernel, root_solve
 
 #: KKT residual [scaled, 1] at which the interior point stops.
 IPM_TOL = 1e-13
@@ -122,67 +122,103 @@ def _to_boundary(ratio: ca.Function, vs: list, ds: list, tau: float
     return 1.0 / ca.fmax(1.0, ca.mmax(ratio(*vs, *ds)) / tau)
 
 
-def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
-                  r_diag: np.ndarray, flags: np.ndarray) -> ca.Function:
+class Tree:
+    """The shape of the QP: S scenarios of N stages, rooted or not.
+
+    ``S = 1, root = False`` is the nominal MPC (a chain). With ``root``
+    every scenario's first stage holds the one control they share (its
+    flag is 0): the sweeps carry each scenario's terms in that control
+    back to the root, whose solve (`stagewise_kernels.root_kernel`) picks
+    it; the forward sweeps start from it. Data have S·N columns,
+    scenario-major.
+    """
+
+    def __init__(self, N: int, S: int = 1, root: bool = False) -> None:
+        self.N, self.S, self.root = int(N), int(S), bool(root)
+        self.C = self.N * self.S
+
+    def sweep(self, f: ca.Function, name: str, n_acc: int) -> ca.Function:
+        """``f`` accumulated over each scenario's N stages, the S mapped."""
+        acc = f.mapaccum(name, self.N, n_acc)
+        return acc if self.S == 1 else acc.map(self.S)
+
+    def finals(self, M, rows: int) -> ca.MX:
+        """The last column of each scenario's block, summed (rows,)."""
+        M = ca.reshape(M, rows, self.C)
+        return ca.sum2(M[:, self.N - 1::self.N])
+
+
+def _sweeps(kern: dict, tree: Tree) -> dict:
+    return {"ric": tree.sweep(kern["ric"], "sw_ric_N", 5),
+            "vec": tree.sweep(kern["vec"], "sw_vec_N", 2),
+            "fwd": tree.sweep(kern["fwd"], "sw_fwd_N", 2),
+            "costate": tree.sweep(kern["costate"], "sw_costate_N", 2)}
+
+
+def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
+                  flags: np.ndarray) -> ca.Function:
     """``sw_ipm_iter(state…, data…) -> (state…, kkt)``: one Mehrotra step.
 
-    The state is ``(dU (n_u × N), dX (n_x × N), Sl, Su, Ll, Lu (nb × N))``;
-    the data ``(A, B, Q (nonzeros × N), q (n_x × N), g (n_u × N), lo, hi
-    (nb × N), Ar, Br, Qr)`` (the last three reversed in time). ``kkt`` is
-    the new point's KKT residual (module doc). ``flags`` (N,) are 1 where
-    a stage chooses its control and 0 where it holds the one before it
-    (move blocking, `stagewise_kernels.stage_kernels`).
+    The state is ``(dU (n_u × C), dX (n_x × C), Sl, Su, Ll, Lu (nb × C),
+    rd, rp)`` (C = S·N columns, `Tree`; rd, rp the carried dual and
+    primal residuals); the data ``(A, B, Q (nonzeros × C), q (n_x × C),
+    g, r (n_u × C), lo, hi (nb × C), Ar, Br, Qr, rr)`` (``r`` the diagonal
+    of the control Hessian per stage; the last four reversed in time).
+    ``kkt`` is the new point's KKT residual (module doc). ``flags`` (C,)
+    are 1 where a stage chooses its control and 0 where it holds the one
+    before it (move blocking; a tree's root stages).
     """
-    nb = lay.nb
+    nb, C = lay.nb, tree.C
     sym = ca.MX.sym
-    dU, dX = sym("dU", nu, N), sym("dX", nx, N)
-    Sl, Su, Ll, Lu = (sym(n, nb, N) for n in ("Sl", "Su", "Ll", "Lu"))
+    dU, dX = sym("dU", nu, C), sym("dX", nx, C)
+    Sl, Su, Ll, Lu = (sym(n, nb, C) for n in ("Sl", "Su", "Ll", "Lu"))
     sp = {n: kern["ric"].sparsity_in(i) for n, i in
           (("a", 5), ("b", 6), ("q", 7))}
-    A, B, Q = (sym(n, sp[n].nnz(), N) for n in ("a", "b", "q"))
-    Ar, Br, Qr = (sym(n + "r", sp[n].nnz(), N) for n in ("a", "b", "q"))
-    q, g = sym("q", nx, N), sym("g", nu, N)
-    lo, hi = sym("lo", nb, N), sym("hi", nb, N)
+    A, B, Q = (sym(n, sp[n].nnz(), C) for n in ("a", "b", "q"))
+    Ar, Br, Qr = (sym(n + "r", sp[n].nnz(), C) for n in ("a", "b", "q"))
+    q, g, r, rr_ = (sym(n, k, C) for n, k in
+                    (("q", nx), ("g", nu), ("r", nu), ("rr", nu)))
+    lo, hi = sym("lo", nb, C), sym("hi", nb, C)
     rd, rp = sym("rd"), sym("rp")
     state = [dU, dX, Sl, Su, Ll, Lu, rd, rp]
-    data = [A, B, Q, q, g, lo, hi, Ar, Br, Qr]
-    R = ca.DM(ca.diag(ca.DM(r_diag)))
-    ric = kern["ric"].mapaccum("sw_ric_N", N, 5)
-    vec = kern["vec"].mapaccum("sw_vec_N", N, 2)
-    fwd = kern["fwd"].mapaccum("sw_fwd_N", N, 2)
+    data = [A, B, Q, q, g, r, lo, hi, Ar, Br, Qr, rr_]
+    sw = _sweeps(kern, tree)
     s, sr = ca.DM(flags).T, ca.DM(flags[::-1]).T
     zx, zu = ca.DM.zeros(nx), ca.DM.zeros(nu)
-    qmul = kern["qmul"].map(N)
-    m = 2.0 * nb * N
+    m = 2.0 * nb * C
 
     V = lay.values(dU, dX)
     rpl, rpu = V - lo - Sl, hi - V - Su
     mu = (ca.sum1(ca.sum2(Sl * Ll)) + ca.sum1(ca.sum2(Su * Lu))) / m
     sig = ca.mtimes(lay.sigma_scale, Ll / Sl + Lu / Su)
-    gx = qmul(Q, dX) + q
-    gu = ca.mtimes(R, dU) + g
+    gx = kern["qmul"].map(C)(Q, dX) + q
+    gu = r * dU + g
 
     def sweep_in(beta):
         qt = gx + ca.mtimes(lay.Ex.T, beta)
         rt = gu + ca.mtimes(lay.Eu.T, beta)
         return reverse_columns(qt), reverse_columns(rt)
 
-    def forward(kff_r, K):
-        dXn, _, dUn = fwd(zx, zu, A, B, K, reverse_columns(kff_r), s)
+    def forward(kff_r, K, v0):
+        dXn, _, dUn = sw["fwd"](zx, v0, A, B, K, reverse_columns(kff_r), s)
         dv = lay.values(dUn, dXn)
         return dUn, dXn, dv + rpl, rpu - dv
 
-    qr, rr = sweep_in(Ll * rpl / Sl - Lu * rpu / Su)
-    *_, Kr, kr, Lr, Mr = ric(
+    qr, rrt = sweep_in(Ll * rpl / Sl - Lu * rpu / Su)
+    _, _, _, Pvv, pv, Kr, kr, Lr, Mr = sw["ric"](
         ca.DM.zeros(nx * (nx + 1) // 2), zx, ca.DM.zeros(nx, nu),
         ca.DM.zeros(nu, nu), zu, Ar, Br, Qr,
         reverse_columns(sig[lay.nbu:, :]), reverse_columns(sig[:lay.nbu, :]),
-        qr, rr, sr)
+        qr, rrt, rr_, sr)
+    v0, Lroot = zu, None
+    if tree.root:
+        v0, Lroot = root_kernel(nu)(tree.finals(Pvv, nu * nu),
+                                    tree.finals(pv, nu))
     K = reverse_columns(Kr)
-    _, _, dSl_a, dSu_a = forward(kr, K)
+    _, _, dSl_a, dSu_a = forward(kr, K, v0)
     dLl_a = -Ll - Ll * dSl_a / Sl
     dLu_a = -Lu - Lu * dSu_a / Su
-    box = {k: f.map(N) for k, f in box_kernels(nb).items()}
+    box = {k: f.map(C) for k, f in box_kernels(nb).items()}
     vs = [Sl, Su, Ll, Lu]
     ds_a = [dSl_a, dSu_a, dLl_a, dLu_a]
     a_aff = _to_boundary(box["ratio"], vs, ds_a, 1.0)
@@ -191,8 +227,10 @@ def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     cl, cu = dSl_a * dLl_a, dSu_a * dLu_a
     qr2, rr2 = sweep_in((Ll * rpl - smu + cl) / Sl
                         - (Lu * rpu - smu + cu) / Su)
-    _, _, kr2 = vec(zx, zu, Ar, Br, Mr, Lr, qr2, rr2, sr)
-    ddU, ddX, dSl, dSu = forward(kr2, K)
+    _, pv2, kr2 = sw["vec"](zx, zu, Ar, Br, Mr, Lr, qr2, rr2, sr)
+    if tree.root:
+        v0 = root_solve(nu)(Lroot, tree.finals(pv2, nu))
+    ddU, ddX, dSl, dSu = forward(kr2, K, v0)
     dLl = -Ll + (smu - cl - Ll * dSl) / Sl
     dLu = -Lu + (smu - cu - Lu * dSu) / Su
     ds = [dSl, dSu, dLl, dLu]
@@ -206,48 +244,50 @@ def ipm_iteration(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     return ca.Function("sw_ipm_iter", state + data, new + [kkt])
 
 
-def kkt_residual(kern: dict, lay: BoxLayout, N: int, dims: tuple, R,
+def kkt_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
                  state, data, flags_r) -> tuple[ca.MX, ca.MX, ca.MX]:
     """The KKT residual of an iterate (module doc): its dual, primal and
     complementarity parts, scaled, ≥ 0.
 
-    ``dims`` is ``(n_x, n_u)``, ``flags_r`` the move-blocking flags
-    reversed in time (a held control's gradient joins its block's).
+    ``dims`` is ``(n_x, n_u)``, ``flags_r`` the flags reversed in time (a
+    held control's gradient joins its block's, the root's sums the
+    scenarios').
     """
     nx, nu = dims
     dU, dX, Sl, Su, Ll, Lu = state
-    A, B, Q, q, g, lo, hi, Ar, Br, Qr = data
+    A, B, Q, q, g, r, lo, hi, Ar, Br, Qr, _ = data
     V = lay.values(dU, dX)
     lam = Lu - Ll
-    gx = kern["qmul"].map(N)(Q, dX) + q + ca.mtimes(lay.Ex.T, lam)
-    gu = ca.mtimes(R, dU) + g + ca.mtimes(lay.Eu.T, lam)
-    costate = kern["costate"].mapaccum("sw_costate_N", N, 2)
-    *_, rho = costate(ca.DM.zeros(nx), ca.DM.zeros(nu), Ar, Br,
-                      reverse_columns(gx), reverse_columns(gu), flags_r)
+    gx = kern["qmul"].map(tree.C)(Q, dX) + q + ca.mtimes(lay.Ex.T, lam)
+    gu = r * dU + g + ca.mtimes(lay.Eu.T, lam)
+    _, racc, rho = _sweeps(kern, tree)["costate"](
+        ca.DM.zeros(nx), ca.DM.zeros(nu), Ar, Br, reverse_columns(gx),
+        reverse_columns(gu), flags_r)
     scale = 1.0 + ca.fmax(ca.mmax(ca.fabs(q)), ca.mmax(ca.fabs(g)))
-    dual = ca.mmax(ca.fabs(rho)) / scale
+    dual = ca.mmax(ca.fabs(rho))
+    if tree.root:
+        dual = ca.fmax(dual, ca.mmax(ca.fabs(tree.finals(racc, nu))))
     primal = ca.mmax(ca.fabs(ca.vertcat(ca.vec(V - lo - Sl),
                                         ca.vec(hi - V - Su))))
     comp = ca.mmax(ca.vertcat(ca.vec(Sl * Ll), ca.vec(Su * Lu)))
-    return dual, primal, comp
+    return dual / scale, primal, comp
 
 
-def ipm_solve(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
-              r_diag: np.ndarray, max_iter: int = IPM_MAX_ITER,
-              tol: float = IPM_TOL, flags: np.ndarray | None = None
-              ) -> ca.Function:
-    """``sw_ipm(dU0, dX0, A, B, Q, q, g, lo, hi) -> (dU, dX, lam, n, kkt)``.
+def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
+              max_iter: int = IPM_MAX_ITER, tol: float = IPM_TOL,
+              flags: np.ndarray | None = None) -> ca.Function:
+    """``sw_ipm(dU0, dX0, A, B, Q, q, g, r, lo, hi) -> (dU, dX, lam, n, kkt)``.
 
-    Solves the QP (module doc) from the dynamics-feasible point ``(dU0,
-    dX0)``; ``lam`` (nb × N) are the boxes' multipliers ``λ_u − λ_l`` in
-    scaled units, ``n`` the iterations made, ``kkt`` the last residual
-    (above ``tol`` when ``max_iter`` iterations did not reach it).
-    ``flags`` (N,): 1 where a stage chooses its control, 0 where it holds
-    the one before (move blocking; default: every stage chooses); the
-    start must hold them too.
+    Solves the QP (module doc) of the `Tree` from the dynamics-feasible
+    point ``(dU0, dX0)``; ``lam`` (nb × C) are the boxes' multipliers
+    ``λ_u − λ_l`` in scaled units, ``n`` the iterations made, ``kkt`` the
+    residual at the point returned (above ``tol`` when ``max_iter``
+    iterations did not reach it). ``flags`` (C,): 1 where a stage chooses
+    its control, 0 where it holds the one before (move blocking, a tree's
+    root stages; default: every stage chooses); the start must hold them.
     """
-    flags = np.ones(N) if flags is None else np.asarray(flags, float)
-    it = ipm_iteration(kern, lay, N, nx, nu, r_diag, flags)
+    flags = np.ones(tree.C) if flags is None else np.asarray(flags, float)
+    it = ipm_iteration(kern, lay, tree, nx, nu, flags)
     # fresh symbols: a call on the Function's own inputs would inline it
     ins = [ca.MX.sym(it.name_in(i), it.sparsity_in(i))
            for i in range(it.n_in())]
@@ -271,29 +311,29 @@ def ipm_solve(kern: dict, lay: BoxLayout, N: int, nx: int, nu: int,
     chunk = ca.Function("sw_ipm_chunk", args, inner(0, *args))
     skip = ca.Function.if_else("sw_ipm_skip", done, chunk)
     cur = [*state, n, kk]
-    for j in range(0, max_iter, depth):
+    for _ in range(0, max_iter, depth):
         # the last chunk may run past max_iter by less than one chunk
         cur = skip(cur[9] <= tol, *cur, *data)
     loop = ca.Function("sw_ipm_loop", args, cur)
     sym = ca.MX.sym
-    dU0, dX0 = sym("dU0", nu, N), sym("dX0", nx, N)
-    A, B, Q, q, g, lo, hi = (data[i] for i in range(7))
+    C = tree.C
+    dU0, dX0 = sym("dU0", nu, C), sym("dX0", nx, C)
+    A, B, Q, q, g, r, lo, hi = (data[i] for i in range(8))
     V0 = lay.values(dU0, dX0)
     Sl = ca.fmax(V0 - lo, IPM_SLACK0)
     Su = ca.fmax(hi - V0, IPM_SLACK0)
-    Ar, Br, Qr = (reverse_columns(M) for M in (A, B, Q))
-    data = [A, B, Q, q, g, lo, hi, Ar, Br, Qr]
-    R = ca.DM(ca.diag(ca.DM(r_diag)))
+    rev = [reverse_columns(M) for M in (A, B, Q, r)]
+    data = [A, B, Q, q, g, r, lo, hi, *rev]
     start = [dU0, dX0, Sl, Su, IPM_MU0 / Sl, IPM_MU0 / Su]
     sr = ca.DM(flags[::-1]).T
-    rd0, rp0, _ = kkt_residual(kern, lay, N, (nx, nu), R, start, data, sr)
+    rd0, rp0, _ = kkt_residual(kern, lay, tree, (nx, nu), start, data, sr)
     out = loop(*start, rd0, rp0, 0.0, 1.0, *data)
     dU, dX, Sl, Su, Ll, Lu, _, _, count, _ = out
     # the certificate: the residual recomputed at the point returned
-    dual, primal, comp = kkt_residual(kern, lay, N, (nx, nu), R,
+    dual, primal, comp = kkt_residual(kern, lay, tree, (nx, nu),
                                       [dU, dX, Sl, Su, Ll, Lu], data, sr)
     kkt = ca.fmax(dual, ca.fmax(primal, comp))
-    return ca.Function("sw_ipm", [dU0, dX0, A, B, Q, q, g, lo, hi],
-                       [dU, dX, Lu - Ll, count, kkt],
-                       ["dU0", "dX0", "A", "B", "Q", "q", "g", "lo", "hi"],
+    names = ["dU0", "dX0", "A", "B", "Q", "q", "g", "r", "lo", "hi"]
+    return ca.Function("sw_ipm", [dU0, dX0, *data[:8]],
+                       [dU, dX, Lu - Ll, count, kkt], names,
                        ["dU", "dX", "lam", "iterations", "kkt"])

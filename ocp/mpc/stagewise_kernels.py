@@ -61,17 +61,14 @@ def reverse_columns(M: ca.MX) -> ca.MX:
 
 
 def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
-                  r_diag: np.ndarray, free: np.ndarray, bu: list[int],
-                  bx: list[int], blocked: bool = False
-                  ) -> dict[str, ca.Function]:
+                  free: np.ndarray, bu: list[int], bx: list[int],
+                  blocked: bool = False) -> dict[str, ca.Function]:
     """The kernels of one stage's Riccati step, rollout and costate.
 
     Parameters
     ----------
     sp_a, sp_b, sp_q : casadi.Sparsity
         Patterns of A_k (n_x × n_x), B_k (n_x × n_u) and Q_{k+1}.
-    r_diag : ndarray (n_u,)
-        Diagonal of the control Hessian R (torque weight plus ρ).
     free : ndarray (n_u,) of bool
         Controls that may move (a failed wheel's torque is fixed: its
         column of B and its gradient are masked out of the recursion).
@@ -108,12 +105,13 @@ def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
     su = ca.SX.sym("su", len(bu))
     qt = ca.SX.sym("qt", nx)
     rt = ca.SX.sym("rt", nu)
+    r = ca.SX.sym("r", nu)      # the diagonal of the control Hessian R
     Ph = P + Q
     for j, i in enumerate(bx):
         Ph[i, i] += sx[j]
     PhB = ca.mtimes(Ph, B)
     Mxv = ca.mtimes(A.T, PhB + Pxv)
-    Re = (ca.diag(ca.DM(r_diag)) + ca.mtimes(B.T, PhB) + Pvv
+    Re = (ca.diag(r) + ca.mtimes(B.T, PhB) + Pvv
           + ca.mtimes(B.T, Pxv) + ca.mtimes(Pxv.T, B))
     for j, i in enumerate(bu):
         Re[i, i] += su[j]
@@ -125,7 +123,7 @@ def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
     Pk = ca.mtimes(A.T, ca.mtimes(Ph, A)) + flag * ca.mtimes(Mxv, K)
     keep = 1.0 - flag
     ric = ca.Function(
-        "sw_ric", [pl, p, *held, an, bn, qn, sx, su, qt, rt, s],
+        "sw_ric", [pl, p, *held, an, bn, qn, sx, su, qt, rt, r, s],
         [nz_of(ca.project(ca.densify(Pk), low)),
          ca.mtimes(A.T, ph) + flag * ca.mtimes(K.T, rhs),
          ca.densify(keep * Mxv), ca.densify(keep * Re),
@@ -161,3 +159,25 @@ def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
                        [ca.mtimes(A, dx) + ca.mtimes(B0, kff) + d])
     return {"ric": ric, "vec": vec, "fwd": fwd, "costate": costate,
             "qmul": qmul, "roll": roll}
+
+
+def root_kernel(nu: int) -> ca.Function:
+    """``root(Pvv, pv) -> (v, Lit)``: the shared control of a scenario tree.
+
+    ``Pvv`` (n_u × n_u) and ``pv`` (n_u,) are the sums over the scenarios
+    of their value's terms in the shared first control v; ``v = −Pvv⁻¹
+    pv`` and ``Lit`` = L⁻ᵀ of ``Pvv = LLᵀ`` (nonzeros, for a second right
+    hand side, `root_solve`).
+    """
+    pn, P = from_nz("Pvv", ca.Sparsity.dense(nu, nu))
+    pv = ca.SX.sym("pv", nu)
+    Lit = inv_lower(chol_lower(0.5 * (P + P.T))).T
+    return ca.Function("sw_root", [pn, pv],
+                       [-ca.mtimes([Lit, Lit.T, pv]), nz_of(Lit)])
+
+
+def root_solve(nu: int) -> ca.Function:
+    """``root2(Lit, pv) -> −Pvv⁻¹ pv`` from `root_kernel`'s factor."""
+    ln, L = from_nz("L", ca.Sparsity.dense(nu, nu))
+    pv = ca.SX.sym("pv", nu)
+    return ca.Function("sw_root2", [ln, pv], [-ca.mtimes([L, L.T, pv])])
