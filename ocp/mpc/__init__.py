@@ -15,6 +15,8 @@ from .controller import (
     MPCWeights,
     available_mpc_solvers,
 )
+from .robust import RobustMPC
+from .scenarios import Scenario, inertia_corners, scenario_grid
 
 __all__ = [
     "AttitudeMPC",
@@ -22,10 +24,14 @@ __all__ = [
     "ClosedLoopResult",
     "MPCStep",
     "MPCWeights",
+    "RobustMPC",
+    "Scenario",
     "QP_SOLVERS",
     "available_mpc_solvers",
     "closed_loop_table",
     "closed_loop_frame",
     "compare_slew",
+    "inertia_corners",
+    "scenario_grid",
     "simulate_mpc",
 ]

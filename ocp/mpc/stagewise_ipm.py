@@ -35,9 +35,10 @@ import casadi as ca
 import numpy as np
 
 from .stagewise_kernels import reverse_columns, root_kernel, root_solve
+from .stagewise_polish import POLISH_ACCEPT, polish
 
 #: KKT residual [scaled, 1] at which the interior point stops.
-IPM_TOL = 1e-13
+IPM_TOL = 1e-9
 #: Interior-point iterations allowed per QP (a multiple of `IPM_CHUNK`).
 IPM_MAX_ITER = 40
 #: Iterations per nested chunk of the solve (`ipm_solve`).
@@ -194,10 +195,17 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     gx = kern["qmul"].map(C)(Q, dX) + q
     gu = r * dU + g
 
-    def sweep_in(beta):
+    def sweep_in(beta, gx=gx, gu=gu):
         qt = gx + ca.mtimes(lay.Ex.T, beta)
         rt = gu + ca.mtimes(lay.Eu.T, beta)
         return reverse_columns(qt), reverse_columns(rt)
+
+    def solve(qr_, rr_v):
+        _, pv_, k_ = sw["vec"](zx, zu, Ar, Br, Mr, Lr, qr_, rr_v, sr)
+        v = root_solve(nu)(Lroot, tree.finals(pv_, nu)) if tree.root \
+            else zu
+        dXn, _, dUn = sw["fwd"](zx, v, A, B, K, reverse_columns(k_), s)
+        return dUn, dXn
 
     def forward(kff_r, K, v0):
         dXn, _, dUn = sw["fwd"](zx, v0, A, B, K, reverse_columns(kff_r), s)
@@ -225,12 +233,10 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     mu_aff = ca.sum2(box["mu"](*vs, *ds_a, a_aff)) / m
     smu = (mu_aff / mu) ** 3 * mu
     cl, cu = dSl_a * dLl_a, dSu_a * dLu_a
-    qr2, rr2 = sweep_in((Ll * rpl - smu + cl) / Sl
-                        - (Lu * rpu - smu + cu) / Su)
-    _, pv2, kr2 = sw["vec"](zx, zu, Ar, Br, Mr, Lr, qr2, rr2, sr)
-    if tree.root:
-        v0 = root_solve(nu)(Lroot, tree.finals(pv2, nu))
-    ddU, ddX, dSl, dSu = forward(kr2, K, v0)
+    beta = (Ll * rpl - smu + cl) / Sl - (Lu * rpu - smu + cu) / Su
+    ddU, ddX = solve(*sweep_in(beta))
+    dv = lay.values(ddU, ddX)
+    dSl, dSu = dv + rpl, rpu - dv
     dLl = -Ll + (smu - cl - Ll * dSl) / Sl
     dLu = -Lu + (smu - cu - Lu * dSu) / Su
     ds = [dSl, dSu, dLl, dLu]
@@ -241,6 +247,14 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     # a step α scales both by 1 − α (no costate sweep per iteration)
     new += [(1.0 - alpha) * rd, (1.0 - alpha) * rp]
     kkt = ca.fmax(ca.mmax(comp), ca.fmax(new[6], new[7]))
+    # a step that leaves the floating-point range (a slack or multiplier
+    # driven to 0 or inf at the end of the solve) is not taken: the
+    # iterate stays and the solve stops (its residual is recomputed and
+    # reported at the point returned)
+    total = sum(ca.sum1(ca.sum2(v)) for v in new[:6])
+    ok = ca.logic_and(total == total, ca.fabs(total) < 1e300)
+    new = [ca.if_else(ok, v, v0) for v, v0 in zip(new, state)]
+    kkt = ca.if_else(ok, kkt, 0.0)
     return ca.Function("sw_ipm_iter", state + data, new + [kkt])
 
 
@@ -271,6 +285,15 @@ def kkt_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
                                         ca.vec(hi - V - Su))))
     comp = ca.mmax(ca.vertcat(ca.vec(Sl * Ll), ca.vec(Su * Lu)))
     return dual / scale, primal, comp
+
+
+def _residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
+              point: list, data: list, flags_r) -> ca.MX:
+    """The KKT residual of a point, boxes broken included (scaled)."""
+    dual, primal, comp = kkt_residual(kern, lay, tree, dims, point, data,
+                                      flags_r)
+    broken = -ca.fmin(0.0, ca.fmin(ca.mmin(point[2]), ca.mmin(point[3])))
+    return ca.fmax(ca.fmax(dual, broken), ca.fmax(primal, comp))
 
 
 def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
@@ -328,11 +351,20 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     sr = ca.DM(flags[::-1]).T
     rd0, rp0, _ = kkt_residual(kern, lay, tree, (nx, nu), start, data, sr)
     out = loop(*start, rd0, rp0, 0.0, 1.0, *data)
-    dU, dX, Sl, Su, Ll, Lu, _, _, count, _ = out
-    # the certificate: the residual recomputed at the point returned
-    dual, primal, comp = kkt_residual(kern, lay, tree, (nx, nu),
-                                      [dU, dX, Sl, Su, Ll, Lu], data, sr)
-    kkt = ca.fmax(dual, ca.fmax(primal, comp))
+    ipm_point = list(out[:6])
+    count = out[8]
+    # the certificate: the residual recomputed at the point returned, the
+    # interior point's or its polish on the active set, the smaller
+    kkt = _residual(kern, lay, tree, (nx, nu), ipm_point, data, sr)
+    pol = polish(kern, lay, tree, (nx, nu), flags, ipm_point, data,
+                 _sweeps(kern, tree))
+    kkt_p = _residual(kern, lay, tree, (nx, nu), list(pol), data, sr)
+    # the polish is the active set's exact solution: kept unless its
+    # residual is worse than both the interior point's and POLISH_ACCEPT
+    better = kkt_p <= ca.fmax(kkt, POLISH_ACCEPT)
+    dU, dX, _, _, Ll, Lu = (ca.if_else(better, a, b)
+                            for a, b in zip(pol, ipm_point))
+    kkt = ca.fmin(kkt, kkt_p)
     names = ["dU0", "dX0", "A", "B", "Q", "q", "g", "r", "lo", "hi"]
     return ca.Function("sw_ipm", [dU0, dX0, *data[:8]],
                        [dU, dX, Lu - Ll, count, kkt], names,

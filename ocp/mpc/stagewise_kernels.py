@@ -111,8 +111,8 @@ def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
         Ph[i, i] += sx[j]
     PhB = ca.mtimes(Ph, B)
     Mxv = ca.mtimes(A.T, PhB + Pxv)
-    Re = (ca.diag(r) + ca.mtimes(B.T, PhB) + Pvv
-          + ca.mtimes(B.T, Pxv) + ca.mtimes(Pxv.T, B))
+    Re = (ca.diag(r) + Pvv + ca.mtimes(B.T, PhB) + ca.mtimes(B.T, Pxv)
+          + ca.mtimes(Pxv.T, B))
     for j, i in enumerate(bu):
         Re[i, i] += su[j]
     Lit = inv_lower(chol_lower(Re)).T

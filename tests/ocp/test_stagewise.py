@@ -66,9 +66,10 @@ def _compare_one_steps(model, qf, horizon, n=6, **kw):
                 np.zeros(cond.ng))
         ref = cond.rti_function(*args)
         out = sw.rti_function(*args)
-        assert float(out[-1]) <= 1e-12           # its KKT certificate
-        worst = max(worst, float(np.abs(np.asarray(out[1])
-                                        - np.asarray(ref[1])).max()))
+        assert float(out[-1]) <= 1e-9            # its KKT certificate
+        plan = np.asarray(out[1])
+        assert np.all(np.isfinite(plan))
+        worst = max(worst, float(np.abs(plan - np.asarray(ref[1])).max()))
     return worst
 
 
@@ -207,7 +208,7 @@ def test_move_blocking_step_equals_the_dense_blocked_qp():
         ref = z0 + Gz @ (T @ v + c) + ez
         out = sw.rti_function(x, QF, np.zeros(3), z_prev,
                               np.zeros(sw.nz), np.zeros(sw.ng))
-        assert float(out[-1]) <= 1e-12
+        assert float(out[-1]) <= 1e-9
         np.testing.assert_allclose(np.asarray(out[1]).ravel(), ref,
                                    rtol=0, atol=1e-10)
         u = np.asarray(out[1]).ravel()

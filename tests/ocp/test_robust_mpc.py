@@ -1,0 +1,203 @@
+"""Robust (multi-stage) MPC: one plan per scenario, one shared command.
+
+With one scenario, the nominal craft, it is the nominal stage-wise MPC
+(1e-10); with the nine inertia corners every scenario keeps its bounds,
+all share the first command, and the step is the scenario tree's QP
+solution (equal to the dense QP of the stacked scenarios, DAQP).
+"""
+
+import casadi as ca
+import daqp
+import numpy as np
+import pytest
+
+from adcs_common.exceptions import InvalidValueError
+from allocation import WheelArray
+from ocp import quat_from_axis_angle, rigid_spacecraft
+from ocp.mpc import (AttitudeMPC, RobustMPC, Scenario, inertia_corners,
+                     scenario_grid, simulate_mpc)
+from ocp.mpc.robust_qp import _RobustParts, param_rk4, robust_qp_function
+from ocp.spacecraft import load_spacecraft
+
+WHEELS = WheelArray.pyramid(h_max=0.2, m_max=0.05)
+MODEL = rigid_spacecraft(np.diag([3.0, 2.5, 3.5]), WHEELS)
+QF = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
+
+
+def _loop(mpc, n, x=None):
+    """(x, z_prev) and the step of the first n steps of a closed loop."""
+    rk4 = MODEL.rk4_step(1)
+    x = MODEL.state([1.0, 0.0, 0.0, 0.0]) if x is None else x
+    out = []
+    for _ in range(n):
+        z_prev = mpc._plan if mpc._plan is not None else \
+            mpc.initial_guess(x)
+        s = mpc.step(x, QF)
+        out.append((x.copy(), z_prev.copy(), s))
+        x = np.array(rk4(x, s.u, np.zeros(3), 0.5)).ravel()
+    return out
+
+
+def test_one_nominal_scenario_is_the_nominal_mpc():
+    nom = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="stagewise",
+                      rti=True)
+    rob = RobustMPC(MODEL, [Scenario(MODEL.inertia)], horizon=20, dt=0.5,
+                    rti=True)
+    for (_, _, a), (_, _, b) in zip(_loop(nom, 6), _loop(rob, 6)):
+        np.testing.assert_allclose(b.u, a.u, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(b.plan, a.plan, rtol=0, atol=1e-10)
+
+
+def test_the_parametric_rk4_is_the_model_s():
+    mpc = RobustMPC(MODEL, [Scenario(MODEL.inertia)], horizon=3, rti=True)
+    rng = np.random.default_rng(4)
+    from ocp.mpc.robust_qp import scenario_parameters
+    th = scenario_parameters(mpc)[:, 0]
+    f, g = param_rk4(mpc), MODEL.rk4_step(1)
+    for _ in range(5):
+        x = MODEL.state(rng.normal(size=4), 0.05 * rng.normal(size=3),
+                        0.1 * rng.normal(size=4))
+        u, tau = 0.05 * rng.normal(size=4), 1e-3 * rng.normal(size=3)
+        np.testing.assert_allclose(np.array(f(x, u, tau, th)),
+                                   np.array(g(x, u, tau, 0.5)),
+                                   rtol=0, atol=1e-15)
+
+
+@pytest.fixture(scope="module")
+def corners_loop():
+    mpc = RobustMPC(MODEL, inertia_corners(MODEL.inertia, 0.2),
+                    horizon=20, dt=0.5, rti=True)
+    return mpc, _loop(mpc, 5)
+
+
+def test_the_scenarios_share_the_first_command(corners_loop):
+    mpc, steps = corners_loop
+    for _, _, s in steps:
+        plans = mpc.scenario_plans(s.plan)
+        u0 = np.array([p[mpc._us[0]] for p in plans])
+        np.testing.assert_allclose(u0, np.tile(s.u, (9, 1)), rtol=0,
+                                   atol=1e-15)
+        assert s.qp_kkt <= 1e-8
+
+
+def test_every_scenario_keeps_its_bounds(corners_loop):
+    mpc, steps = corners_loop
+    h_max, m_max = np.asarray(WHEELS.h_max), np.asarray(WHEELS.m_max)
+    for _, _, s in steps:
+        for plan in mpc.scenario_plans(s.plan):
+            for k in range(20):
+                u = plan[mpc._us[k]]
+                h = plan[mpc._xs[k + 1]][7:]
+                assert np.all(np.abs(u) <= m_max * (1 + 1e-9))
+                assert np.all(np.abs(h) <= h_max * (1 + 1e-9))
+        assert s.violation <= 1e-9
+
+
+def test_one_robust_step_is_the_dense_stacked_qp(corners_loop):
+    """The tree's QP written out densely (every scenario's δx through its
+    own sensitivities, the shared δu_0 one variable) and solved by DAQP."""
+    mpc, steps = corners_loop
+    x, z_prev, _ = steps[2]
+    p = np.r_[x, QF, np.zeros(3)]
+    z0 = np.array(mpc.shift_function(x, z_prev, np.zeros(mpc.nz),
+                                     np.zeros(mpc.ng))[0]).ravel()
+    out = mpc.rti_function(x, QF, np.zeros(3), z_prev, np.zeros(mpc.nz),
+                           np.zeros(mpc.ng))
+    data = [np.array(v) for v in robust_qp_function(mpc)(z0, p)]
+    H, grad, C, lb, ub, T, c = _dense_tree(_RobustParts(mpc, 1e-9, 1),
+                                           *data)
+    v, _, flag, _ = daqp.solve(H, grad, C, ub, lb)
+    assert flag == 1
+    S, N = 9, 20
+    plans = np.array(out[1]).reshape(S, -1)
+    base = z0.reshape(S, -1)
+    got = np.concatenate([plans[s][mpc._us[k]] - base[s][mpc._us[k]]
+                          for s in range(S) for k in range(N)])
+    np.testing.assert_allclose(got, T @ v + c, rtol=0, atol=1e-10)
+
+
+def _dense_tree(parts, dU0, dX0, A, B, Q, q, g, r, lo, hi):
+    """The stacked scenarios' QP in the free controls (numpy).
+
+    Returns ``(H, grad, C, lb, ub, T, c)``: δu = T v + c (c the start's
+    offset, the shared u_0 and each scenario's later controls in v).
+    """
+    N, S, nx, nu = 20, 9, 11, 4
+    Eu, Ex = np.array(parts.lay.Eu), np.array(parts.lay.Ex)
+    spa, spb, spq = parts.sparsity
+    T = np.zeros((S * N * nu, nu + S * (N - 1) * nu))
+    for s in range(S):
+        T[s * N * nu:s * N * nu + nu, :nu] = np.eye(nu)
+        for k in range(1, N):
+            j = nu + (s * (N - 1) + k - 1) * nu
+            T[(s * N + k) * nu:(s * N + k + 1) * nu, j:j + nu] = np.eye(nu)
+    c = dU0.T.ravel()
+    n = S * N * nu
+    H, grad = np.zeros((n, n)), np.zeros(n)
+    rows, lbs, ubs = [], [], []
+    for s in range(S):
+        G = np.zeros((nx, n))
+        for k in range(N):
+            col = s * N + k
+            Ak, Bk, Qk = (np.array(ca.DM(sp, ca.DM(list(M[:, col]))))
+                          for sp, M in ((spa, A), (spb, B), (spq, Q)))
+            G = Ak @ G
+            G[:, col * nu:(col + 1) * nu] += Bk
+            e = dX0[:, col] - G @ c        # the start's δx less G c
+            H += G.T @ Qk @ G
+            grad += G.T @ (Qk @ e + q[:, col])
+            sl = slice(col * nu, (col + 1) * nu)
+            H[sl, sl] += np.diag(r[:, col])
+            grad[sl] += g[:, col]
+            rows.append(Eu @ np.eye(nu, n, col * nu) + Ex @ G)
+            lbs.append(lo[:, col] - Ex @ e)
+            ubs.append(hi[:, col] - Ex @ e)
+    Cm = np.vstack(rows)
+    return (T.T @ H @ T, T.T @ (grad + H @ c), Cm @ T,
+            np.concatenate(lbs) - Cm @ c, np.concatenate(ubs) - Cm @ c,
+            T, c)
+
+
+def test_scenario_sets_are_built_and_checked():
+    grid = scenario_grid(MODEL.inertia, inertia_scale=(0.8, 1.0, 1.2))
+    assert len(grid) == 27
+    lam = np.sort(np.linalg.eigvalsh(grid[0].inertia))
+    np.testing.assert_allclose(lam, np.sort(0.8 * np.array([3.0, 2.5, 3.5])),
+                               rtol=1e-14)
+    corners = inertia_corners(MODEL.inertia, 0.2)
+    assert len(corners) == 9 and corners[0].label == "nominal"
+    tilted = scenario_grid(MODEL.inertia, WHEELS.axes,
+                           misalignment=(np.deg2rad(0.5),))[0]
+    ang = np.arctan2(np.linalg.norm(np.cross(tilted.axes.T, WHEELS.axes.T),
+                                    axis=1),
+                     np.sum(tilted.axes * WHEELS.axes, 0))
+    np.testing.assert_allclose(ang, np.deg2rad(0.5), rtol=1e-12)
+    with pytest.raises(InvalidValueError, match="weight"):
+        Scenario(MODEL.inertia, weight=0.0)
+    with pytest.raises(InvalidValueError, match="scenarios"):
+        RobustMPC(MODEL, [])
+    with pytest.raises(InvalidValueError, match="misalignment"):
+        scenario_grid(MODEL.inertia, misalignment=(0.01,))
+
+
+CRAFT_TOML = """
+name = "user-robust"
+description = "A user's pyramid craft, products of inertia known roughly"
+inertia = [[3.0, 0.05, -0.02], [0.05, 2.5, 0.03], [-0.02, 0.03, 3.5]]
+
+[wheels]
+pyramid = { delta_deg = 55.0, gamma_deg = 45.0 }
+h_max = 0.2    # N·m·s
+m_max = 0.05   # N·m
+"""
+
+
+def test_a_robust_closed_loop_on_a_toml_craft_reaches_its_target(tmp_path):
+    path = tmp_path / "craft.toml"
+    path.write_text(CRAFT_TOML)
+    sc = load_spacecraft(path)
+    mpc = RobustMPC(sc, inertia_corners(sc.inertia, 0.2), horizon=20,
+                    dt=0.5, rti=True)
+    r = simulate_mpc(mpc, [1, 0, 0, 0], QF, t_final=30.0)
+    assert r.final_error < np.deg2rad(0.01)
+    assert r.momentum_violation <= 1e-9 and r.torque_violation <= 1e-9
