@@ -9,8 +9,12 @@ set reached by volume (uniform Monte Carlo demands, fixed seed) and over
 directions (mean and least radial reach over the set's), the relative
 torque error on the attainable demands it misses (median, 95th
 percentile), the share of reached demands where its torques equal the
-exact QP's, and the mean time per call in Python (this machine, one
-process). See `allocation.compare_methods`.
+exact QP's, the mean time per call in Python (this machine, one
+process) and, where the method is exported (`allocation.methods.symbolic`,
+gcc -O2), the median time per call in C and its ratio to the exact QP's
+exported ``wheel_qp`` measured in the same run on the same demands
+(`benchmarks.alloc_methods_c`; ``--no-c`` skips it). See
+`allocation.compare_methods`.
 """
 
 from __future__ import annotations
@@ -20,6 +24,9 @@ import argparse
 import numpy as np
 
 from allocation import WheelArray, compare_methods, format_comparison
+from allocation.method_comparison import sample_attainable
+
+from benchmarks.alloc_methods_c import c_times
 
 
 def cone6(m_max: float = 0.2) -> WheelArray:
@@ -45,19 +52,47 @@ def arrays() -> dict[str, WheelArray]:
     }
 
 
+def with_c_columns(table: str, rows, times: dict[str, float] | None
+                   ) -> str:
+    """``table`` (`format_comparison` of ``rows``) with the C columns.
+
+    ``C µs``: median per call in C; ``÷ QP``: over the exported exact
+    QP's (``wheel_qp``) in the same run; "-" where not exported.
+    """
+    if times is None:
+        return table
+    base = times["exact QP (scale)"]
+    lines = table.splitlines()
+    out = [lines[0] + f"{'C µs':>9}{'÷ QP':>8}", lines[1] + "-" * 17]
+    for line, r in zip(lines[2:], rows):
+        t = times.get(r.method)
+        out.append(line + (f"{t:>9.3f}{t / base:>8.2f}" if t is not None
+                           else f"{'-':>9}{'-':>8}"))
+    return "\n".join(out)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Print the comparison table of every array."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--samples", type=int, default=2000)
     p.add_argument("--directions", type=int, default=100)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--blocks", type=int, default=51,
+                   help="C timing: blocks of 256 demands (median)")
+    p.add_argument("--no-c", action="store_true", help="skip the C column")
     a = p.parse_args(argv)
     for name, array in arrays().items():
         rows = compare_methods(array, n_samples=a.samples,
                                n_directions=a.directions, seed=a.seed)
+        times = None if a.no_c else c_times(
+            array, sample_attainable(array, 256, a.seed), a.blocks, a.seed)
         print(f"\n{name} ({array.n_wheels - len(array.failed)} working "
               f"wheels, {a.samples} demands, {a.directions} directions)")
-        print(format_comparison(rows))
+        print(with_c_columns(format_comparison(rows), rows, times))
+    print("\nC: gcc -O2, median over blocks of 256 attainable demands; "
+          "÷ QP: over the exported exact QP (wheel_qp, momentum bound at "
+          "dt = 0.5 s) in the same run; fixed point: 200 steps (numpy "
+          "stops when converged)")
 
 
 if __name__ == "__main__":
