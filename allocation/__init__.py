@@ -40,6 +40,12 @@ from .method_comparison import (
     compare_methods,
     format_comparison,
 )
+from .method_momentum import (
+    MomentumHandling,
+    format_momentum,
+    momentum_cases,
+    momentum_handling,
+)
 from .laws import (
     EQ9_GAINS,
     PAPER_EQ9_GAINS_PRINTED,
@@ -98,6 +104,7 @@ __all__ = [
     "InvalidValueError",
     "LinearLaw",
     "MethodComparison",
+    "MomentumHandling",
     "PAPER_EQ9_GAINS_PRINTED",
     "QPAllocator",
     "RankError",
@@ -122,6 +129,7 @@ __all__ = [
     "envelope_frame",
     "fibonacci_directions",
     "format_comparison",
+    "format_momentum",
     "format_reach_table",
     "gain_error_uniform",
     "gain_error_uniform_as_printed",
@@ -130,6 +138,8 @@ __all__ = [
     "min_norm_function",
     "min_norm_gains",
     "min_norm_law",
+    "momentum_cases",
+    "momentum_handling",
     "monte_carlo_accuracy",
     "monte_carlo_accuracy_array",
     "paper_actual_axes_as_printed",

@@ -15,6 +15,13 @@ gcc -O2), the median time per call in C and its ratio to the exact QP's
 exported ``wheel_qp`` measured in the same run on the same demands
 (`benchmarks.alloc_methods_c`; ``--no-c`` skips it). See
 `allocation.compare_methods`.
+
+Then the momentum-bound handling (`allocation.momentum_handling`,
+``--cases 400``, dt = 0.5 s): on momentum states with wheels near their
+bound, the share of steps after which a method told only the torque
+limits leaves a wheel beyond h_max (and the worst excess), and, with the
+momentum folded into its box, the share of the demands the exact QP
+meets exactly that the method meets too.
 """
 
 from __future__ import annotations
@@ -23,7 +30,13 @@ import argparse
 
 import numpy as np
 
-from allocation import WheelArray, compare_methods, format_comparison
+from allocation import (
+    WheelArray,
+    compare_methods,
+    format_comparison,
+    format_momentum,
+    momentum_handling,
+)
 from allocation.method_comparison import sample_attainable
 
 from benchmarks.alloc_methods_c import c_times
@@ -80,6 +93,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--blocks", type=int, default=51,
                    help="C timing: blocks of 256 demands (median)")
     p.add_argument("--no-c", action="store_true", help="skip the C column")
+    p.add_argument("--cases", type=int, default=400,
+                   help="momentum states of the momentum-bound table")
     a = p.parse_args(argv)
     for name, array in arrays().items():
         rows = compare_methods(array, n_samples=a.samples,
@@ -93,6 +108,12 @@ def main(argv: list[str] | None = None) -> None:
           "÷ QP: over the exported exact QP (wheel_qp, momentum bound at "
           "dt = 0.5 s) in the same run; fixed point: 200 steps (numpy "
           "stops when converged)")
+    for name, array in arrays().items():
+        rows = momentum_handling(array, dt=0.5, n_cases=a.cases,
+                                 seed=a.seed)
+        print(f"\nmomentum bound, {name} ({a.cases} cases, dt = 0.5 s, "
+              f"{rows[0].n_exact} inside the momentum-limited set)")
+        print(format_momentum(rows))
 
 
 if __name__ == "__main__":
