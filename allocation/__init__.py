@@ -38,6 +38,7 @@ from . import methods
 from .method_comparison import (
     MethodComparison,
     compare_methods,
+    comparison_arrays,
     format_comparison,
 )
 from .method_momentum import (
@@ -123,6 +124,7 @@ __all__ = [
     "certify_layout",
     "compare_law_axes",
     "compare_methods",
+    "comparison_arrays",
     "conic_allocator_function",
     "design_array",
     "envelope",

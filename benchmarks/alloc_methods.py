@@ -28,11 +28,10 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
 from allocation import (
     WheelArray,
     compare_methods,
+    comparison_arrays,
     format_comparison,
     format_momentum,
     momentum_handling,
@@ -42,27 +41,9 @@ from allocation.method_comparison import sample_attainable
 from benchmarks.alloc_methods_c import c_times
 
 
-def cone6(m_max: float = 0.2) -> WheelArray:
-    """Six wheels on a 54.7356° cone, 60° apart."""
-    b = np.arccos(1 / np.sqrt(3))
-    az = 2 * np.pi * np.arange(6) / 6
-    axes = np.vstack([np.sin(b) * np.cos(az), np.sin(b) * np.sin(az),
-                      np.full(6, np.cos(b))])
-    return WheelArray.from_axes(axes, h_max=4.0, m_max=m_max,
-                                normalize=True)
-
-
 def arrays() -> dict[str, WheelArray]:
-    """The arrays of the comparison, by name."""
-    return {
-        "pyramid": WheelArray.pyramid(h_max=4.0, m_max=0.2),
-        "pyramid, wheel 2 failed": WheelArray.pyramid(
-            h_max=4.0, m_max=0.2, failed=[1]),
-        "3 + 1": WheelArray.orthogonal_plus_skew(h_max=4.0, m_max=0.2),
-        "six, orthogonal pairs": WheelArray.orthogonal_pairs(
-            h_max=4.0, m_max=0.2),
-        "six, cone": cone6(),
-    }
+    """Return the arrays of the comparison (`comparison_arrays`)."""
+    return comparison_arrays()
 
 
 def with_c_columns(table: str, rows, times: dict[str, float] | None

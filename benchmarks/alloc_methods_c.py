@@ -105,7 +105,7 @@ def _driver(name: str, functions: dict[str, ca.Function],
 
 
 def exact_qp_function(array: WheelArray) -> ca.Function:
-    """The exact QP as `export_c` exports it: ``wheel_qp(M, h)``."""
+    """Build the exact QP as `export_c` exports it: ``wheel_qp(M, h)``."""
     plugin = "daqp" if ca.has_conic("daqp") else "qrqp"
     return conic_allocator_function(array, dt=DT, plugin=plugin,
                                     name="wheel_qp")

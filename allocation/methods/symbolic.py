@@ -59,7 +59,7 @@ FIXED_POINT_STEPS = 200
 
 
 def _bounds(array: WheelArray, lo, hi):
-    """``(low, high)`` of the numpy `problem`: ``±m_max`` ∩ caller, failed 0."""
+    """Return the numpy `problem`'s ``(low, high)``: ±m_max ∩ caller."""
     mask = ca.DM(array.active.astype(float))
     m_max = ca.DM(np.asarray(array.m_max, dtype=float))
     return ca.fmax(-m_max, lo) * mask, ca.fmin(m_max, hi) * mask
@@ -82,7 +82,7 @@ def _function(name: str, M, lo, hi, m) -> ca.Function:
 
 def pseudo_inverse_function(array: WheelArray,
                             name: str = "pseudo_inverse") -> ca.Function:
-    r"""`pseudo_inverse` as ``name(M, lo, hi) -> (m)``: :math:`\mathrm{sat}(A^+M)`.
+    r"""Build `pseudo_inverse`, :math:`\mathrm{sat}(A^+M)`, as a Function.
 
     Returns
     -------
@@ -98,7 +98,7 @@ def pseudo_inverse_function(array: WheelArray,
 def daisy_chain_function(array: WheelArray,
                          groups: Sequence[Sequence[int]] | None = None,
                          name: str = "daisy_chain") -> ca.Function:
-    """`daisy_chain` as ``name(M, lo, hi) -> (m)`` (groups fixed).
+    """Build `daisy_chain` (groups fixed) as ``name(M, lo, hi) -> (m)``.
 
     Parameters
     ----------
@@ -141,7 +141,7 @@ def fixed_point_function(array: WheelArray,
                          iterations: int = FIXED_POINT_STEPS,
                          epsilon: float = 1e-4,
                          name: str = "fixed_point") -> ca.Function:
-    r"""`fixed_point` with a fixed number of steps as ``name(M, lo, hi) -> (m)``.
+    r"""Build `fixed_point` with a fixed number of steps as a Function.
 
     ``iterations`` projected steps
     :math:`m \leftarrow \mathrm{sat}[(1-\varepsilon)\eta A^T M + (I-\eta H)m]`
@@ -186,7 +186,7 @@ def fixed_point_function(array: WheelArray,
 
 
 def _table(array: WheelArray, name: str) -> tuple[ca.Function, list[int]]:
-    """``name_pinv(code, r) -> (m)``: ``A_F⁺ r`` of the free set ``code``.
+    """Build ``name_pinv(code, r) -> (m)``: ``A_F⁺ r`` of the free set.
 
     ``code = Σ_j 2^j`` over the free working wheels j (in index order);
     the rows of the other wheels are zero. A ``switch`` in C.
@@ -212,14 +212,16 @@ def _table(array: WheelArray, name: str) -> tuple[ca.Function, list[int]]:
 
 
 def _saturate_all(m, free, low, high):
-    """Every free violator clipped and saturated (`_saturate_all`)."""
+    """Clip and saturate every free violator (`_saturate_all`)."""
     bad = free * ((m < low) + (m > high) > 0)
     return ca.if_else(bad, _clip(m, low, high), m), bad
 
 
 def _saturate_worst(m, free, low, high):
-    """The free wheel most beyond its bound, relative to its range,
-    saturated (`_saturate_worst`; ties: the first)."""
+    """Saturate the free wheel most beyond its bound, relative to its range.
+
+    As numpy's `_saturate_worst` (ties: the first).
+    """
     n = m.numel()
     over = ca.if_else(free, ca.fmax(m - high, low - m), -np.inf)
     span = ca.fmax(high - low, 1e-300)
@@ -233,7 +235,7 @@ def _saturate_worst(m, free, low, high):
 
 def _redistribution(array: WheelArray, passes: int | None, name: str,
                     saturate: Callable) -> ca.Function:
-    """The cascade of `_redistribute` with a fixed number of passes."""
+    """Build the cascade of `_redistribute` with a fixed number of passes."""
     check_instance(array, WheelArray, "array")
     n = array.n_wheels
     passes = n + 1 if passes is None else int(passes)
@@ -261,7 +263,7 @@ def redistributed_pinv_function(array: WheelArray,
                                 passes: int | None = None,
                                 name: str = "redistributed_pinv"
                                 ) -> ca.Function:
-    """`redistributed_pinv` with a fixed number of passes.
+    """Build `redistributed_pinv` with a fixed number of passes.
 
     Parameters
     ----------
@@ -281,7 +283,7 @@ def redistributed_pinv_function(array: WheelArray,
 def cascaded_inverse_function(array: WheelArray, passes: int | None = None,
                               name: str = "cascaded_inverse"
                               ) -> ca.Function:
-    """`cascaded_inverse` (one wheel per stage) with a fixed number of passes.
+    """Build `cascaded_inverse` (a wheel per stage), fixed number of passes.
 
     Parameters
     ----------

@@ -23,8 +23,10 @@ PYRAMID = WheelArray.pyramid(h_max=4.0, m_max=0.2)
 
 
 def inside_momentum_set(array, h, M):
-    """M in {A m : lo <= m <= hi} by the zonotope's facets (independent
-    of the QP)."""
+    """Test M in {A m : lo <= m <= hi} by the zonotope's facets.
+
+    Independent of the QP.
+    """
     lo, hi, _ = torque_bounds(array, h, DT)
     A = array.working_axes
     normals, offsets = zonotope_facets(A * (hi - lo) / 2, A @ (lo + hi) / 2)

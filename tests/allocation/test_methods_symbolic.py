@@ -112,8 +112,10 @@ def test_casadi_equals_numpy(array_name, name):
 
 
 def test_one_pass_is_the_clipped_pseudo_inverse():
-    """Redistribution truncated to one pass: sat(A⁺M) by both rules
-    (when no wheel starts fixed, lo < hi)."""
+    """Truncate redistribution to one pass: sat(A⁺M) by both rules.
+
+    When no wheel starts fixed (lo < hi).
+    """
     array = ARRAYS["pyramid"]
     one = [redistributed_pinv_function(array, passes=1),
            cascaded_inverse_function(array, passes=1)]
