@@ -28,6 +28,9 @@ STUDIES: dict[str, tuple[str, str]] = {
     "wheels": ("wheels", "Meteor-M No. 2 wheel pyramid ([1])"),
     "design": ("design", "Which array should I fly? Nominal against "
                "single-failure radius"),
+    "methods": ("methods", "Which allocation law should my flight "
+                "software run? The literature's methods beside the exact "
+                "QP"),
     "accuracy": ("accuracy", "Torque accuracy under mounting and "
                  "scale-factor errors ([1])"),
     "thrusters": ("thrusters", "Six-thruster unit in pulse-cycle mode "

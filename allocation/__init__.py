@@ -38,7 +38,14 @@ from . import methods
 from .method_comparison import (
     MethodComparison,
     compare_methods,
+    comparison_arrays,
     format_comparison,
+)
+from .method_momentum import (
+    MomentumHandling,
+    format_momentum,
+    momentum_cases,
+    momentum_handling,
 )
 from .laws import (
     EQ9_GAINS,
@@ -98,6 +105,7 @@ __all__ = [
     "InvalidValueError",
     "LinearLaw",
     "MethodComparison",
+    "MomentumHandling",
     "PAPER_EQ9_GAINS_PRINTED",
     "QPAllocator",
     "RankError",
@@ -116,12 +124,14 @@ __all__ = [
     "certify_layout",
     "compare_law_axes",
     "compare_methods",
+    "comparison_arrays",
     "conic_allocator_function",
     "design_array",
     "envelope",
     "envelope_frame",
     "fibonacci_directions",
     "format_comparison",
+    "format_momentum",
     "format_reach_table",
     "gain_error_uniform",
     "gain_error_uniform_as_printed",
@@ -130,6 +140,8 @@ __all__ = [
     "min_norm_function",
     "min_norm_gains",
     "min_norm_law",
+    "momentum_cases",
+    "momentum_handling",
     "monte_carlo_accuracy",
     "monte_carlo_accuracy_array",
     "paper_actual_axes_as_printed",

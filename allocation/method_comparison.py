@@ -25,8 +25,8 @@ from .methods import METHODS
 from .qp import QPAllocator
 from .reach import fibonacci_directions, law_extent
 
-__all__ = ["MethodComparison", "compare_methods", "format_comparison",
-           "sample_attainable"]
+__all__ = ["MethodComparison", "compare_methods", "comparison_arrays",
+           "format_comparison", "sample_attainable"]
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,30 @@ class MethodComparison:
     qp_agreement: float
     time_per_call: float
     n_samples: int
+
+
+def comparison_arrays(h_max: float = 4.0, m_max: float = 0.2
+                      ) -> dict[str, WheelArray]:
+    """Return the arrays of the method comparison, by name.
+
+    The pyramid of the papers, the same with wheel 2 failed, 3 + 1, six
+    wheels as orthogonal pairs and six on a 54.7356° cone 60° apart
+    (wheels named 1..N); each wheel ``h_max`` [N·m·s], ``m_max`` [N·m].
+    """
+    b = np.arccos(1 / np.sqrt(3))
+    az = 2 * np.pi * np.arange(6) / 6
+    cone = np.vstack([np.sin(b) * np.cos(az), np.sin(b) * np.sin(az),
+                      np.full(6, np.cos(b))])
+    return {
+        "pyramid": WheelArray.pyramid(h_max=h_max, m_max=m_max),
+        "pyramid, wheel 2 failed": WheelArray.pyramid(
+            h_max=h_max, m_max=m_max, failed=[1]),
+        "3 + 1": WheelArray.orthogonal_plus_skew(h_max=h_max, m_max=m_max),
+        "six, orthogonal pairs": WheelArray.orthogonal_pairs(
+            h_max=h_max, m_max=m_max),
+        "six, cone": WheelArray.from_axes(cone, h_max=h_max, m_max=m_max,
+                                          normalize=True),
+    }
 
 
 def sample_attainable(array: WheelArray, n: int, seed: int = 0

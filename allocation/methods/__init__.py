@@ -6,7 +6,9 @@ Each method takes a `WheelArray` (axes (3, N), per-wheel torque limits
 (momentum-limited wheels), and returns wheel torques ``m`` (N,) [N·m].
 The exact bounded QP is `allocation.QPAllocator`; `METHODS` lists the
 methods by the names the comparison (`allocation.method_comparison`)
-reports.
+reports. `allocation.methods.symbolic` holds the CasADi versions of the
+closed-form ones (``SYMBOLIC_METHODS``: AD and C code), equal to these to
+rounding.
 """
 
 from __future__ import annotations
@@ -23,6 +25,16 @@ from .inverse import (
     redistributed_pinv,
 )
 from .iterative import fixed_point, fixed_point_batch, wls_alloc
+from .symbolic import (
+    SYMBOLIC_METHODS,
+    cascaded_inverse_function,
+    daisy_chain_function,
+    fixed_point_function,
+    generate_methods_c,
+    method_functions,
+    pseudo_inverse_function,
+    redistributed_pinv_function,
+)
 
 #: name -> method ``f(array, M, lo=None, hi=None) -> m`` (N,) [N·m]
 METHODS: dict[str, Callable] = {
@@ -37,14 +49,22 @@ METHODS: dict[str, Callable] = {
 
 __all__ = [
     "METHODS",
+    "SYMBOLIC_METHODS",
     "bounded_lsq",
     "cascaded_inverse",
+    "cascaded_inverse_function",
     "daisy_chain",
+    "daisy_chain_function",
     "default_groups",
     "direct_allocation",
     "fixed_point",
     "fixed_point_batch",
+    "fixed_point_function",
+    "generate_methods_c",
+    "method_functions",
     "pseudo_inverse",
+    "pseudo_inverse_function",
     "redistributed_pinv",
+    "redistributed_pinv_function",
     "wls_alloc",
 ]
