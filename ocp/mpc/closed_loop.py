@@ -123,7 +123,8 @@ def simulate_mpc(mpc: AttitudeMPC, q0: ArrayLike, qf: ArrayLike, *,
                  disturbance: Callable[[float], Any] | Any = None,
                  estimate_disturbance: bool = False,
                  settle_angle: float = np.deg2rad(0.1), hold: float = 0.0,
-                 progress: Callable[[int, int], None] | None = None
+                 progress: Callable[[int, int], None] | None = None,
+                 plant: SpacecraftModel | None = None
                  ) -> ClosedLoopResult:
     """Closed-loop simulation of ``mpc`` on the plant (CVODES, ZOH).
 
@@ -154,12 +155,22 @@ def simulate_mpc(mpc: AttitudeMPC, q0: ArrayLike, qf: ArrayLike, *,
         Length of the final hold window of ``hold_error`` [s].
     progress : callable, optional
         ``progress(k, K)`` after each step.
+    plant : SpacecraftModel, optional
+        The craft flown, when it is not the one the MPC plans with (a
+        Monte Carlo draw of inertia or misalignment; the same states and
+        controls as ``mpc.model``). Default: ``mpc.model``.
 
     Returns
     -------
     ClosedLoopResult
     """
     model = mpc.model
+    if plant is not None:
+        if not isinstance(plant, SpacecraftModel) or (
+                plant.nx, plant.nu) != (model.nx, model.nu):
+            raise InvalidValueError(
+                "plant must be a SpacecraftModel with the MPC model's "
+                f"states and controls ({model.nx}, {model.nu})")
     t_final = as_finite_scalar(t_final, "t_final")
     check_positive(t_final, "t_final")
     x = model.state(q0, w0, h0)
@@ -177,7 +188,7 @@ def simulate_mpc(mpc: AttitudeMPC, q0: ArrayLike, qf: ArrayLike, *,
         def dist(_t):
             return d
     K = int(np.ceil(t_final / mpc.dt - 1e-9))
-    F = model.integrator(mpc.dt)
+    F = (plant or model).integrator(mpc.dt)
     X = np.empty((K + 1, model.nx))
     U = np.empty((K, model.nu))
     X[0] = x

@@ -201,3 +201,17 @@ def test_a_robust_closed_loop_on_a_toml_craft_reaches_its_target(tmp_path):
     r = simulate_mpc(mpc, [1, 0, 0, 0], QF, t_final=30.0)
     assert r.final_error < np.deg2rad(0.01)
     assert r.momentum_violation <= 1e-9 and r.torque_violation <= 1e-9
+
+
+def test_the_closed_loop_can_fly_another_plant():
+    """simulate_mpc(plant=…): the MPC plans with its model, the plant flown
+    has 20 % more inertia about x (a Monte Carlo draw)."""
+    plant = rigid_spacecraft(np.diag([3.6, 2.5, 3.5]), WHEELS)
+    mpc = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="stagewise",
+                      rti=True)
+    same = simulate_mpc(mpc, [1, 0, 0, 0], QF, t_final=10.0)
+    other = simulate_mpc(mpc, [1, 0, 0, 0], QF, t_final=10.0, plant=plant)
+    d = np.abs(same.trajectory.w - other.trajectory.w).max()
+    assert d > 1e-3                      # the plant's inertia was used
+    with pytest.raises(InvalidValueError, match="plant"):
+        simulate_mpc(mpc, [1, 0, 0, 0], QF, t_final=1.0, plant="x")
