@@ -100,7 +100,8 @@ def _export(args: argparse.Namespace) -> int:
                    build=args.build or args.run,
                    cc=args.cc, progress=args.build or args.run,
                    target=args.target, loop_steps=args.loop_steps,
-                   mpc_move_blocks=args.move_blocks)
+                   mpc_move_blocks=args.move_blocks,
+                   mpc_scenarios=_scenarios(args.scenarios, sc))
     for p in (res.source, res.header, res.driver, res.makefile,
               res.makefile.with_name("CMakeLists.txt"), res.readme):
         print(f"  wrote {p}")
@@ -123,6 +124,17 @@ def _export(args: argparse.Namespace) -> int:
             times = exc.times
         return _print_driver(times, res.extras.get("closed_loop"))
     return 0
+
+
+def _scenarios(name: str | None, sc) -> list | None:
+    """The robust MPC's scenarios named on the command line (or None)."""
+    from ocp.mpc import inertia_corners, scenario_grid
+
+    if name is None:
+        return None
+    if name == "grid":
+        return scenario_grid(sc.inertia, inertia_scale=(0.8, 1.0, 1.2))
+    return inertia_corners(sc.inertia, 0.2)
 
 
 def _loop_text(plan: dict) -> str:
@@ -326,6 +338,12 @@ def _add_export(sub) -> None:
                      help="sample time [s]")
     exp.add_argument("--horizon", type=int, default=20,
                      help="MPC horizon (intervals)")
+    exp.add_argument("--scenarios", choices=("corners", "grid"),
+                     default=None,
+                     help="robust MPC steps: the nominal craft and the 8 "
+                     "corners of ±20 %% principal inertia (corners, 9; the "
+                     "default) or {0.8, 1, 1.2} per principal axis (grid, "
+                     "27)")
     exp.add_argument("--move-blocks", type=int, default=None,
                      help="stage-wise MPC steps: hold the control over this "
                      "many blocks of stages (move blocking)")
@@ -333,7 +351,9 @@ def _add_export(sub) -> None:
                      help="MPC variants to export (comma-separated, from "
                      "mpc_step, mpc_rti_step, mpc_cond_step, "
                      "mpc_cond_rti_step, mpc_sw_step, mpc_sw_rti_step "
-                     "(stage-wise: for long horizons); empty for none; "
+                     "(stage-wise: for long horizons), mpc_robust_step, "
+                     "mpc_robust_rti_step (robust multi-stage, "
+                     "--scenarios); empty for none; "
                      "default "
                      "mpc_step,mpc_rti_step,mpc_cond_rti_step; "
                      "mpc_cond_rti_step with --precision single)")

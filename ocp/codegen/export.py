@@ -77,9 +77,11 @@ from .patches import (
     patch_unused_parameters,
 )
 from .precision import (DAQP_SINGLE_FLAG, SINGLE_DUTY_QP_PLUGIN,
-                        check_precision, check_single, condensed_options,
+                        check_precision, check_single,
                         duty_qp_options, patch_qrqp_failure, to_single,
                         wheel_qp_options)
+from .mpc_variants import MPC_VARIANTS, check_variants as _check_variants
+from .mpc_variants import mpc_functions
 from .qrqp_patch import patch_qrqp
 from .result import ExportResult, OPT_FLAGS, SOURCE
 from .target import (build_target, check_target, daqp_c_sources,
@@ -192,7 +194,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                       rate_max: float | None = None,
                       condensed_qp_plugin: str | None = None,
                       precision: str = "double",
-                      mpc_move_blocks: Any = None
+                      mpc_move_blocks: Any = None,
+                      mpc_scenarios: Any = None
                       ) -> tuple[dict[str, ca.Function],
                                  dict[str, list[np.ndarray]],
                                  SpacecraftModel]:
@@ -210,7 +213,6 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
     model : SpacecraftModel
     """
     from adcs_common.quaternion import quat_from_axis_angle
-    from ocp.mpc.controller import AttitudeMPC
 
     if not isinstance(wheels, WheelArray):
         raise InvalidValueError(
@@ -261,49 +263,16 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
     fns["rk4"] = model.rk4_step(1)
     samples["rk4"] = [x, u, np.zeros(3), np.array(dt)]
     if mpc_variants:
-        qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
-        x0 = model.state([1.0, 0.0, 0.0, 0.0])
-        # the condensed QP links DAQP where the casadi wheel ships it
-        condensed_plugin = _resolve_wheel_qp_plugin(condensed_qp_plugin,
-                                                    "condensed_qp_plugin")
-        for name in MPC_VARIANTS:
-            if name not in mpc_variants:
-                continue
-            rti = "rti" in name
-            kw = ({"solver": "condensed", "qp_solver": condensed_plugin,
-                   "solver_options": condensed_options(precision)}
-                  if "cond" in name else {"solver": "stagewise",
-                                          "move_blocks": mpc_move_blocks}
-                  if "_sw_" in name else {"solver": "sqpmethod",
-                                          "expand": False})
-            ctl = AttitudeMPC(model, horizon=horizon, dt=dt, rti=rti,
-                              max_iter=mpc_max_iter, rate_max=rate_max,
-                              **kw)
-            fns[name] = _renamed(ctl.step_function, name)
-            samples[name] = [x0, qf, np.zeros(3), ctl.initial_guess(x0),
-                             np.zeros(ctl.nz), np.zeros(ctl.ng)]
+        condensed = _resolve_wheel_qp_plugin(condensed_qp_plugin,
+                                             "condensed_qp_plugin")
+        mpc_fns, mpc_samples = mpc_functions(
+            model, mpc_variants, horizon=horizon, dt=dt,
+            max_iter=mpc_max_iter, rate_max=rate_max,
+            condensed_plugin=condensed, precision=precision,
+            move_blocks=mpc_move_blocks, scenarios=mpc_scenarios)
+        fns.update({k: _renamed(f, k) for k, f in mpc_fns.items()})
+        samples.update(mpc_samples)
     return fns, samples, model
-
-
-#: MPC steps `export_c` can write: sqpmethod + qrqp to convergence and
-#: its RTI, the condensed SQP to convergence and its RTI, the stage-wise
-#: SQP (Riccati interior point, `ocp.mpc.stagewise`) and its RTI.
-MPC_VARIANTS = ("mpc_step", "mpc_rti_step", "mpc_cond_step",
-                "mpc_cond_rti_step", "mpc_sw_step", "mpc_sw_rti_step")
-
-
-def _check_variants(variants) -> tuple[str, ...]:
-    """Check the MPC variants asked for: known names only (no typo)."""
-    if variants is None or isinstance(variants, str) or not all(
-            isinstance(v, str) for v in variants):
-        raise InvalidValueError(
-            f"mpc_variants must be a sequence of names from {MPC_VARIANTS}"
-            f", got {variants!r}")
-    unknown = [v for v in variants if v not in MPC_VARIANTS]
-    if unknown:
-        raise InvalidValueError(
-            f"unknown MPC variant(s) {unknown}; choose from {MPC_VARIANTS}")
-    return tuple(variants)
 
 
 def _target_plugins(target: str, out: Path, wheel: str | None,
@@ -406,6 +375,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step",
                                           "mpc_cond_rti_step"),
              mpc_move_blocks: Any = None,
+             mpc_scenarios: Any = None,
              wheel_qp_plugin: str | None = None,
              wheel_qp_fast_path: bool = True,
              duty_qp_plugin: str | None = None,
@@ -445,6 +415,9 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         ``mpc_rti_step``'s fallback).
     mpc_move_blocks : int or sequence of int, optional
         Move blocking of the stage-wise steps (`AttitudeMPC` ``move_blocks``).
+    mpc_scenarios : sequence of Scenario, optional
+        Scenarios of the robust steps (`ocp.mpc.RobustMPC`); default the
+        nominal craft and the 8 corners of ±20 % principal inertia.
     mpc_variants : sequence of str
         MPC steps to export (`MPC_VARIANTS`): ``"mpc_step"`` (sqpmethod +
         qrqp to convergence), ``"mpc_rti_step"`` (one SQP step per
@@ -541,10 +514,16 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         raise InvalidValueError(
             "mpc_move_blocks applies to the stage-wise MPC steps "
             "(mpc_sw_step, mpc_sw_rti_step): export one of them")
+    if mpc_scenarios is not None and not any("robust" in v
+                                             for v in mpc_variants):
+        raise InvalidValueError(
+            "mpc_scenarios applies to the robust MPC steps "
+            "(mpc_robust_step, mpc_robust_rti_step): export one of them")
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
         mpc_max_iter=mpc_max_iter, mpc_move_blocks=mpc_move_blocks,
+        mpc_scenarios=mpc_scenarios,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
         rate_max=rate_max, condensed_qp_plugin=condensed,

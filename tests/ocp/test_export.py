@@ -32,7 +32,7 @@ def exported(tmp_path_factory):
     return export_c(out, wheels=arr, thrusters=six_thruster_unit(),
                     mpc_variants=("mpc_rti_step", "mpc_cond_rti_step",
                                   "mpc_cond_step", "mpc_sw_rti_step",
-                                  "mpc_sw_step"),
+                                  "mpc_sw_step", "mpc_robust_rti_step"),
                     build=True, repeats=200)
 
 
@@ -259,7 +259,7 @@ def test_driver_runs_and_times(exported):
     # 17.2 s eigenaxis slew) ends on target and passes its check
     assert t["closed_loop:mpc_rti_step"]["final_error_deg"] < 1e-2
     for name in ("mpc_rti_step", "mpc_cond_rti_step", "mpc_cond_step",
-                 "mpc_sw_rti_step", "mpc_sw_step"):
+                 "mpc_sw_rti_step", "mpc_sw_step", "mpc_robust_rti_step"):
         loop = t[f"closed_loop:{name}"]
         assert loop["loop_ok"] == 1 and loop["calls"] == 86
         assert loop["loop_seconds"] == 43.0
@@ -282,7 +282,8 @@ def test_driver_runs_and_times(exported):
 
 
 @pytest.mark.parametrize("name", ["mpc_cond_rti_step", "mpc_cond_step",
-                                  "mpc_sw_rti_step", "mpc_sw_step"])
+                                  "mpc_sw_rti_step", "mpc_sw_step",
+                                  "mpc_robust_rti_step"])
 def test_generated_condensed_step_equals_casadi_in_closed_loop(exported,
                                                                 name):
     """80 steps of the slew: the warm-started C returns what Python does.
