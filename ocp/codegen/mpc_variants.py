@@ -63,7 +63,7 @@ def mpc_functions(model: SpacecraftModel, variants: Sequence[str], *,
         if name not in variants:
             continue
         rti = "rti" in name
-        common = {"horizon": horizon, "dt": dt, "rti": rti,
+        common: dict[str, Any] = {"horizon": horizon, "dt": dt, "rti": rti,
                   "max_iter": max_iter, "rate_max": rate_max}
         if "robust" in name:
             ctl: Any = RobustMPC(model, list(scenarios) if scenarios

@@ -26,6 +26,7 @@ from .plan import plan_bounds, shift_function
 from .robust_qp import (param_rk4, robust_iteration, scenario_parameters,
                         split_plan)
 from .scenarios import Scenario
+from .stagewise import check_stagewise_options
 from .stagewise_ipm import IPM_MAX_ITER, IPM_TOL
 
 __all__ = ["RobustMPC"]
@@ -84,7 +85,7 @@ class RobustMPC(AttitudeMPC):
         if model.thrusters is not None:
             raise InvalidValueError(
                 "RobustMPC handles wheel-only models")
-        n = model.wheels.n_wheels
+        n = self.wheels.n_wheels
         for s in self.scenarios:
             if s.axes is not None and s.axes.shape[1] != n:
                 raise InvalidValueError(
@@ -104,17 +105,12 @@ class RobustMPC(AttitudeMPC):
         self._nz = S * nz0
         self.lbz, self.ubz = np.tile(lb, S), np.tile(ub, S)
         self._bound_scale = np.tile(scale, S)
-        self.qp_kkt_function = self._residuals = None
+        self.qp_kkt_function = self._residuals = None  # type: ignore
         self.nlpsol = self.fallback = None
         self.shift_function = _robust_shift(nx, nu, N, S)
         self.check_function = _robust_check(self, cost)
         opts = dict(user_options)
-        extra = set(opts) - {"step_tol", "anderson", "ipm_tol",
-                             "ipm_max_iter"}
-        if extra:
-            raise InvalidValueError(
-                "RobustMPC takes solver_options 'step_tol', 'anderson', "
-                f"'ipm_tol' and 'ipm_max_iter': {sorted(extra)}")
+        check_stagewise_options(opts, "RobustMPC")
         it = robust_iteration(self, opts.get("ipm_tol", IPM_TOL),
                               opts.get("ipm_max_iter", IPM_MAX_ITER))
         self.rti_function, full = sqp_step_functions(

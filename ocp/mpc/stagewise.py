@@ -223,14 +223,15 @@ def stagewise_iteration(mpc: Any, tol: float = IPM_TOL,
                        ["z_new", "lam_x", "step", "qp_kkt"])
 
 
-def check_stagewise_options(options: dict) -> None:
+def check_stagewise_options(options: dict,
+                            who: str = "solver='stagewise'") -> None:
     """Refuse ``solver_options`` the stage-wise SQP does not take."""
     extra = set(options) - {"step_tol", "anderson", "ipm_tol",
                             "ipm_max_iter"}
     if extra:
         raise InvalidValueError(
-            "solver='stagewise' takes solver_options 'step_tol', "
-            f"'anderson', 'ipm_tol' and 'ipm_max_iter': {sorted(extra)}")
+            f"{who} takes solver_options 'step_tol', 'anderson', "
+            f"'ipm_tol' and 'ipm_max_iter': {sorted(extra)}")
 
 
 def stagewise_step_functions(mpc: Any, step_tol: float = STEP_TOL,

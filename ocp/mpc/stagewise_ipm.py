@@ -31,6 +31,8 @@ full at the point returned.
 
 from __future__ import annotations
 
+from typing import Any
+
 import casadi as ca
 import numpy as np
 
@@ -218,7 +220,8 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
         ca.DM.zeros(nu, nu), zu, Ar, Br, Qr,
         reverse_columns(sig[lay.nbu:, :]), reverse_columns(sig[:lay.nbu, :]),
         qr, rrt, rr_, sr)
-    v0, Lroot = zu, None
+    v0: Any = zu
+    Lroot: Any = None
     if tree.root:
         v0, Lroot = root_kernel(nu)(tree.finals(Pvv, nu * nu),
                                     tree.finals(pv, nu))
@@ -323,7 +326,7 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     # every nesting level reserves its callee's arguments in the work
     # vector, so the depth stays at IPM_CHUNK
     depth = min(IPM_CHUNK, max_iter)
-    inner = None
+    inner: Any = None
     for k in range(depth - 1, -1, -1):
         out = it(*state, *data)
         new, kn = out[:8], out[8]
@@ -333,7 +336,7 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
             f"sw_ipm_{k}", done, ca.Function(f"sw_ipm_more_{k}", args, res))
     chunk = ca.Function("sw_ipm_chunk", args, inner(0, *args))
     skip = ca.Function.if_else("sw_ipm_skip", done, chunk)
-    cur = [*state, n, kk]
+    cur: Any = [*state, n, kk]
     for _ in range(0, max_iter, depth):
         # the last chunk may run past max_iter by less than one chunk
         cur = skip(cur[9] <= tol, *cur, *data)

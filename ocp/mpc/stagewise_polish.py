@@ -17,6 +17,8 @@ smaller, so a wrong active set costs nothing but the time.
 
 from __future__ import annotations
 
+from typing import Any
+
 import casadi as ca
 import numpy as np
 
@@ -66,7 +68,8 @@ def polish(kern: dict, lay, tree, dims: tuple, flags: np.ndarray,
         reverse_columns(sig[lay.nbu:, :]), reverse_columns(sig[:lay.nbu, :]),
         qr, rr, rr_, sr)
     K = reverse_columns(Kr)
-    v0, Lroot = zu, None
+    v0: Any = zu
+    Lroot: Any = None
     if tree.root:
         v0, Lroot = root_kernel(nu)(tree.finals(Pvv, nu * nu),
                                     tree.finals(pv, nu))
