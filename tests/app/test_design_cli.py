@@ -47,6 +47,14 @@ def test_out_writes_a_craft_that_loads_and_reports(capsys, tmp_path):
     assert main(["report", "--quick", "--studies", "spacecraft",
                  "--spacecraft", str(f), "--out",
                  str(tmp_path / "rep")]) == 0
+    # and through the other tools: the bench and the C export
+    assert main(["bench", "--quick", "--problems", "wheels", "--backends",
+                 "daqp,quadprog", "--no-progress", "--spacecraft", str(f),
+                 "--out", str(tmp_path / "bench")]) == 0
+    assert (tmp_path / "bench").is_dir()
+    assert main(["export", "--spacecraft", str(f), "--mpc", "",
+                 "--out", str(tmp_path / "c")]) == 0
+    assert "wheel_qp" in (tmp_path / "c" / "adcs_codegen.h").read_text()
 
 
 @pytest.mark.parametrize("argv, message", [
