@@ -79,6 +79,7 @@ def _export(args: argparse.Namespace) -> int:
 
     from ocp.codegen.checks import DriverCheckError
     from ocp.codegen.export import export_c, run_driver
+    from ocp.mpc.certificate import LONG_HORIZON
     from ocp.spacecraft import load_spacecraft
 
     sc = load_spacecraft(args.spacecraft)
@@ -92,6 +93,9 @@ def _export(args: argparse.Namespace) -> int:
     if mpc is None:     # single: the condensed RTI step only
         mpc = ("mpc_cond_rti_step" if args.precision == "single" else
                "mpc_step,mpc_rti_step,mpc_cond_rti_step")
+        if args.precision != "single" and args.horizon > LONG_HORIZON:
+            # the dense steps' C grows as N^1.2-1.5 and compiles as N^2.5
+            mpc = "mpc_sw_step,mpc_sw_rti_step"
     variants = [v.strip() for v in mpc.split(",") if v.strip()]
     print(f"adcs export: generating C for {sc.name!r} in {args.out} ...",
           flush=True)
@@ -356,6 +360,7 @@ def _add_export(sub) -> None:
                      "--scenarios); empty for none; "
                      "default "
                      "mpc_step,mpc_rti_step,mpc_cond_rti_step; "
+                     "mpc_sw_step,mpc_sw_rti_step beyond a horizon of 40; "
                      "mpc_cond_rti_step with --precision single)")
     exp.add_argument("--precision", choices=("double", "single"),
                      default="double",
