@@ -9,7 +9,7 @@ takes numpy arrays or CasADi symbols and returns the same kind.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Sequence, Union
 
 import casadi as ca
 import numpy as np
@@ -18,7 +18,12 @@ from numpy.typing import ArrayLike
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_angle, as_finite_array
 
+#: What the quaternion algebra takes: a numpy array or sequence, or a
+#: CasADi SX, MX or DM (the result is of the same kind).
+Vector = Union[np.ndarray, Sequence[float], ca.SX, ca.MX, ca.DM]
+
 __all__ = [
+    "Vector",
     "as_unit_quaternion",
     "quat_conj",
     "quat_error_angle",
@@ -40,7 +45,7 @@ def vcat(lib, items):
     return ca.vertcat(*items) if lib is ca else np.array(items)
 
 
-def quat_mul(p: ArrayLike, q: ArrayLike) -> Any:
+def quat_mul(p: Vector, q: Vector) -> Any:
     """Hamilton product ``p ⊗ q`` of scalar-first quaternions (numpy/CasADi).
 
     .. math::
@@ -48,8 +53,10 @@ def quat_mul(p: ArrayLike, q: ArrayLike) -> Any:
                         p_w q_v + q_w p_v + p_v \\times q_v)
     """
     lib = array_lib(p, q)
-    pw, px, py, pz = p[0], p[1], p[2], p[3]
-    qw, qx, qy, qz = q[0], q[1], q[2], q[3]
+    a: Any = p
+    b: Any = q
+    pw, px, py, pz = a[0], a[1], a[2], a[3]
+    qw, qx, qy, qz = b[0], b[1], b[2], b[3]
     return vcat(lib, [
         pw * qw - px * qx - py * qy - pz * qz,
         pw * qx + px * qw + py * qz - pz * qy,
@@ -58,13 +65,14 @@ def quat_mul(p: ArrayLike, q: ArrayLike) -> Any:
     ])
 
 
-def quat_conj(q: ArrayLike) -> Any:
+def quat_conj(q: Vector) -> Any:
     """Conjugate ``(w, -x, -y, -z)`` (the inverse of a unit quaternion)."""
     lib = array_lib(q)
-    return vcat(lib, [q[0], -q[1], -q[2], -q[3]])
+    a: Any = q
+    return vcat(lib, [a[0], -a[1], -a[2], -a[3]])
 
 
-def quat_rate(q: ArrayLike, w: ArrayLike) -> Any:
+def quat_rate(q: Vector, w: Vector) -> Any:
     """Quaternion kinematics :math:`\\dot q = \\tfrac12 q \\otimes (0, ω)`.
 
     Parameters
@@ -75,14 +83,16 @@ def quat_rate(q: ArrayLike, w: ArrayLike) -> Any:
         Body angular rate in body axes [rad/s].
     """
     lib = array_lib(q, w)
-    omega = vcat(lib, [0 * w[0], w[0], w[1], w[2]])
+    r: Any = w
+    omega = vcat(lib, [0 * r[0], r[0], r[1], r[2]])
     return 0.5 * quat_mul(q, omega)
 
 
-def quat_to_dcm(q: ArrayLike) -> Any:
+def quat_to_dcm(q: Vector) -> Any:
     """Rotation matrix :math:`R(q)` with :math:`v_{ref} = R v_{body}`."""
     lib = array_lib(q)
-    w, x, y, z = q[0], q[1], q[2], q[3]
+    a: Any = q
+    w, x, y, z = a[0], a[1], a[2], a[3]
     rows = [
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
