@@ -108,9 +108,11 @@ class _RobustParts:
         #: Patterns of A_k, B_k and Q_k (their nonzeros cross the kernels)
         self.sparsity = (Aj.sparsity(), Bj.sparsity(), Q.sparsity())
         self.kern = stage_kernels(*self.sparsity, self.free, self.lay.bu,
-                                  self.lay.bx, blocked=True)
+                                  self.lay.bx)
         self.tree = Tree(N, S, root=True)
-        self.flags = np.tile(np.r_[0.0, np.ones(N - 1)], S)
+        # every stage is an unblocked Riccati step; the first stages'
+        # factors give the root its terms (`Tree.root_factor`)
+        self.flags = np.ones(N * S)
         self.ipm = ipm_solve(self.kern, self.lay, self.tree, nx, nu,
                              max_iter, tol, self.flags)
         wts = np.array([sc.weight for sc in mpc.scenarios], float)

@@ -36,7 +36,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from .stagewise_kernels import reverse_columns, root_kernel, root_solve
+from .stagewise_kernels import (reverse_columns, root_kernel, root_rhs,
+                                root_solve, root_terms)
 from .stagewise_polish import POLISH_ACCEPT, polish
 
 #: KKT residual [scaled, 1] at which the interior point stops.
@@ -129,10 +130,11 @@ class Tree:
     """The shape of the QP: S scenarios of N stages, rooted or not.
 
     ``S = 1, root = False`` is the nominal MPC (a chain). With ``root``
-    every scenario's first stage holds the one control they share (its
-    flag is 0): the sweeps carry each scenario's terms in that control
-    back to the root, whose solve (`stagewise_kernels.root_kernel`) picks
-    it; the forward sweeps start from it. Data have S·N columns,
+    the scenarios share their first control: each scenario's first stage
+    is an ordinary Riccati step, whose factor and feed-forward give the
+    scenario's terms in that control (x_0 is fixed); the root sums them
+    and chooses the shared control (`root_factor`), which every first
+    stage then applies (`with_root`). Data have S·N columns,
     scenario-major.
     """
 
@@ -145,10 +147,45 @@ class Tree:
         acc = f.mapaccum(name, self.N, n_acc)
         return acc if self.S == 1 else acc.map(self.S)
 
-    def finals(self, M, rows: int) -> ca.MX:
-        """The last column of each scenario's block, summed (rows,)."""
-        M = ca.reshape(M, rows, self.C)
-        return ca.sum2(M[:, self.N - 1::self.N])
+    def root_factor(self, Lr, kr, nu: int) -> tuple:
+        """``(v, Re_s, Lroot)`` from a Riccati sweep's reversed outputs.
+
+        Each scenario's first stage was an unblocked Riccati step: its
+        factor and feed-forward give the scenario's terms in the shared
+        control (`stagewise_kernels.root_terms`), summed into the root's
+        QP, whose solution is v; ``Re_s`` (n_u² × S) and the root's factor
+        serve a second right-hand side (`root_again`).
+        """
+        Lit = ca.reshape(Lr, nu * nu, self.C)[:, self.N - 1::self.N]
+        kff = ca.reshape(kr, nu, self.C)[:, self.N - 1::self.N]
+        Re_s, rhs_s = root_terms(nu).map(self.S)(Lit, kff)
+        v, Lroot = root_kernel(nu)(ca.sum2(Re_s), ca.sum2(rhs_s))
+        return v, Re_s, Lroot
+
+    def root_again(self, Re_s, Lroot, kr, nu: int) -> ca.MX:
+        """v of another right-hand side (the corrector's feed-forwards)."""
+        kff = ca.reshape(kr, nu, self.C)[:, self.N - 1::self.N]
+        rhs = ca.sum2(root_rhs(nu).map(self.S)(Re_s, kff))
+        return root_solve(nu)(Lroot, rhs)
+
+    def with_root(self, kr, v, nu: int) -> ca.MX:
+        """The reversed feed-forwards with each first stage's set to v.
+
+        With x_0 fixed a first stage applies its feed-forward: v there
+        makes every scenario apply the shared control.
+        """
+        mask = np.zeros((nu, self.C))
+        mask[:, self.N - 1::self.N] = 1.0
+        M = ca.DM(mask)
+        return kr * (1.0 - M) + ca.mtimes(v, ca.DM.ones(1, self.C)) * M
+
+    def root_residual(self, rho_r, nu: int) -> ca.MX:
+        """The reduced gradients: the root's the sum of the scenarios'
+        first stages', the other stages' their own (reversed, n_u × C)."""
+        mask = np.zeros((nu, self.C))
+        mask[:, self.N - 1::self.N] = 1.0
+        first = ca.sum2(ca.reshape(rho_r, nu, self.C)[:, self.N - 1::self.N])
+        return ca.vertcat(ca.vec(rho_r * ca.DM(1.0 - mask)), first)
 
 
 def _sweeps(kern: dict, tree: Tree) -> dict:
@@ -203,30 +240,31 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
         return reverse_columns(qt), reverse_columns(rt)
 
     def solve(qr_, rr_v):
-        _, pv_, k_ = sw["vec"](zx, zu, Ar, Br, Mr, Lr, qr_, rr_v, sr)
-        v = root_solve(nu)(Lroot, tree.finals(pv_, nu)) if tree.root \
-            else zu
-        dXn, _, dUn = sw["fwd"](zx, v, A, B, K, reverse_columns(k_), s)
+        _, _, k_ = sw["vec"](zx, zu, Ar, Br, Mr, Lr, qr_, rr_v, sr)
+        if tree.root:
+            k_ = tree.with_root(k_, tree.root_again(Re_s, Lroot, k_, nu),
+                                nu)
+        dXn, _, dUn = sw["fwd"](zx, zu, A, B, K, reverse_columns(k_), s)
         return dUn, dXn
 
-    def forward(kff_r, K, v0):
-        dXn, _, dUn = sw["fwd"](zx, v0, A, B, K, reverse_columns(kff_r), s)
+    def forward(kff_r, K):
+        dXn, _, dUn = sw["fwd"](zx, zu, A, B, K, reverse_columns(kff_r), s)
         dv = lay.values(dUn, dXn)
         return dUn, dXn, dv + rpl, rpu - dv
 
     qr, rrt = sweep_in(Ll * rpl / Sl - Lu * rpu / Su)
-    _, _, _, Pvv, pv, Kr, kr, Lr, Mr = sw["ric"](
+    *_, Kr, kr, Lr, Mr = sw["ric"](
         ca.DM.zeros(nx * (nx + 1) // 2), zx, ca.DM.zeros(nx, nu),
         ca.DM.zeros(nu, nu), zu, Ar, Br, Qr,
         reverse_columns(sig[lay.nbu:, :]), reverse_columns(sig[:lay.nbu, :]),
         qr, rrt, rr_, sr)
-    v0: Any = zu
+    Re_s: Any = None
     Lroot: Any = None
     if tree.root:
-        v0, Lroot = root_kernel(nu)(tree.finals(Pvv, nu * nu),
-                                    tree.finals(pv, nu))
+        v0, Re_s, Lroot = tree.root_factor(Lr, kr, nu)
+        kr = tree.with_root(kr, v0, nu)
     K = reverse_columns(Kr)
-    _, _, dSl_a, dSu_a = forward(kr, K, v0)
+    _, _, dSl_a, dSu_a = forward(kr, K)
     dLl_a = -Ll - Ll * dSl_a / Sl
     dLu_a = -Lu - Lu * dSu_a / Su
     box = {k: f.map(C) for k, f in box_kernels(nb).items()}
@@ -281,9 +319,9 @@ def kkt_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
         ca.DM.zeros(nx), ca.DM.zeros(nu), Ar, Br, reverse_columns(gx),
         reverse_columns(gu), flags_r)
     scale = 1.0 + ca.fmax(ca.mmax(ca.fabs(q)), ca.mmax(ca.fabs(g)))
-    dual = ca.mmax(ca.fabs(rho))
     if tree.root:
-        dual = ca.fmax(dual, ca.mmax(ca.fabs(tree.finals(racc, nu))))
+        rho = tree.root_residual(rho, nu)
+    dual = ca.mmax(ca.fabs(rho))
     primal = ca.mmax(ca.fabs(ca.vertcat(ca.vec(V - lo - Sl),
                                         ca.vec(hi - V - Su))))
     comp = ca.mmax(ca.vertcat(ca.vec(Sl * Ll), ca.vec(Su * Lu)))

@@ -181,3 +181,26 @@ def root_solve(nu: int) -> ca.Function:
     ln, L = from_nz("L", ca.Sparsity.dense(nu, nu))
     pv = ca.SX.sym("pv", nu)
     return ca.Function("sw_root2", [ln, pv], [-ca.mtimes([L, L.T, pv])])
+
+
+def root_terms(nu: int) -> ca.Function:
+    """``terms(Lit, kff) -> (Re, rhs)``: a scenario's terms in the root's
+    control, from its first stage's unblocked Riccati step.
+
+    That step factors ``Re = R̃ + BᵀP̂B = LLᵀ`` (``Lit`` = L⁻ᵀ, nonzeros)
+    and returns ``kff = −Re⁻¹ rhs``; the scenario's value in its first
+    control v (x_0 is fixed) is ``½vᵀRe v + rhsᵀv``.
+    """
+    ln, Lit = from_nz("Lit", ca.Sparsity.dense(nu, nu))
+    kff = ca.SX.sym("kff", nu)
+    Lc = inv_lower(Lit.T)
+    Re = ca.mtimes(Lc, Lc.T)
+    return ca.Function("sw_root_terms", [ln, kff],
+                       [nz_of(ca.densify(Re)), -ca.mtimes(Re, kff)])
+
+
+def root_rhs(nu: int) -> ca.Function:
+    """``rhs(Re, kff) -> −Re kff`` (a scenario's linear term, again)."""
+    rn, Re = from_nz("Re", ca.Sparsity.dense(nu, nu))
+    kff = ca.SX.sym("kff", nu)
+    return ca.Function("sw_root_rhs", [rn, kff], [-ca.mtimes(Re, kff)])

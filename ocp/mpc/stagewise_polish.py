@@ -22,7 +22,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from .stagewise_kernels import reverse_columns, root_kernel, root_solve
+from .stagewise_kernels import reverse_columns
 
 #: The augmented Lagrangian's penalty [scaled, 1].
 POLISH_RHO = 1e8
@@ -62,32 +62,33 @@ def polish(kern: dict, lay, tree, dims: tuple, flags: np.ndarray,
         return reverse_columns(gx), reverse_columns(gu)
 
     qr, rr = gradient(dU, dX, lam)
-    _, _, _, Pvv, pv, Kr, kr, Lr, Mr = sweeps["ric"](
+    *_, Kr, kr, Lr, Mr = sweeps["ric"](
         ca.DM.zeros(nx * (nx + 1) // 2), zx, ca.DM.zeros(nx, nu),
         ca.DM.zeros(nu, nu), zu, Ar, Br, Qr,
         reverse_columns(sig[lay.nbu:, :]), reverse_columns(sig[:lay.nbu, :]),
         qr, rr, rr_, sr)
     K = reverse_columns(Kr)
-    v0: Any = zu
+    Re_s: Any = None
     Lroot: Any = None
     if tree.root:
-        v0, Lroot = root_kernel(nu)(tree.finals(Pvv, nu * nu),
-                                    tree.finals(pv, nu))
+        v0, Re_s, Lroot = tree.root_factor(Lr, kr, nu)
+        kr = tree.with_root(kr, v0, nu)
 
-    def step(dU, dX, kr_, v):
-        dXn, _, dUn = sweeps["fwd"](zx, v, A, B, K, reverse_columns(kr_), s)
+    def step(dU, dX, kr_):
+        dXn, _, dUn = sweeps["fwd"](zx, zu, A, B, K, reverse_columns(kr_), s)
         dU, dX = dU + dUn, dX + dXn
         return dU, dX, lam_of(dU, dX)
 
     def lam_of(dU, dX):
         return POLISH_RHO * act * (lay.values(dU, dX) - target)
 
-    dU, dX, dl = step(dU, dX, kr, v0)
+    dU, dX, dl = step(dU, dX, kr)
     lam = lam + dl
     qr, rr = gradient(dU, dX, lam)
-    _, pv2, kr2 = sweeps["vec"](zx, zu, Ar, Br, Mr, Lr, qr, rr, sr)
-    v = root_solve(nu)(Lroot, tree.finals(pv2, nu)) if tree.root else zu
-    dU, dX, dl = step(dU, dX, kr2, v)
+    _, _, kr2 = sweeps["vec"](zx, zu, Ar, Br, Mr, Lr, qr, rr, sr)
+    if tree.root:
+        kr2 = tree.with_root(kr2, tree.root_again(Re_s, Lroot, kr2, nu), nu)
+    dU, dX, dl = step(dU, dX, kr2)
     lam = lam + dl
     V = lay.values(dU, dX)
     return (dU, dX, V - lo, hi - V, ca.fmax(-lam, 0.0),
