@@ -59,15 +59,15 @@ __all__ = [
 MAX_DURATION = 3.2e7
 
 
-def _guarded(s, **kwargs) -> SlewTrajectory:
+def _guarded(s, solver: str, **kwargs) -> SlewTrajectory:
     """`solve_slew`, its numerical breakdowns as the toolbox's error."""
     try:
-        return solve_clear_of_cones(solve_slew, s, **kwargs)
+        return solve_clear_of_cones(solve_slew, s, solver=solver, **kwargs)
     except (RuntimeError, OverflowError, ZeroDivisionError) as exc:
         raise SolverError(
             f"the slew NLP broke down numerically ({type(exc).__name__}: "
             f"{str(exc).splitlines()[0][:200]}); check the limits and "
-            "the time scale", solver=kwargs.get("solver")) from None
+            "the time scale", solver=solver) from None
 
 
 def time_optimal_slew(inertia: ArrayLike | Spacecraft, q0: ArrayLike,

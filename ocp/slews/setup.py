@@ -67,7 +67,7 @@ class KeepOut:
                 f"half_angle must lie in (0, π) rad, got {a}")
         object.__setattr__(self, "half_angle", a)
 
-    def margin(self, q: ArrayLike) -> np.ndarray:
+    def margin(self, q: ArrayLike) -> float | np.ndarray:
         """Angle of the boresight from the direction minus the half-angle.
 
         ``q`` (4,) or (K, 4) scalar-first; returns radians, (K,) or a
@@ -216,6 +216,7 @@ def initial_guess_states(s: SlewSetup, N: int, T: float, kind: str,
         U = np.clip(m, -s.u_max, s.u_max)
         h = s.h0 + np.vstack([np.zeros(model.n_wheels),
                               np.cumsum(U * (T / N), axis=0)])
+        assert s.h_max is not None     # set with the wheels
         h = np.clip(h, -s.h_max, s.h_max)
         X = np.column_stack([q, w, h])
     return X.T, U.T
