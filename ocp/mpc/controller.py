@@ -317,7 +317,8 @@ class AttitudeMPC:
         self._residuals = ca.Function("mpc_residuals", [z, p], [f, gv])
         self.shift_function = shift_function(nx, nu, nz, self._ng)
         self.check_function = check_function(self, p)
-        self.nlpsol = self.fallback = None
+        self.nlpsol: ca.Function | None = None
+        self.fallback: ca.Function | None = None
         if self.solver == "condensed":
             check_condensed_options(user_options)
             self.rti_function, full = condensed_step_functions(
@@ -506,6 +507,7 @@ class AttitudeMPC:
         else:
             z0, lx0, lg0 = self.shift_function(x, z_prev, self._lam_x,
                                                self._lam_g)
+            assert self.nlpsol is not None     # an NLP-solver MPC
             sol = self.nlpsol(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz, lbg=0,
                               ubg=0, lam_x0=lx0, lam_g0=lg0)
             stats = self.nlpsol.stats()
