@@ -402,7 +402,8 @@ class ThrusterSet:
         return np.where(fired & (t >= t_open), P * level * decay, 0.0)
 
 
-def six_thruster_unit(R: float = 0.25, L: float = 0.3, thrust: float = 0.5,
+def six_thruster_unit(R: float = 0.25, L: float = 0.3,
+                      thrust: ArrayLike = 0.5,
                       pressure: float = 9.0 * KGF_PER_CM2,
                       thrust_offset: ArrayLike = 0.0,
                       center_of_mass: Sequence[float] = (0.0, 0.0, 0.0),
