@@ -22,6 +22,8 @@ stage-wise layout with the final time as a state of every stage.
 
 from __future__ import annotations
 
+from typing import Sequence
+
 from numpy.typing import ArrayLike
 
 
@@ -83,7 +85,8 @@ def time_optimal_slew(inertia: ArrayLike | Spacecraft, q0: ArrayLike,
                       solver_options: dict | None = None,
                       verify: bool = True,
                       jit: bool | dict = False,
-                      keep_out: ArrayLike | None = None) -> SlewTrajectory:
+                      keep_out: KeepOut | Sequence[KeepOut] | None = None
+                      ) -> SlewTrajectory:
     """Minimum-time rest-to-rest slew from ``q0`` to ``qf`` (free T).
 
     .. math::
@@ -217,7 +220,8 @@ def min_energy_slew(inertia: ArrayLike, q0: ArrayLike, qf: ArrayLike, *,
                     solver_options: dict | None = None,
                     verify: bool = True,
                     jit: bool | dict = False,
-                    keep_out: ArrayLike | None = None) -> SlewTrajectory:
+                    keep_out: KeepOut | Sequence[KeepOut] | None = None
+                    ) -> SlewTrajectory:
     """Minimum-energy rest-to-rest slew in a fixed time ``T``.
 
     .. math::

@@ -41,16 +41,17 @@ class KeepOut:
 
     Attributes
     ----------
-    boresight : tuple of 3 float
-        Body axis (normalised here).
-    direction : tuple of 3 float
-        Reference-frame direction to avoid (normalised here).
+    boresight : array_like (3,)
+        Body axis (normalised here, stored as a tuple of 3 float).
+    direction : array_like (3,)
+        Reference-frame direction to avoid (normalised here, stored as a
+        tuple of 3 float).
     half_angle : float
         Cone half-angle [rad], in (0, π).
     """
 
-    boresight: tuple
-    direction: tuple
+    boresight: ArrayLike       # a tuple of 3 float after __post_init__
+    direction: ArrayLike
     half_angle: float
 
     def __post_init__(self) -> None:
