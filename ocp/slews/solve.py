@@ -214,8 +214,7 @@ def solve_slew(s: SlewSetup, *, objective: str, T_fixed: float | None, N: int,
     if Nc is not None:
         cprep = prepare_solve(s, N=Nc, opts=merge_options(
             opts, COARSE_OPTIONS.get(plugin, {})), **common)
-        w0c = _initial_point(s, cprep.built.lay, Nc, cprep.xs, T_ref,
-                             free_T,
+        w0c = _initial_point(s, cprep.built.lay, Nc, cprep.xs, T_ref, free_T,
                              "eigenaxis" if free_T else "cubic",
                              perturbation, seed)
         csol, cstats, ctime = run_solver(cprep, solver, w0c)
@@ -248,8 +247,7 @@ def solve_slew(s: SlewSetup, *, objective: str, T_fixed: float | None, N: int,
     wopt = sol["x"]
     Xv = wopt[lay.iX] * xs[:, None]
     Uv = wopt[lay.iU] * s.u_max[:, None]
-    Tv = (float(wopt[lay.iT[0]] * s.T_eig) if T_fixed is None
-          else float(T_fixed))
+    Tv = float(wopt[lay.iT[0]] * s.T_eig) if free_T else T_ref
     t = np.linspace(0.0, Tv, N + 1)
     extras = {"objective": objective, "transcription": transcription,
               "solver": solver, "expand": bool(expand), "N": N,
