@@ -189,8 +189,9 @@ def memory_report(res: ExportResult, core, objs: list[Path],
     real = 4 if res.extras.get("precision") == "single" else REAL_BYTES
     for key, s in sizes.items():
         d = {k: s[k] - base[k] for k in s}
-        rec: dict[str, Any] = {**d, "flash": d["text"] + d["rodata"] + d["data"],
-               "static_ram": d["data"] + d["bss"]}
+        rec: dict[str, Any] = {
+            **d, "flash": d["text"] + d["rodata"] + d["data"],
+            "static_ram": d["data"] + d["bss"]}
         if key in res.functions:
             sz = c_work_sizes(text, key)
             stack, bounded, lib = worst_stack(
