@@ -401,12 +401,12 @@ class _Parser(argparse.ArgumentParser):
     subcommand parsers inherit the class.
     """
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str):
         """Print ``<prog>: error: <message>; usage: ...`` and exit 2."""
         usage = " ".join(self.format_usage().split())
         self.exit(2, f"{self.prog}: error: {message}; {usage}\n")
 
-    def parse_known_args(self, args=None, namespace=None):  # type: ignore
+    def parse_known_args(self, args=None, namespace=None):
         """As argparse's; stray arguments after a subcommand are its error.
 
         argparse reports them from the top-level parser, with the

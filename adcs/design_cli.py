@@ -75,6 +75,7 @@ def run_design(args: argparse.Namespace) -> int:
     else:
         _print_design(d, units)
     if args.out:
+        assert base is not None        # loaded when --out is given
         scale = d.capacity / capacity       # 1 unless a budget sized them
         wheels = d.wheel_array(h_max=args.h_max * scale,
                                m_max=args.m_max * scale)

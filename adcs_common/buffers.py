@@ -38,6 +38,6 @@ class BoundCall:
         self.outputs = tuple(outputs)
         self._buf, self.trigger = function.buffer()
         for i, a in enumerate(self.inputs):
-            self._buf.set_arg(i, memoryview(a))
+            self._buf.set_arg(i, a.data)   # the array's memoryview
         for j, a in enumerate(self.outputs):
-            self._buf.set_res(j, memoryview(a))
+            self._buf.set_res(j, a.data)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
@@ -56,6 +56,9 @@ def _jsonable(value: Any) -> Any:
 class ResultMixin:
     """Short ``repr``; `save` / `load` of the fields (one ``.npz``)."""
 
+    # set by @dataclass on each subclass (the mixin is for dataclasses)
+    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
+
     def __repr__(self) -> str:
         """Return the fields, arrays by their shape."""
         parts = [f"{f.name}={short_repr(getattr(self, f.name))}"
@@ -90,7 +93,9 @@ class ResultMixin:
                 raise InvalidValueError(
                     f"{type(self).__name__}.{f.name} cannot be saved "
                     f"({type(value).__name__})") from exc
-        np.savez(path, **arrays, **{_META: np.array(json.dumps(meta))})
+        contents: dict[str, Any] = {**arrays,
+                                    _META: np.array(json.dumps(meta))}
+        np.savez(path, **contents)
         return path
 
     @classmethod

@@ -100,7 +100,8 @@ class WheelArray:
     m_max: np.ndarray
     failed: tuple[int, ...] = ()
     names: tuple[str, ...] = ()
-    scale: np.ndarray = field(default=None)  # type: ignore[assignment]
+    # None by default: __post_init__ stores ones(n)
+    scale: np.ndarray = field(default=None)  # type: ignore[arg-type]
 
     def __post_init__(self) -> None:
         """Check the fields and store read-only copies."""

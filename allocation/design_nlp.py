@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -212,7 +213,7 @@ def build_design_nlp(family: str, n: int, failures: int,
     cap_p = ca.SX.sym("cap", n)
     c = ca.SX.sym("c", n) if budget else cap_p
     A = family_axes(family, n, par, lib=ca)
-    cases = [()]
+    cases: list[tuple[int, ...]] = [()]
     if failures > 0:
         cases += list(itertools.combinations(range(n), failures))
     n_t = 1 if failures == 0 else 2
@@ -238,7 +239,7 @@ def build_design_nlp(family: str, n: int, failures: int,
     ubx = np.concatenate([hi, np.full(n, budget) if budget else [],
                           np.full(n_t, np.inf)])
     f = -t[0] if n_t == 1 else -(w * t[0] + (1 - w) * t[1])
-    opts = {"print_time": False, "ipopt": {
+    opts: dict[str, Any] = {"print_time": False, "ipopt": {
         "print_level": 0, "sb": "yes", "tol": 1e-12, "max_iter": 300,
         "acceptable_tol": 1e-9, **(ipopt_options or {})}}
     solver = ca.nlpsol("array_design", "ipopt",

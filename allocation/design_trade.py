@@ -14,6 +14,7 @@ kept.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from numpy.typing import ArrayLike
 
@@ -197,8 +198,8 @@ def trade_curve(n_wheels: int, *, points: int = 9,
     capacity = as_vector(capacity, n, "capacity")
     if np.any(capacity <= 0):
         raise InvalidValueError("capacity must be positive")
-    common = dict(quantity=quantity, capacity=capacity, starts=starts,
-                  seed=seed)
+    common: dict[str, Any] = dict(quantity=quantity, capacity=capacity,
+                                  starts=starts, seed=seed)
     nom: ArrayDesign = design_array(n, **common)
     fail: ArrayDesign = design_array(n, failures=1, **common)
     nlp = build_design_nlp("free", n, 1, None)

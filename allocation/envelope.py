@@ -347,7 +347,7 @@ def envelope_frame(array: WheelArray, kind: str = "momentum",
         if arr.rank < 3:
             continue
         env = envelope(arr, kind)
-        sup = env.support(np.eye(3))
+        sup = np.asarray(env.support(np.eye(3)))     # (3,)
         rows.append({"failed": name,
                      "inscribed_radius": env.inscribed_radius,
                      "axis_max_x": env.axis_max[0],

@@ -205,7 +205,7 @@ def compare_methods(array: WheelArray,
             "least_squares": np.array([ql.allocate(M).torques
                                        for M in D])}
     u = fibonacci_directions(int(n_directions))
-    r_set = envelope(array, "torque").radial_extent(u)
+    r_set = np.asarray(envelope(array, "torque").radial_extent(u))
     return [_one(array, name, f, D, u, r_set, refs, tol)
             for name, f in methods.items()]
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_finite_array
@@ -138,15 +139,16 @@ def plot_accuracy_histogram(result: "AccuracyResult", ax: Any = None, *,
     matplotlib.axes.Axes
         The axes, with p95 and max marked by vertical lines.
     """
-    values = {"relative_error": getattr(result, "relative_error", None),
-              "angle": getattr(result, "angle", None)}.get(quantity)
+    # the result's arrays (result: any law-error result object)
+    values: Any = {"relative_error": getattr(result, "relative_error", None),
+                   "angle": getattr(result, "angle", None)}.get(quantity)
     return plot_error_histogram(
         values, ax, quantity=quantity, bins=bins,
         label=label or f"law with {result.law_axes} axes",
         title=f"{result.n_samples:,} samples ({result.distribution})")
 
 
-def plot_error_histogram(values: np.ndarray, ax: Any = None, *,
+def plot_error_histogram(values: ArrayLike, ax: Any = None, *,
                          quantity: str = "relative_error", bins: int = 60,
                          label: str | None = None, title: str | None = None
                          ) -> Any:

@@ -174,7 +174,7 @@ def _batch_extent(array: WheelArray, law: Any, u: np.ndarray,
 
 
 def law_extent(array: WheelArray, law: Any, direction: ArrayLike, *,
-               tol: float = 1e-6, rtol: float = 1e-4) -> np.ndarray:
+               tol: float = 1e-6, rtol: float = 1e-4) -> float | np.ndarray:
     r"""Largest torque a law produces along direction(s) within limits.
 
     For a `LinearLaw` ``m = G M`` (exact):
@@ -430,7 +430,7 @@ def torque_reach(array: WheelArray, law: Any, *,
         u = np.random.default_rng(seed).normal(size=(3, n))
         u /= np.linalg.norm(u, axis=0)
     env = envelope(array, "torque")      # validates array, rank
-    r_set = env.radial_extent(u)
+    r_set = np.asarray(env.radial_extent(u))
     r_law = _extent(array, law, u, tol, rtol)
     frac = r_law / r_set
     k = int(np.argmin(frac))
@@ -507,7 +507,7 @@ def reach_table(array: WheelArray,
             raise InvalidValueError(
                 f"laws[{key!r}] must be a factory f(array) -> law, got "
                 f"{type(factory).__name__}")
-    cases = [array] + [array.with_failed(k)
+    cases = [array] + [array.with_failed(int(k))
                        for k in np.flatnonzero(array.active)]
     rows = []
     for case in cases:

@@ -278,6 +278,7 @@ def eigenaxis_slew(inertia: ArrayLike | Spacecraft, q0: ArrayLike, qf: ArrayLike
         with np.errstate(divide="ignore"):
             wcap = min(wcap, float(np.min(wheels.h_max / np.abs(pattern))))
     else:
+        assert torque_max is not None     # exactly one of the two
         umax = as_vector(torque_max, 3, "torque_max")
         check_positive(umax, "torque_max")
         g = np.abs(np.cross(e, Je))
@@ -318,6 +319,7 @@ def _feedback_step(model: SpacecraftModel, qf: np.ndarray, kp: np.ndarray,
     J = ca.DM(model.inertia)
     if model.wheels is None:
         u_cmd = -ca.DM(kp) @ qv - ca.DM(kd) @ w + ca.cross(w, J @ w)
+        assert model.torque_max is not None   # a wheel-less model's bound
         umax = ca.DM(model.torque_max)
         sigma = ca.fmax(1.0, ca.mmax(ca.fabs(u_cmd) / umax))
         u = u_cmd / sigma

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -108,10 +108,13 @@ class ThrusterSet:
     directions: np.ndarray
     center_of_mass: np.ndarray = field(
         default_factory=lambda: np.zeros(3))
-    pressure_slope: np.ndarray = field(default=None)  # type: ignore
-    thrust_offset: np.ndarray = field(default=None)  # type: ignore
+    # None by default: __post_init__ stores the (n,) arrays
+    pressure_slope: np.ndarray = field(
+        default=None)  # type: ignore[arg-type]
+    thrust_offset: np.ndarray = field(
+        default=None)  # type: ignore[arg-type]
     pressure: float = 9.0 * KGF_PER_CM2
-    correction: np.ndarray = field(default=None)  # type: ignore
+    correction: np.ndarray = field(default=None)  # type: ignore[arg-type]
     min_on_time: float = 0.02
     open_delay: float = 0.02
     close_delay: float = 0.01
@@ -120,6 +123,10 @@ class ThrusterSet:
     isp: float = 220.0
     pairs: tuple[tuple[int, int], ...] = ()
     names: tuple[str, ...] = ()
+    if TYPE_CHECKING:   # derived in __post_init__, not dataclass fields
+        _arms: np.ndarray = field(init=False)
+        _force: np.ndarray = field(init=False)
+        _torque: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
         """Validate every field and freeze the arrays."""
@@ -239,7 +246,8 @@ class ThrusterSet:
 
     def with_correction(self, correction: ArrayLike) -> "ThrusterSet":
         """Return the set with other correction coefficients K_p (n,) [1]."""
-        return replace(self, correction=correction)
+        return replace(self, correction=as_vector(correction, self.n,
+                                                  "correction"))
 
     def check_cycle(self, cycle: float, name: str = "cycle") -> float:
         """Validate a cycle length T_T [s] against ``min_on_time``."""
@@ -394,7 +402,8 @@ class ThrusterSet:
         return np.where(fired & (t >= t_open), P * level * decay, 0.0)
 
 
-def six_thruster_unit(R: float = 0.25, L: float = 0.3, thrust: float = 0.5,
+def six_thruster_unit(R: float = 0.25, L: float = 0.3,
+                      thrust: ArrayLike = 0.5,
                       pressure: float = 9.0 * KGF_PER_CM2,
                       thrust_offset: ArrayLike = 0.0,
                       center_of_mass: Sequence[float] = (0.0, 0.0, 0.0),
@@ -465,4 +474,5 @@ def six_thruster_unit(R: float = 0.25, L: float = 0.3, thrust: float = 0.5,
         positions=pos, directions=directions,
         center_of_mass=com,
         pressure_slope=(P - b) / p, thrust_offset=b, pressure=p,
-        correction=correction, pairs=SIX_UNIT_PAIRS, **kwargs)
+        correction=as_vector(correction, 6, "correction"),
+        pairs=SIX_UNIT_PAIRS, **kwargs)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import ctypes
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -12,6 +12,9 @@ from adcs_common.validation import as_finite_scalar, as_vector, check_positive
 from allocation import QPAllocator, WheelAllocation, WheelArray
 
 from . import require_basilisk
+
+if TYPE_CHECKING:
+    from thrusters import DutyAllocation
 
 require_basilisk()
 
@@ -43,6 +46,9 @@ class _Guarded:
     status: str = OK
     fault: str = ""
     faults: int = 0
+    # SysModel's, on the modules that mix this in
+    bskLogger: Any
+    ModelTag: str
 
     def _reset_status(self) -> None:
         self.status, self.fault, self.faults = OK, "", 0
@@ -377,7 +383,7 @@ class ThrusterDutyModule(_Guarded, sysModel.SysModel):
         self.allocator = allocator
         self.cmdTorqueInMsg = messaging.CmdTorqueBodyMsgReader()
         self.onTimeOutMsg = messaging.THRArrayOnTimeCmdMsg()
-        self.last = None
+        self.last: DutyAllocation | None = None
         self._reset_status()
 
     def Reset(self, CurrentSimNanos: int) -> None:  # noqa: N802, N803

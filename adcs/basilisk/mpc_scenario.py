@@ -159,6 +159,8 @@ def mpc_slew(*, spacecraft: Any = None, wheels: WheelArray | None = None,
     h_b = np.array([rotor_momenta(wheels, Js, sp, w)
                     for sp, w in zip(speeds[:k], omega[:k])])
     u_b = np.array([s.u[:wheels.n_wheels] for s in ctl.steps])
+    assert traj.wheel_torque is not None       # a wheeled model
+    assert traj.wheel_momentum is not None
     return MPCComparison(
         t=traj.t, error_basilisk=np.array([_angle(q, qf) for q in q_b]),
         error_ours=np.array([_angle(q, qf) for q in traj.q]),

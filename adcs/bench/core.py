@@ -154,6 +154,8 @@ def kkt_residual(P: ArrayLike, q: ArrayLike, C: ArrayLike, cl: ArrayLike,
     """
     from scipy.optimize import lsq_linear
 
+    P, q, C = (np.asarray(a, dtype=float) for a in (P, q, C))
+    cl, cu = np.asarray(cl, dtype=float), np.asarray(cu, dtype=float)
     x = np.asarray(x, dtype=float)
     Cx = C @ x
     scale_c = 1.0 + np.abs(Cx)
@@ -174,7 +176,7 @@ def kkt_residual(P: ArrayLike, q: ArrayLike, C: ArrayLike, cl: ArrayLike,
             warnings.simplefilter("ignore", RuntimeWarning)
             sol = lsq_linear(C[rows].T, -grad, bounds=(lb, ub), tol=1e-14)
         stat = float(np.max(np.abs(C[rows].T @ sol.x + grad)))
-    return max(primal, stat / (1.0 + np.linalg.norm(grad)))
+    return max(primal, stat / (1.0 + float(np.linalg.norm(grad))))
 
 
 def _stats(times: list[float]) -> tuple[float, float]:

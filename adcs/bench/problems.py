@@ -109,7 +109,7 @@ def _backend_rows(problem: str, names: list[str], build: Any,
     the certificate corrected, as counted).
     """
     bar.add(len(names) * len(cases))
-    rows = []
+    rows: list[BenchRow] = []
     for name in names:
         base, opts = _split(name)
         try:
@@ -185,7 +185,7 @@ def bench_thrusters(backends: Sequence[str] | None = None, reps: int = 200,
     h_max = THRUSTER_H_MAX
     names = (list(backends) if backends
              else list(available_solvers()) + list(CONTROLS))
-    kw = dict(tracking="weighted", bound="box")
+    kw: dict[str, Any] = dict(tracking="weighted", bound="box")
     ref_name = next((s for s in ("quadprog", "clarabel", "daqp")
                      if s in available_solvers()), names[0])
     ref_alloc = DutyCycleAllocator(unit, 2.0, h_max, solver=ref_name, **kw)
@@ -277,7 +277,7 @@ def bench_slew(backends: Sequence[str] | None = None, reps: int = 5,
                if s.split("-")[0] in avail
                and not (quick and s == "sqpmethod-daqp")]
     names = list(backends) if backends else default
-    rows = []
+    rows: list[BenchRow] = []
     bar.add(len(names) * reps)
     for name in names:
         solver, _, qp = name.partition("-")

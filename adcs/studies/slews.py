@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ocp.slews.compare import (
@@ -72,7 +74,7 @@ def keep_out_table(ctx: StudyContext) -> Table:
         ko = KeepOut(tracker, sun, np.deg2rad(cone))
         r = time_optimal_slew(inertia, q0, qf, wheels=wheels, N=N,
                               keep_out=ko)
-        rows.append([cone, float(np.degrees(ko.margin(free.q).min())),
+        rows.append([cone, float(np.degrees(np.min(ko.margin(free.q)))),
                      r.T, 100.0 * (r.T / free.T - 1.0),
                      float(np.degrees(r.extras["keep_out_node_margin"])),
                      float(np.degrees(r.extras["keep_out_margin"])),
@@ -122,7 +124,8 @@ def slew_rows(ctx: StudyContext, angles, N: int) -> dict[str, list]:
         case = str(ds["case"].values[i])
         for m in METHODS:
             if f"{m}_T" in ds:
-                vals = {f: float(ds[f"{m}_{f}"].values[i]) for f in FIELDS}
+                vals: dict[str, Any] = {
+                    f: float(ds[f"{m}_{f}"].values[i]) for f in FIELDS}
                 vals["success"] = bool(vals["success"])
                 results[case].append(SlewComparisonRow(
                     case=case, angle_deg=float(ds["angle_deg"].values[i]),

@@ -10,10 +10,12 @@ duty-cycle QP on a few demands.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from adcs.report import Section, StudyContext, Table
-from allocation import QPAllocator, envelope, reach_table
+from allocation import QPAllocator, WheelArray, envelope, reach_table
 from ocp.spacecraft import Spacecraft, load_spacecraft
 
 DEFAULT = "demo"
@@ -24,6 +26,7 @@ SLEW_AXIS = (1.0, 1.0, 1.0)
 def craft_table(sc: Spacecraft) -> Table:
     """Tabulate the craft: wheels, limits, thrusters, inertia."""
     w = sc.wheels
+    rows: list[list[Any]]
     rows = [["wheels", w.n_wheels],
             ["wheel names", ", ".join(w.names)],
             ["failed wheels", ", ".join(str(i + 1) for i in w.failed)
@@ -54,7 +57,7 @@ def failed_label(failed) -> str:
     return f"wheels {', '.join(nums[:-1])} and {nums[-1]} failed"
 
 
-def failure_cases(wheels) -> list[tuple[str, object]]:
+def failure_cases(wheels: WheelArray) -> list[tuple[str, WheelArray]]:
     """``(label, array)``: as given, then each working wheel failing too.
 
     Labels name every wheel failed in the case (the craft's own failures
@@ -184,6 +187,7 @@ def thruster_table(sc: Spacecraft) -> Table:
     """Run the duty-cycle QP on a few demands (2 s cycle, ``|H|`` ≤ 0.012)."""
     from thrusters import DutyCycleAllocator
 
+    assert sc.thrusters is not None     # the study checks it first
     alloc = DutyCycleAllocator(sc.thrusters, 2.0, 0.012)
     rows = []
     for P_T, M in ((0.0, (0.002, -0.001)), (0.3, (0.0, 0.001)),

@@ -96,12 +96,12 @@ def failure_table(arr: WheelArray) -> Table:
     rows = []
     for k in range(arr.n_wheels):
         env = envelope(arr.with_failed(k), "momentum")
-        sup = env.support(np.eye(3))
+        sup = np.asarray(env.support(np.eye(3)))     # (3,)
         rows.append([f"wheel {k + 1}", env.inscribed_radius,
                      *env.axis_max, *sup, env.utilisation, env.n_facets])
     env = envelope(arr, "momentum")
     rows.insert(0, ["none", env.inscribed_radius, *env.axis_max,
-                    *env.support(np.eye(3)), env.utilisation,
+                    *np.asarray(env.support(np.eye(3))), env.utilisation,
                     env.n_facets])
     return Table("Failure cases: momentum envelope (H* = 1 N·m·s)",
                  ["failed", "inscribed r", "axis x", "axis y", "axis z",

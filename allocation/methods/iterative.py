@@ -28,7 +28,7 @@ def _fixed_point_operator(A: np.ndarray, epsilon: float
         raise InvalidValueError(f"epsilon must lie in (0, 1), got {epsilon}")
     n = A.shape[1]
     H = (1.0 - epsilon) * A.T @ A + epsilon * np.eye(n)
-    eta = 1.0 / np.linalg.norm(H, "fro")
+    eta = 1.0 / float(np.linalg.norm(H, "fro"))
     return np.eye(n) - eta * H, (1.0 - epsilon) * eta
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -182,7 +182,7 @@ class QPAllocator:
         self._active = array.active
         self._normals = facet_normals(self._axes[:, array.active])
         self._abs_na = np.abs(self._normals @ self._axes)
-        self._static_cost = None
+        self._static_cost: tuple[np.ndarray, np.ndarray] | None = None
         self._m_scale = float(np.max(array.m_max))
         self._nvar = 2 * n if motor is not None else n
         self._nrow = 3 + (2 * n if motor is not None else 0)
@@ -193,7 +193,7 @@ class QPAllocator:
         #: momentum bound of each working wheel (inf: failed, free)
         self._h_cap = np.where(array.active, array.h_max, np.inf)
         self._fast: dict[float | None, FastWheelQP | None] = {}
-        self._batch: BatchKernel | None | bool = False
+        self._batch: BatchKernel | None | Literal[False] = False
         #: Calls `allocate_fast` handed to `allocate` (see there).
         self.fast_fallbacks = 0
         #: Scale α reached by the last `allocate_fast` call.
@@ -232,6 +232,7 @@ class QPAllocator:
 
     def _power_rows(self, h: np.ndarray | None
                     ) -> tuple[np.ndarray, np.ndarray]:
+        assert self.motor is not None   # power rows only with a motor
         n = self.array.n_wheels
         speed = np.zeros(n) if h is None else self.motor.speed(h)
         eta = self.motor.regen_efficiency
@@ -313,6 +314,7 @@ class QPAllocator:
                     EXACT_SOLVER, self._nvar, self._nrow - 3, 0, {},
                     available_solvers())
             res = self._solve(self._ls_exact, data)
+        assert res.x is not None     # _solve returns successes only
         return A @ np.clip(res.x[:n], lo, hi)
 
     def _check(self, x, target, lo, hi, backend: str) -> np.ndarray:
@@ -368,9 +370,8 @@ class QPAllocator:
             Motor torques m [N·m]; `fast_alpha` holds the scale reached
             (1 unless saturated).
         """
-        fast = self._fast.get(dt, False)
-        if fast is False:
-            fast = self._make_fast(dt, wheel_momentum)
+        fast = self._fast[dt] if dt in self._fast else self._make_fast(
+            dt, wheel_momentum)
         if fast is not None and (dt is None) == (wheel_momentum is None) \
                 and fast.load(torque, wheel_momentum, self._h_cap):
             fast.check[0] = np.nan
@@ -392,7 +393,8 @@ class QPAllocator:
         out[:] = res.torques
         return out
 
-    def _make_fast(self, dt, wheel_momentum):
+    def _make_fast(self, dt: float | None, wheel_momentum: ArrayLike | None
+                   ) -> FastWheelQP | None:
         """Build (or refuse, None) the fast path for ``dt``."""
         fast = None
         eligible = (self.momentum_target is None and self.motor is None
@@ -493,6 +495,7 @@ class QPAllocator:
             alpha = max(float(target @ M) / nm, 0.0) if nm > 0 else 0.0
         achieved = self._axes @ m
         after = None if dt is None else h + m * dt
+        assert alpha is not None     # exact mode: alpha >= 1
         return WheelAllocation(
             torques=m, achieved=achieved, status=status,
             shortfall=M - achieved, alpha=float(alpha), mode=mode,
@@ -570,9 +573,7 @@ class QPAllocator:
         """
         if self._batch_kernel() is None:
             return None
-        fast = self._fast.get(dt, False)
-        if fast is False:
-            fast = self._make_fast(dt, h)
+        fast = self._fast[dt] if dt in self._fast else self._make_fast(dt, h)
         h_in = None if dt is None else h
         if fast is None or not fast.load(M, h_in, self._h_cap):
             return None

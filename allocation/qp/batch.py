@@ -114,6 +114,7 @@ def allocate_rows(q: Any, kernel: BatchKernel | None, M: np.ndarray,
         if dt is None:
             lo, hi, _ = torque_bounds(q.array, None, None, q._active)
         else:
+            assert h is not None     # _step_length: dt needs h
             rows &= (np.abs(h) <= q._h_cap).all(axis=1)
             lo, hi, _ = torque_bounds(q.array, h, dt, q._active)
             lo, hi = lo[rows], hi[rows]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
@@ -148,7 +150,8 @@ def conic_allocator_function(array: WheelArray,
     normals = facet_normals(A[:, array.active])
     NA = np.abs(normals @ A)
 
-    sym = ca.SX if closed else ca.MX
+    # SX for the closed form, MX around a conic call (either: Any)
+    sym: Any = ca.SX if closed else ca.MX
     M = sym.sym("M", 3)
     inputs, names = [M], ["M"]
     m_max = ca.DM(array.m_max)

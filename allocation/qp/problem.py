@@ -22,7 +22,7 @@ _BOUNDARY_TOL = 1e-12
 
 def torque_bounds(array: WheelArray, wheel_momentum=None, dt=None,
                   active: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Per-wheel torque bounds for one step [N·m].
 
     ``|m_i| <= m_max_i`` and, with ``wheel_momentum`` and ``dt``, the

@@ -193,9 +193,10 @@ def _readme(fns: dict[str, ca.Function],
                           f"{SOURCE}.c", *solver_sources, "-lm"])
     solver_text = _solver_text(fns, plugin, method, patched, duty_plugin)
     heap = _memory_text(static_bytes)
+    version = ca.__version__  # type: ignore[attr-defined]  # not in stubs
     return f"""# Generated ADCS C code
 
-Written by `ocp.codegen.export.export_c` (CasADi {ca.__version__} code
+Written by `ocp.codegen.export.export_c` (CasADi {version} code
 generation). `{SOURCE}.c` / `{SOURCE}.h` are C99. {solver_text}
 
 ## Build

@@ -43,8 +43,8 @@ Exported functions (names are the C symbols):
 from __future__ import annotations
 
 import os
-
-from typing import Any
+from pathlib import Path
+from typing import Any, Sequence
 
 
 import casadi as ca
@@ -183,11 +183,12 @@ def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
 
 
 def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
-                      thrusters: ArrayLike | None = None, cycle: float = 2.0,
+                      thrusters: ThrusterSet | None = None,
+                      cycle: float = 2.0,
                       thruster_h_max: float = 0.012, dt: float = 0.5,
                       horizon: int = 20, mpc_max_iter: int = 50,
-                      mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step",
-                                          "mpc_cond_rti_step"),
+                      mpc_variants: Sequence[str] = (
+                          "mpc_step", "mpc_rti_step", "mpc_cond_rti_step"),
                       wheel_qp_plugin: str | None = "qrqp",
                       wheel_qp_fast_path: bool = True,
                       duty_qp_plugin: str | None = "qrqp",
@@ -332,11 +333,12 @@ def _write_build_files(out, solver_sources, cflags=()) -> None:
 
 def _write_source(fns: dict, out: Path, reuse_factorization: bool,
                   precision: str = "double"
-                  ) -> tuple[bool, bool, dict, list[Path]]:
+                  ) -> tuple[int, bool, dict[str, tuple[int, int]],
+                             list[Path]]:
     """Generate ``adcs_codegen.c`` and edit it for flight.
 
     Returns ``(daqp_patched, qrqp_patched, daqp_conics, solver_sources)``:
-    the DAQP failure patch applied, the qrqp reuse patch applied, each
+    the DAQP failure patch's edit count, the qrqp reuse patch applied, each
     DAQP conic's static workspace and the DAQP C sources copied beside
     the source (none without a DAQP conic).
     """

@@ -37,7 +37,7 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from .result import SOURCE, ExportResult
 
@@ -138,8 +138,13 @@ def c_work_sizes(source_text: str, name: str) -> tuple[int, ...]:
                   re.S)
     if m is None:
         raise ValueError(f"no {name}_work in the generated source")
-    return tuple(int(re.search(rf"\*{k} = (\d+);", m[0])[1])
-                 for k in ("sz_arg", "sz_res", "sz_iw", "sz_w"))
+    sizes = []
+    for k in ("sz_arg", "sz_res", "sz_iw", "sz_w"):
+        mk = re.search(rf"\*{k} = (\d+);", m[0])
+        if mk is None:
+            raise ValueError(f"no {k} in the generated {name}_work")
+        sizes.append(int(mk[1]))
+    return tuple(sizes)
 
 
 def _size_tool(cc_path: str) -> str:
@@ -184,8 +189,9 @@ def memory_report(res: ExportResult, core, objs: list[Path],
     real = 4 if res.extras.get("precision") == "single" else REAL_BYTES
     for key, s in sizes.items():
         d = {k: s[k] - base[k] for k in s}
-        rec = {**d, "flash": d["text"] + d["rodata"] + d["data"],
-               "static_ram": d["data"] + d["bss"]}
+        rec: dict[str, Any] = {
+            **d, "flash": d["text"] + d["rodata"] + d["data"],
+            "static_ram": d["data"] + d["bss"]}
         if key in res.functions:
             sz = c_work_sizes(text, key)
             stack, bounded, lib = worst_stack(

@@ -404,7 +404,7 @@ def planar_boom_rotates(inertia, orbit: CircularOrbit, dipole: float, *,
     def over(tau, y):
         return np.pi / 2 - abs(y[0])
 
-    over.terminal = True
+    setattr(over, "terminal", True)    # solve_ivp: the event stops it
     sol = solve_ivp(rhs, (0.0, 2 * np.pi * n_orbits), [alpha0, rate0 / w0],
                     events=over, rtol=1e-8, atol=1e-10, max_step=0.05)
     return bool(sol.t_events[0].size)

@@ -35,7 +35,7 @@ from adcs_common.validation import (
     check_positive,
 )
 
-from adcs_common.quaternion import quat_rate, quat_to_dcm
+from adcs_common.quaternion import Vector, quat_rate, quat_to_dcm
 from ocp.models.rigid import check_inertia
 
 __all__ = [
@@ -67,7 +67,7 @@ def orbit_rate(radius: float, mu: float = EARTH_MU) -> float:
     return float(np.sqrt(mu / r ** 3))
 
 
-def gravity_gradient_torque(inertia: ArrayLike, e3_body: ArrayLike,
+def gravity_gradient_torque(inertia: ArrayLike, e3_body: Vector,
                             w0: float) -> Any:
     """Gravity-gradient torque :math:`3ω_0^2 E_3 \\times J E_3` [N·m].
 
@@ -83,7 +83,9 @@ def gravity_gradient_torque(inertia: ArrayLike, e3_body: ArrayLike,
         Orbit rate [rad/s].
     """
     if isinstance(e3_body, (ca.SX, ca.MX)):
-        return 3 * w0 ** 2 * ca.cross(e3_body, ca.DM(inertia) @ e3_body)
+        e3s: Any = e3_body       # SX or MX (the result is of that kind)
+        J = ca.DM(np.asarray(inertia, dtype=float))
+        return 3 * w0 ** 2 * ca.cross(e3s, J @ e3s)
     e3 = as_finite_array(e3_body, "e3_body", (3,))
     w0 = as_finite_scalar(w0, "w0")
     if not 0.0 <= w0 <= 1.0:

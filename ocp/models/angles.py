@@ -17,7 +17,8 @@ from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_finite_array
-from adcs_common.quaternion import array_lib, vcat, quat_mul, quat_to_dcm
+from adcs_common.quaternion import (Vector, array_lib, vcat, quat_mul,
+                                    quat_to_dcm)
 
 __all__ = [
     "body_rates_from_angle_rates",
@@ -32,7 +33,7 @@ __all__ = [
 EK_SINGULAR_TOL = 1e-6
 
 
-def dcm_body_from_ref_ek(angles: ArrayLike) -> Any:
+def dcm_body_from_ref_ek(angles: Vector) -> Any:
     """:math:`C_{body\\leftarrow ref} = R_1(γ) R_2(ψ) R_3(ϑ)` ([3]).
 
     Parameters
@@ -55,7 +56,7 @@ def dcm_body_from_ref_ek(angles: ArrayLike) -> Any:
     return np.array(rows, dtype=float)
 
 
-def body_rates_from_angle_rates(angles: ArrayLike, rates: ArrayLike) -> Any:
+def body_rates_from_angle_rates(angles: Vector, rates: Vector) -> Any:
     """Body rates from angle rates, [3] eq. (1).
 
     .. math::
@@ -78,7 +79,7 @@ def body_rates_from_angle_rates(angles: ArrayLike, rates: ArrayLike) -> Any:
     ])
 
 
-def ek_angle_rates(angles: ArrayLike, w: ArrayLike) -> Any:
+def ek_angle_rates(angles: Vector, w: Vector) -> Any:
     """Angle rates from body rates: the inverse of [3] eq. (1).
 
     .. math::

@@ -184,7 +184,7 @@ class SpacecraftModel:
                 (3,) + u.shape[1:])
         else:
             out = -self.wheels.body_torque(own)
-        if nt:
+        if self.thrusters is not None:       # nt > 0
             out = out + self.thrusters.torque_matrix() @ u[self.nu - nt:]
         return out
 
@@ -310,7 +310,8 @@ class SpacecraftModel:
         uniform = np.allclose(dts, dts[0], rtol=1e-12, atol=0.0)
         F = self.integrator(dts[0], method, options) if uniform else None
         for i in range(k):
-            Fi = F if uniform else self.integrator(dts[i], method, options)
+            Fi = F if F is not None else self.integrator(dts[i], method,
+                                                         options)
             try:
                 xf = Fi(x0=X[i], p=np.concatenate([u[i], tau[i]]))["xf"]
             except RuntimeError as exc:     # the integrator broke down

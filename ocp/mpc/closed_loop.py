@@ -192,7 +192,8 @@ def simulate_mpc(mpc: AttitudeMPC, q0: ArrayLike, qf: ArrayLike, *,
     X = np.empty((K + 1, model.nx))
     U = np.empty((K, model.nu))
     X[0] = x
-    times, calls, iters, statuses = [], [], [], {}
+    times, calls, iters = [], [], []
+    statuses: dict[str, int] = {}
     mpc.reset()
     for k in range(K):
         tk = k * mpc.dt
@@ -300,13 +301,14 @@ def compare_slew(model: SpacecraftModel, q0: ArrayLike, qf: ArrayLike, *,
     results.append(_result_from_trajectory(
         f"quaternion feedback (ω_n={wn:.3g})", fb, wh, settle_angle, hold))
     if time_optimal:
+        slew: Callable[..., Any] | None
         try:
-            from ocp.slews.nlp import time_optimal_slew
+            from ocp.slews.nlp import time_optimal_slew as slew
         except ImportError:
-            time_optimal_slew = None
-        if time_optimal_slew is not None:
+            slew = None
+        if slew is not None:
             t0 = time.perf_counter()
-            to = time_optimal_slew(model.inertia, q0, qf, wheels=wh, N=100)
+            to = slew(model.inertia, q0, qf, wheels=wh, N=100)
             results.append(_result_from_trajectory(
                 "time-optimal NLP (open loop)", to, wh, settle_angle, 0.0,
                 extras={"solve_time": time.perf_counter() - t0,

@@ -199,7 +199,7 @@ def _stages(mpc: Any, kern: dict, z, qf, tau) -> tuple:
         e.append(kern["efw"](A[k], e[k], d[k]) if k else d[0])
     # gradient: λ_N = Q_N e_N + q_N, λ_k = Q_k e_k + q_k + A_k' λ_{k+1}
     lam = ca.mtimes(Q[N], e[N]) + q[N]
-    grad = [None] * N
+    grad: list[Any] = [None] * N      # MX, filled backwards
     for k in range(N - 1, -1, -1):
         grad[k] = (2.0 * w.torque * z[us[k]] / ca.DM(m_max ** 2)
                    + kern["bt"](B[k], lam))
@@ -370,13 +370,16 @@ def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
             out = [zn, ln, n + 1, kn]
         else:
             nxt, hist_n = zn, []
-            if m:
+            if mix is not None:          # m > 0
                 za, *hist_n = mix(zn, zs, *hist)
                 # a converged iteration returns its QP step, not a mix
                 nxt = ca.if_else(sn <= step_tol, zn, za)
             out = inner(sn <= step_tol, nxt, ln, n + 1, kn, ps, *hist_n)
-        inner = ca.Function.if_else(
-            f"cond_iter_{k}", done, ca.Function(f"cond_more_{k}", args, out))
+        # casadi's stubs: a call with several outputs returns a tuple
+        more = ca.Function(f"cond_more_{k}", args,
+                           out)  # type: ignore[arg-type]
+        inner = ca.Function.if_else(f"cond_iter_{k}", done, more)
+    assert inner is not None      # fallback_max_iter >= 1
     z, lx, count, kkt = inner(0, z0, lx0, 0.0, 0.0, p, *(
         [ca.MX.zeros(nz, m + 1), ca.MX.zeros(nz, m + 1), ca.MX.zeros(m + 1)]
         if m else []))

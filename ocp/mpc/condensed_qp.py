@@ -103,9 +103,10 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     s1 = box(h=eye, g=g, a=W, lba=lbu, uba=ubu, lam_a0=lu0)
     ay = ca.mtimes(R, s1["x"])
     excess = ca.mmax(ca.vertcat(ay - uba, lba - ay, 0.0))
-    staged = ca.Function("cond_qp_staged", ins, pick(
-        excess > row_tol, g, W, R, lbu, ubu, lba, uba, s1["lam_a"],
-        s1["x"]))
+    # casadi's stubs: a call with several outputs returns a tuple
+    staged = ca.Function(  # type: ignore[call-overload]
+        "cond_qp_staged", ins, pick(excess > row_tol, g, W, R, lbu, ubu,
+                                    lba, uba, s1["lam_a"], s1["x"]))
     warm = rows_warm(lu0, lbu, ubu, la0)
     direct = ca.Function("cond_qp_direct", ins, with_rows(lu0, warm))
     route = ca.Function.if_else("cond_qp_route", direct, staged)

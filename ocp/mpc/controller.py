@@ -317,7 +317,8 @@ class AttitudeMPC:
         self._residuals = ca.Function("mpc_residuals", [z, p], [f, gv])
         self.shift_function = shift_function(nx, nu, nz, self._ng)
         self.check_function = check_function(self, p)
-        self.nlpsol = self.fallback = None
+        self.nlpsol: ca.Function | None = None
+        self.fallback: ca.Function | None = None
         if self.solver == "condensed":
             check_condensed_options(user_options)
             self.rti_function, full = condensed_step_functions(
@@ -436,6 +437,14 @@ class AttitudeMPC:
         self._lam_x = np.zeros(self.nz)
         self._lam_g = np.zeros(self.ng)
 
+    def _solve_nlp(self, z0: Any, p: np.ndarray, lx0: Any, lg0: Any
+                   ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """One call of the NLP solver: ``(solution, stats)``."""
+        assert self.nlpsol is not None     # an NLP-solver MPC
+        sol = self.nlpsol(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz, lbg=0,
+                          ubg=0, lam_x0=lx0, lam_g0=lg0)
+        return sol, self.nlpsol.stats()
+
     @synchronized
     def step(self, x: ArrayLike, qf: ArrayLike, tau: ArrayLike | None = None,
              *, check: bool = True) -> MPCStep:
@@ -506,9 +515,7 @@ class AttitudeMPC:
         else:
             z0, lx0, lg0 = self.shift_function(x, z_prev, self._lam_x,
                                                self._lam_g)
-            sol = self.nlpsol(x0=z0, p=p, lbx=self.lbz, ubx=self.ubz, lbg=0,
-                              ubg=0, lam_x0=lx0, lam_g0=lg0)
-            stats = self.nlpsol.stats()
+            sol, stats = self._solve_nlp(z0, p, lx0, lg0)
             z, lam_x, lam_g, u, cost, viol, viol1, defect = self._unpack(
                 sol, p)
             status = str(stats.get("return_status", "unknown"))

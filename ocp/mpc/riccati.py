@@ -23,6 +23,8 @@ in straight-line kernels).
 
 from __future__ import annotations
 
+from typing import Any
+
 import casadi as ca
 
 
@@ -110,7 +112,10 @@ def factor_rows(kern: dict, A: list, B: list, Q: list, r_diag: ca.DM,
     N = len(A)
     nx, nu = B[0].shape
     P = ca.densify(Q[N])
-    K, Acl, Lit = [None] * N, [None] * N, [None] * N
+    # MX blocks, filled backwards
+    K: list[Any] = [None] * N
+    Acl: list[Any] = [None] * N
+    Lit: list[Any] = [None] * N
     zero_q = ca.DM(Q[N].sparsity(), 0.0)
     for k in range(N - 1, -1, -1):
         P, K[k], Acl[k], Lit[k] = kern["ric"](P, Q[k] if k else zero_q,

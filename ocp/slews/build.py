@@ -8,6 +8,8 @@ import os
 import tempfile
 import time
 from dataclasses import dataclass
+from typing import Any
+
 import casadi as ca
 import numpy as np
 from adcs_common.codegen import (
@@ -106,7 +108,7 @@ def data_symbols(Sym, sizes: dict[str, int], values: np.ndarray,
     return d, ca.vertcat(*syms) if syms else Sym(0, 1)
 
 
-def options_key(opts: dict):
+def options_key(opts: dict | None) -> str | None:
     """Hashable form of solver options, None if they hold objects."""
     try:
         return json.dumps(opts, sort_keys=True)
@@ -137,7 +139,8 @@ def build_solver(s: SlewSetup, *, plugin: str, opts: dict, N: int,
     d, p = data_symbols(Sym, sizes, values, symbolic)
     inner = data_symbols(ca.SX, sizes, values, symbolic)
     Xn, Un, Xcn = pick(w, lay.iX), pick(w, lay.iU), pick(w, lay.iXc)
-    Tk = pick(w, lay.iT) if free_T else None  # (N+1,) scaled
+    # (N+1,) scaled, SX or MX (None: fixed T)
+    Tk: Any = pick(w, lay.iT) if free_T else None
     dt = (d["Tref"] / N * Tk[:N].T if free_T
           else ca.repmat(d["Tref"] / N, 1, N))
     rate = ca.sum1(Xn[4:7, :] ** 2) if s.rate_max is not None else None
@@ -150,24 +153,24 @@ def build_solver(s: SlewSetup, *, plugin: str, opts: dict, N: int,
                          - kd[6, j] for j in range(nk)])
             for k in range(N + 1)])
     # rows stage by stage (fatrop's structure detection reads them so)
-    rows, lo, hi = [], [], []
-    for r in transcription.defects((nx, nu, nw), N, Xn, Xcn, Un, dt, p,
-                                   inner):
-        rows.append(r), lo.append(0.0), hi.append(0.0)
+    # (rows, lower, upper) blocks
+    blocks: list[tuple[Any, float, float]] = [
+        (r, 0.0, 0.0) for r in transcription.defects(
+            (nx, nu, nw), N, Xn, Xcn, Un, dt, p, inner)]
     if free_T and ocp_form:
-        rows.append(Tk[1:].T - Tk[:N].T), lo.append(0.0), hi.append(0.0)
+        blocks.append((Tk[1:].T - Tk[:N].T, 0.0, 0.0))
     if rate is not None:
-        rows.append(rate[:N]), lo.append(-np.inf), hi.append(np.nan)
+        blocks.append((rate[:N], -np.inf, np.nan))
     if cones is not None:
-        rows.append(cones[:, :N]), lo.append(-np.inf), hi.append(0.0)
+        blocks.append((cones[:, :N], -np.inf, 0.0))
     con = Constraints()
     if ocp_form:
         con.eq(Xn[:, 0] - d["x0"])
-    con.add(ca.vertcat(*rows),
+    con.add(ca.vertcat(*[r for r, _, _ in blocks]),
             np.concatenate([np.full((r.shape[0], N), a)
-                            for r, a in zip(rows, lo)]),
+                            for r, a, _ in blocks]),
             np.concatenate([np.full((r.shape[0], N), b)
-                            for r, b in zip(rows, hi)]))
+                            for r, _, b in blocks]))
     if rate is not None:
         con.add(rate[N], -np.inf, np.nan)
     if cones is not None:
@@ -201,8 +204,9 @@ def compiled_nlpsol(plugin: str, nlp: dict, opts: dict,
     with tempfile.TemporaryDirectory() as tmp:
         src = generate_c(solver_dependencies(S0), tmp, "slew_nlp")
         flags = list(jit["flags"])
+        version = ca.__version__  # type: ignore[attr-defined]  # no stub
         key = hashlib.sha256(src.read_bytes() + " ".join(
-            [jit["compiler"], *flags, ca.__version__]).encode()).hexdigest()
+            [jit["compiler"], *flags, version]).encode()).hexdigest()
         def build(out):
             with compile_progress("compiling the slew NLP to C (once per "
                                   "problem shape)"):
@@ -226,10 +230,10 @@ def jit_settings(jit) -> dict | None:
         cc = find_compiler()
     except CompilerNotFound:
         cc = None
-    cfg = {"compiler": cc,
-           "flags": ["-O1"],
-           "cache_dir": os.environ.get("ADCS_CACHE_DIR",
-                                       "~/.cache/adcs_toolbox/slews")}
+    cfg: dict[str, Any] = {
+        "compiler": cc, "flags": ["-O1"],
+        "cache_dir": os.environ.get("ADCS_CACHE_DIR",
+                                    "~/.cache/adcs_toolbox/slews")}
     if isinstance(jit, dict):
         unknown = set(jit) - set(cfg)
         if unknown:

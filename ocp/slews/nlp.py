@@ -22,6 +22,8 @@ stage-wise layout with the final time as a state of every stage.
 
 from __future__ import annotations
 
+from typing import Sequence
+
 from numpy.typing import ArrayLike
 
 
@@ -59,15 +61,15 @@ __all__ = [
 MAX_DURATION = 3.2e7
 
 
-def _guarded(s, **kwargs) -> SlewTrajectory:
+def _guarded(s, solver: str, **kwargs) -> SlewTrajectory:
     """`solve_slew`, its numerical breakdowns as the toolbox's error."""
     try:
-        return solve_clear_of_cones(solve_slew, s, **kwargs)
+        return solve_clear_of_cones(solve_slew, s, solver=solver, **kwargs)
     except (RuntimeError, OverflowError, ZeroDivisionError) as exc:
         raise SolverError(
             f"the slew NLP broke down numerically ({type(exc).__name__}: "
             f"{str(exc).splitlines()[0][:200]}); check the limits and "
-            "the time scale", solver=kwargs.get("solver")) from None
+            "the time scale", solver=solver) from None
 
 
 def time_optimal_slew(inertia: ArrayLike | Spacecraft, q0: ArrayLike,
@@ -83,7 +85,8 @@ def time_optimal_slew(inertia: ArrayLike | Spacecraft, q0: ArrayLike,
                       solver_options: dict | None = None,
                       verify: bool = True,
                       jit: bool | dict = False,
-                      keep_out: ArrayLike | None = None) -> SlewTrajectory:
+                      keep_out: KeepOut | Sequence[KeepOut] | None = None
+                      ) -> SlewTrajectory:
     """Minimum-time rest-to-rest slew from ``q0`` to ``qf`` (free T).
 
     .. math::
@@ -217,7 +220,8 @@ def min_energy_slew(inertia: ArrayLike, q0: ArrayLike, qf: ArrayLike, *,
                     solver_options: dict | None = None,
                     verify: bool = True,
                     jit: bool | dict = False,
-                    keep_out: ArrayLike | None = None) -> SlewTrajectory:
+                    keep_out: KeepOut | Sequence[KeepOut] | None = None
+                    ) -> SlewTrajectory:
     """Minimum-energy rest-to-rest slew in a fixed time ``T``.
 
     .. math::

@@ -41,16 +41,17 @@ class KeepOut:
 
     Attributes
     ----------
-    boresight : tuple of 3 float
-        Body axis (normalised here).
-    direction : tuple of 3 float
-        Reference-frame direction to avoid (normalised here).
+    boresight : array_like (3,)
+        Body axis (normalised here, stored as a tuple of 3 float).
+    direction : array_like (3,)
+        Reference-frame direction to avoid (normalised here, stored as a
+        tuple of 3 float).
     half_angle : float
         Cone half-angle [rad], in (0, π).
     """
 
-    boresight: tuple
-    direction: tuple
+    boresight: ArrayLike       # a tuple of 3 float after __post_init__
+    direction: ArrayLike
     half_angle: float
 
     def __post_init__(self) -> None:
@@ -67,7 +68,7 @@ class KeepOut:
                 f"half_angle must lie in (0, π) rad, got {a}")
         object.__setattr__(self, "half_angle", a)
 
-    def margin(self, q: ArrayLike) -> np.ndarray:
+    def margin(self, q: ArrayLike) -> float | np.ndarray:
         """Angle of the boresight from the direction minus the half-angle.
 
         ``q`` (4,) or (K, 4) scalar-first; returns radians, (K,) or a
@@ -216,6 +217,7 @@ def initial_guess_states(s: SlewSetup, N: int, T: float, kind: str,
         U = np.clip(m, -s.u_max, s.u_max)
         h = s.h0 + np.vstack([np.zeros(model.n_wheels),
                               np.cumsum(U * (T / N), axis=0)])
+        assert s.h_max is not None     # set with the wheels
         h = np.clip(h, -s.h_max, s.h_max)
         X = np.column_stack([q, w, h])
     return X.T, U.T

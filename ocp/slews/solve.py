@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
 from adcs_common.exceptions import (
     InvalidValueError,
@@ -72,7 +74,7 @@ def prepare_solve(s: SlewSetup, *, solver: str, N: int, T_fixed: float | None,
     nx, nw = model.nx, model.n_wheels
     tr = transcription_named(transcription, substeps)
     free_T = T_fixed is None
-    T_ref = s.T_eig if free_T else float(T_fixed)
+    T_ref = s.T_eig if T_fixed is None else float(T_fixed)
     x0 = np.r_[s.q0, np.zeros(3), s.h0]
     xs = np.r_[np.ones(4), s.w_scale * np.ones(3),
                s.h_max if s.h_max is not None else np.zeros(0)]
@@ -200,10 +202,11 @@ def solve_slew(s: SlewSetup, *, objective: str, T_fixed: float | None, N: int,
             "solver 'fatrop' takes transcription='multiple_shooting' only")
     jit_cfg = jit_settings(jit)
     free_T = T_fixed is None
-    T_ref = s.T_eig if free_T else float(T_fixed)
+    T_ref = s.T_eig if T_fixed is None else float(T_fixed)
     opts = with_user_options(base_opts, solver_options)
-    common = dict(solver=solver, T_fixed=T_fixed, transcription=transcription,
-                  expand=expand, substeps=substeps, jit_cfg=jit_cfg)
+    common: dict[str, Any] = dict(
+        solver=solver, T_fixed=T_fixed, transcription=transcription,
+        expand=expand, substeps=substeps, jit_cfg=jit_cfg)
     coarse_info: dict = {}
     builds: list[PreparedSolve] = []
     Nc = _coarse_N(N) if initial_guess == "coarse" else None
@@ -211,8 +214,7 @@ def solve_slew(s: SlewSetup, *, objective: str, T_fixed: float | None, N: int,
     if Nc is not None:
         cprep = prepare_solve(s, N=Nc, opts=merge_options(
             opts, COARSE_OPTIONS.get(plugin, {})), **common)
-        w0c = _initial_point(s, cprep.built.lay, Nc, cprep.xs, T_ref,
-                             free_T,
+        w0c = _initial_point(s, cprep.built.lay, Nc, cprep.xs, T_ref, free_T,
                              "eigenaxis" if free_T else "cubic",
                              perturbation, seed)
         csol, cstats, ctime = run_solver(cprep, solver, w0c)
@@ -245,7 +247,7 @@ def solve_slew(s: SlewSetup, *, objective: str, T_fixed: float | None, N: int,
     wopt = sol["x"]
     Xv = wopt[lay.iX] * xs[:, None]
     Uv = wopt[lay.iU] * s.u_max[:, None]
-    Tv = float(wopt[lay.iT[0]] * s.T_eig) if free_T else float(T_fixed)
+    Tv = float(wopt[lay.iT[0]] * s.T_eig) if free_T else T_ref
     t = np.linspace(0.0, Tv, N + 1)
     extras = {"objective": objective, "transcription": transcription,
               "solver": solver, "expand": bool(expand), "N": N,
@@ -375,5 +377,5 @@ def verify_trajectory(model: SpacecraftModel, x0: np.ndarray, t: np.ndarray,
         Xs = model.simulate(x0, t, Uv.T, options=opts)
     qe = quat_mul(quat_conj(qf), Xs[-1, :4] / np.linalg.norm(Xs[-1, :4]))
     extras["simulated_final_error"] = float(
-        2 * np.arcsin(min(1.0, np.linalg.norm(qe[1:]))))
+        2 * np.arcsin(min(1.0, float(np.linalg.norm(qe[1:])))))
     extras["simulated_final_rate"] = float(np.linalg.norm(Xs[-1, 4:7]))

@@ -6,16 +6,20 @@ import os
 import stat
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .definition import Spacecraft, SpacecraftFileError
 from .toml_io import MAX_FILE_BYTES, spacecraft_from_toml
+
+if TYPE_CHECKING:
+    from importlib.resources.abc import Traversable
 
 __all__ = ["list_spacecraft", "load_spacecraft", "spacecraft_toml"]
 
 _PACKAGE = "ocp.spacecraft.catalogue"
 
 
-def _catalogue() -> dict[str, object]:
+def _catalogue() -> dict[str, Traversable]:
     files = resources.files(_PACKAGE)
     return {f.name[:-5]: f for f in files.iterdir()
             if f.name.endswith(".toml")}

@@ -291,7 +291,7 @@ def spacecraft_from_toml(text: str, source: str = "<string>") -> Spacecraft:
 
 
 # ------------------------------------------------------------------ writing
-def _num(x: float) -> str:
+def _num(x: float | np.ndarray) -> str:
     return repr(float(x))
 
 

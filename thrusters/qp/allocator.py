@@ -554,7 +554,8 @@ class MinOnTimeCarry:
 
     unit: ThrusterSet
     cycle: float
-    carry: np.ndarray = field(default=None)  # type: ignore[assignment]
+    # None by default: __post_init__ stores zeros(n)
+    carry: np.ndarray = field(default=None)  # type: ignore[arg-type]
 
     def __post_init__(self) -> None:
         """Validate the cycle and start with no carry."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import casadi as ca
 import numpy as np
 
@@ -13,7 +15,7 @@ from .problem import INF, DutyCycleQP
 #: Options set per plugin (printing off, no exception on failure: the
 #: allocator checks residuals itself, since qrqp can report success on a
 #: violated point, SOLVER_NOTES).
-DEFAULTS = {
+DEFAULTS: dict[str, dict[str, Any]] = {
     "qrqp": {"print_iter": False, "print_header": False,
              "print_info": False, "error_on_fail": False},
 
@@ -125,7 +127,7 @@ def _slack(qp: DutyCycleQP, kp, l_in, u_in):
     n = qp.nx - 1
     rows = qp.A[qp.n_eq:]
     value = ca.DM(rows[:, :n]) @ kp
-    need = [ca.DM(0.0)]
+    need: list[ca.SX | ca.DM | float] = [ca.DM(0.0)]
     for j, sigma in enumerate(rows[:, n]):
         if qp.upper_rows[qp.n_eq + j]:
             need.append((value[j] - u_in[j]) / -sigma if sigma < 0
@@ -216,9 +218,10 @@ def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
             **(options or {})}
     # the arithmetic around the conic compiled to C when a compiler is
     # there (CasADi's SX virtual machine costs ~3 µs more per call)
-    jit = ({"jit": True, "compiler": "shell",
-            "jit_options": {"flags": ["-O2"], "verbose": False}}
-           if jit and _has_compiler() else {})
+    jit_opts: dict[str, Any] = (
+        {"jit": True, "compiler": "shell",
+         "jit_options": {"flags": ["-O2"], "verbose": False}}
+        if jit and _has_compiler() else {})
     n = qp.nx - 1
     ne = qp.n_eq
     nth = qp.Lm.shape[1]
@@ -264,9 +267,9 @@ def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
         Axp = ca.DM(A_in) @ xp
         lr = ca.vertcat(l[ne:] - Axp, -kp)
         ur = ca.vertcat(u[ne:] - Axp, km - kp)
-    pre = ca.Function("duty_fast_pre", [th, km], [gr, lr, ur, xp], jit)
+    pre = ca.Function("duty_fast_pre", [th, km], [gr, lr, ur, xp], jit_opts)
 
-    post = _certificate(qp, Tm, Ar, Hr, lby, uby, viol_tol, kkt_tol, jit)
+    post = _certificate(qp, Tm, Ar, Hr, lby, uby, viol_tol, kkt_tol, jit_opts)
     theta = ca.MX.sym("theta", nth)
     kmax = ca.MX.sym("kmax", n)
     gm, lm, um, xpm = pre(theta, kmax)

@@ -143,7 +143,9 @@ def certified_duty_function(qp: DutyCycleQP, plugin: str = "daqp", *,
     th0m, km0m, gom, okm = before(theta, kmax)
     ym = ca.if_else(gom, ca.vertcat(*fast(th0m, km0m)),
                     ca.vertcat(ca.DM.zeros(n), 0.0, np.inf), True)
-    return ca.Function(name, [theta, kmax],
+    # casadi's stubs: a call of a Function with several outputs returns
+    # a tuple of them, not one MX
+    return ca.Function(name, [theta, kmax],  # type: ignore[call-overload]
                        after(ym, th0m, km0m, gom, okm),
                        ["theta", "kmax"],
                        ["duty", "slack", "violation", "status"])

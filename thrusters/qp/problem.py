@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -69,6 +70,10 @@ class DutyCycleQP:
     n_eq: int
     upper_rows: np.ndarray
     lower_rows: np.ndarray
+    if TYPE_CHECKING:   # set in __post_init__, not dataclass fields
+        _v0: np.ndarray = field(init=False)
+        _V: np.ndarray = field(init=False)
+        _cuts: tuple[int, int] = field(init=False)
 
     @property
     def nx(self) -> int:

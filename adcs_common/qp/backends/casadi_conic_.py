@@ -94,7 +94,8 @@ class Backend:
                     np.zeros(k), np.zeros(k), np.zeros(n), np.zeros(n)]
         self._x = np.zeros(n)
         self._call = BoundCall(function, self._in, (self._x,))
-        self._P_obj = self._C_obj = None
+        self._P_obj: np.ndarray | None = None
+        self._C_obj: np.ndarray | None = None
 
     def solve(self, qp: QP) -> QPSolution:
         """Solve one QP."""

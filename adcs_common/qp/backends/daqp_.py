@@ -34,9 +34,11 @@ class Backend:
         self.name = "daqp"
         self.n, self.n_eq = n, n_eq
         self.settings = {**DEFAULTS, **options}
-        self._model = None
-        self._H = self._C = None
-        self._P_obj = self._C_obj = None
+        self._model: Any = None           # a daqp.Model once set up
+        self._H: np.ndarray | None = None
+        self._C: np.ndarray | None = None
+        self._P_obj: np.ndarray | None = None
+        self._C_obj: np.ndarray | None = None
         self._sense = np.zeros(n + k, dtype=np.int32)
         self._sense[n:n + n_eq] = 5          # equality rows (immutable)
         self._bu = np.zeros(n + k)
@@ -49,7 +51,8 @@ class Backend:
         np.clip(bu, -_INF, _INF, out=bu)
         np.clip(bl, -_INF, _INF, out=bl)
         same = (qp.P is self._P_obj and qp.C is self._C_obj) or (
-            self._model is not None and np.array_equal(qp.P, self._H)
+            self._model is not None and self._H is not None
+            and self._C is not None and np.array_equal(qp.P, self._H)
             and np.array_equal(qp.C, self._C))
         self._P_obj, self._C_obj = qp.P, qp.C
         if self._model is None or not same:

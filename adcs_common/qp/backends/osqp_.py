@@ -50,9 +50,11 @@ class Backend:
             shape=(k + n, n))
         self._p_order = self._order(self._p_pattern)
         self._a_order = self._order(self._a_pattern)
-        self._solver = None
-        self._px = self._ax = None
-        self._P_obj = self._C_obj = None
+        self._solver: Any = None          # an osqp.OSQP once set up
+        self._px: np.ndarray | None = None
+        self._ax: np.ndarray | None = None
+        self._P_obj: np.ndarray | None = None
+        self._C_obj: np.ndarray | None = None
         S = osqp.SolverStatus
         self._solved = {int(S.OSQP_SOLVED)}
         if self.accept_inaccurate:
@@ -83,12 +85,14 @@ class Backend:
             px = qp.P[self._p_order]
             ax = full[self._a_order]
             self._P_obj, self._C_obj = qp.P, qp.C
+        assert px is not None and ax is not None   # set with _P_obj
         l_all = np.clip(np.concatenate([qp.l, qp.lb]), -_INF, _INF)
         u_all = np.clip(np.concatenate([qp.u, qp.ub]), -_INF, _INF)
         fresh = self._solver is None
         if fresh:
             self._setup(px, ax, qp.q, l_all, u_all)
         else:
+            assert self._px is not None and self._ax is not None
             change = {}
             if px is not self._px and not np.array_equal(px, self._px):
                 change["Px"] = px

@@ -53,7 +53,7 @@ class Backend:
         self.settings = {**DEFAULTS.get(plugin, {}), **options}
         self.sparse = (plugin in qpsolvers.sparse_solvers
                        and plugin not in qpsolvers.dense_solvers)
-        self._key = None
+        self._key: tuple[int, int, bytes, bytes] | None = None
 
     def _matrices(self, qp: QP, up: np.ndarray, lo: np.ndarray):
         """(P, A, G), rebuilt only when P, C or the one-sided rows change."""
