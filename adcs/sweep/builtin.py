@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+from typing import Callable
 
 import numpy as np
 
@@ -144,6 +145,7 @@ def failure_case(spacecraft: str, wheel: int, t_fail: float,
     before = simulate_mpc(_mpc(text, str(spacecraft), -1, dt), q0, qf,
                           t_final=t_fail)
     tr = before.trajectory
+    assert tr.wheel_momentum is not None      # a wheeled craft's loop
     after = simulate_mpc(_mpc(text, str(spacecraft), wheel - 1, dt),
                          tr.q[-1], qf,
                          t_final=2.0 * T, w0=tr.w[-1],
@@ -207,11 +209,13 @@ def _failures(quick: bool, spacecraft: str = "demo",
             if w - 1 not in wheels.failed]
 
 
-agility_case.sweep_inputs = craft_inputs
-failure_case.sweep_inputs = craft_inputs
+# the engine hashes a case's inputs through this hook (`chunk_inputs`)
+setattr(agility_case, "sweep_inputs", craft_inputs)
+setattr(failure_case, "sweep_inputs", craft_inputs)
 
 #: name -> (study, parameter generator, what it shows)
-SWEEPS = {
+SWEEPS: dict[str, tuple[Callable[..., dict], Callable[..., list[dict]],
+                        str]] = {
     "geometry": (geometry_case, _geometry,
                  "pyramid δ × γ × single failure: envelope and reach"),
     "accuracy": (accuracy_case, _accuracy,

@@ -311,7 +311,8 @@ def _saved(study: Callable, chunks: list[list[dict]], folder: Path | None):
         return {}, [(i, c, None, "") for i, c in enumerate(chunks)], []
     done: dict[int, list[dict]] = {}
     todo, failed = [], []
-    name, code, memo = study_name(study), code_version(study), {}
+    name, code = study_name(study), code_version(study)
+    memo: dict[Any, Any] = {}
     for i, chunk in enumerate(chunks):
         key = chunk_key(name, code, chunk_inputs(study, chunk, memo), chunk)
         path = chunk_path(folder, key)
