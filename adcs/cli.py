@@ -246,7 +246,8 @@ def _sweep(args: argparse.Namespace) -> int:
             warnings.warn_explicit(w.message, w.category, w.filename,
                                    w.lineno)
     describe(args.name, ds, args.spacecraft if args.name in (
-        "agility", "failures") else None, SWEEPS[args.name][2])
+        "agility", "failures", "robust") else None,
+        SWEEPS[args.name][2])
     ds.to_netcdf(out / f"{args.name}.nc", engine="scipy")
     plot_sweep(args.name, ds, out / f"{args.name}.png")
     failed = int((ds["error"] != "").sum())
@@ -277,14 +278,15 @@ def _add_sweep(sub) -> None:
     swp = sub.add_parser("sweep", help="run a design-space sweep or Monte "
                          "Carlo campaign on Dask")
     swp.add_argument("name", choices=("geometry", "accuracy", "agility",
-                                      "failures"))
+                                      "failures", "robust"))
     swp.add_argument("--out", default="adcs-sweep",
                      help="output folder (dataset, plot, finished chunks: "
                      "a rerun resumes)")
     swp.add_argument("--quick", action="store_true",
                      help="small settings")
     swp.add_argument("--samples", type=int, default=None,
-                     help="Monte Carlo samples (accuracy; default 1e6)")
+                     help="Monte Carlo samples (accuracy, default 1e6; "
+                     "robust: draws, default 200)")
     swp.add_argument("--spacecraft", default="demo", help=SPACECRAFT_HELP)
     swp.add_argument("--t-fail", type=float, default=None,
                      help="failures: when the wheel fails [s] (default 10, "

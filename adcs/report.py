@@ -40,6 +40,8 @@ STUDIES: dict[str, tuple[str, str]] = {
                "([2])"),
     "slews": ("slews", "Slews: NLPs and MPC vs eigenaxis and quaternion "
               "feedback"),
+    "robust": ("robust", "What does robustness cost, and what does it "
+               "buy? Nominal against robust MPC over a Monte Carlo"),
     "basilisk": ("basilisk", "In Basilisk: rwMotorTorque vs the bounded QP "
                  "(optional extra)"),
 }

@@ -513,8 +513,8 @@ def tilted_axes(axes: ArrayLike, tilt_a: ArrayLike,
     ta, tb = ta[..., None, :], tb[..., None, :]
     h1 = np.cos(ta) * h + np.sin(ta) * e1
     h2 = np.cos(tb) * h1 + np.sin(tb) * e2
-    out = h2 / np.linalg.norm(h2, axis=-2, keepdims=True)
-    return out[0] if np.ndim(tilt_a) == 1 else out
+    # (N,) tilts broadcast to (3, N), (S, N) ones to (S, 3, N)
+    return h2 / np.linalg.norm(h2, axis=-2, keepdims=True)
 
 
 def monte_carlo_accuracy_array(array: WheelArray, *, tilt_tol: float,

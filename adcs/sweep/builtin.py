@@ -23,6 +23,8 @@ import numpy as np
 from allocation import WheelArray, envelope, torque_reach
 from allocation import min_norm_law
 
+from adcs.robust_mc import robust_mc_case, robust_mc_params
+
 __all__ = ["SWEEPS", "accuracy_case", "agility_case", "craft_inputs",
            "failure_case", "geometry_case"]
 
@@ -209,6 +211,14 @@ def _failures(quick: bool, spacecraft: str = "demo",
             if w - 1 not in wheels.failed]
 
 
+def _robust(quick: bool, samples: int | None = None,
+            spacecraft: str = "demo", **_) -> list[dict]:
+    # draws of the robust-MPC Monte Carlo (adcs.robust_mc): 200, quick 8
+    return robust_mc_params(samples or (8 if quick else 200),
+                            spacecraft=spacecraft,
+                            t_final=30.0 if quick else 50.0)
+
+
 # the engine hashes a case's inputs through this hook (`chunk_inputs`)
 setattr(agility_case, "sweep_inputs", craft_inputs)
 setattr(failure_case, "sweep_inputs", craft_inputs)
@@ -224,4 +234,7 @@ SWEEPS: dict[str, tuple[Callable[..., dict], Callable[..., list[dict]],
                 "eigenaxis and time-optimal slew times: axes × angles"),
     "failures": (failure_case, _failures,
                  "closed-loop MPC slews with each wheel failing"),
+    "robust": (robust_mc_case, _robust,
+               "Monte Carlo of plants (inertia ±20 %, products, axis "
+               "tilts): nominal against robust MPC"),
 }

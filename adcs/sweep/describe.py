@@ -57,8 +57,41 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "final_error_deg": ("deg", "attitude error at the end"),
     "peak_torque": ("N·m", "largest wheel torque"),
     "momentum_violation": ("N·m·s", "largest excess of |H_i| over h_max"),
+    # robust (adcs.robust_mc); per controller in _robust_variables
+    "draw": ("1", "Monte Carlo draw (its random stream: seed, draw)"),
+    "rate_max": ("rad/s", "body-rate bound of both MPCs (0: none)"),
+    "spread": ("1", "robust MPC's inertia corners 1 ± spread"),
+    "horizon": ("1", "MPC horizon (stages)"),
+    "dt": ("s", "MPC sample time"),
+    "factor_1": ("1", "drawn scale of the principal moment 1 "
+                 "(ascending order)"),
+    "factor_2": ("1", "drawn scale of the principal moment 2 "
+                 "(ascending order)"),
+    "factor_3": ("1", "drawn scale of the principal moment 3 "
+                 "(ascending order)"),
+    "product_xy": ("1", "drawn J_xy over the largest moment"),
+    "product_xz": ("1", "drawn J_xz over the largest moment"),
+    "product_yz": ("1", "drawn J_yz over the largest moment"),
+    "tilt_max": ("rad", "largest drawn wheel-axis tilt"),
     "error": ("", "why the case failed (empty: it did not)"),
 }
+for _c in ("nominal", "robust"):
+    VARIABLES.update({
+        f"{_c}_failed": ("1", f"{_c} MPC: 1 when the loop broke (the "
+                         "MPC raised)"),
+        f"{_c}_momentum_violation": ("N·m·s", f"{_c} MPC: largest excess "
+                                     "of |H_i| over h_max"),
+        f"{_c}_torque_violation": ("N·m", f"{_c} MPC: largest excess of "
+                                   "|m_i| over m_max"),
+        f"{_c}_rate_violation": ("rad/s", f"{_c} MPC: largest excess of "
+                                 "|ω_i| over rate_max"),
+        f"{_c}_settle_time": ("s", f"{_c} MPC: time to settle within "
+                              "0.1°"),
+        f"{_c}_final_error": ("rad", f"{_c} MPC: attitude error at the "
+                              "end"),
+        f"{_c}_energy": ("N²·m²·s", f"{_c} MPC: sum of ∫ m_i² dt"),
+        f"{_c}_step_time": ("s", f"{_c} MPC: median step time"),
+    })
 
 
 def describe(name: str, ds: Any, spacecraft: str | None = None,

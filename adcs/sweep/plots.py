@@ -54,6 +54,17 @@ def _agility(ax, ds, ok) -> None:
     ax.set_ylabel("time-optimal slew time [s]")
 
 
+def _robust(ax, ds, ok) -> None:
+    """Energy of each draw, nominal against robust MPC."""
+    styles = line_styles(2)
+    for c, style in zip(("nominal", "robust"), styles):
+        ax.plot(np.asarray(ds["draw"])[ok], np.asarray(ds[f"{c}_energy"])[ok],
+                linestyle="none", marker=style["marker"],
+                color=style["color"], label=f"{c} MPC")
+    ax.set_xlabel("Monte Carlo draw")
+    ax.set_ylabel("energy ∑∫m² dt [N²·m²·s]")
+
+
 def sweep_figure(name: str, ds):
     """The figure of built-in sweep ``name``'s result ``ds`` (matplotlib)."""
     import matplotlib.pyplot as plt
@@ -83,6 +94,8 @@ def sweep_figure(name: str, ds):
         ax.set_ylabel("p95 torque direction error [deg]")
     elif name == "agility":
         _agility(ax, ds, ok)
+    elif name == "robust":
+        _robust(ax, ds, ok)
     else:
         ax.bar(np.asarray(ds["wheel"])[ok],
                np.asarray(ds["settle_time"])[ok])

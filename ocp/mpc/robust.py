@@ -23,8 +23,8 @@ from ocp.spacecraft.definition import Spacecraft
 from .condensed import ANDERSON_MEMORY, STEP_TOL, sqp_step_functions
 from .controller import AttitudeMPC
 from .plan import plan_bounds, shift_function
-from .robust_qp import (param_rk4, robust_iteration, scenario_parameters,
-                        split_plan)
+from .robust_qp import (param_rk4, per_stage, robust_iteration,
+                        scenario_parameters, split_plan)
 from .scenarios import Scenario
 from .stagewise import check_stagewise_options
 from .stagewise_ipm import IPM_MAX_ITER, IPM_TOL
@@ -180,8 +180,9 @@ def _robust_check(mpc: RobustMPC, cost: ca.Function) -> ca.Function:
     X1 = Xall[:, list(cols[:, 1:].ravel())]
     tau = ca.repmat(p[nx + 4:], 1, S) + ca.DM(
         np.array([s.tau for s in mpc.scenarios]).T)
-    F = param_rk4(mpc).map(N).map(S)(X, U, tau,
-                                     ca.DM(scenario_parameters(mpc)))
+    F = param_rk4(mpc).map(N).map(S)(
+        X, U, per_stage(tau, N),
+        per_stage(ca.DM(scenario_parameters(mpc)), N))
     x0 = Xall[:, list(cols[:, 0])] - ca.repmat(p[:nx], 1, S)
     defect = ca.mmax(ca.fabs(ca.vertcat(ca.vec(F - X1), ca.vec(x0))))
     return ca.Function(

@@ -140,6 +140,15 @@ def _selection(columns: np.ndarray, n: int) -> ca.DM:
                                      list(range(len(columns)))), 1.0)
 
 
+def per_stage(v: Any, N: int) -> Any:
+    """Each column of ``v`` (one per scenario) repeated ``N`` times.
+
+    ``(m, S) -> (m, N S)``, scenario-major: the argument of a
+    ``f.map(N).map(S)`` that is constant over a scenario's stages.
+    """
+    return ca.kron(v, ca.DM.ones(1, N))
+
+
 def split_plan(mpc: Any, z) -> tuple:
     """``(Xall (n_x × (N+1)S), Uall (n_u × (N+1)S))`` of a robust plan.
 
@@ -172,7 +181,10 @@ def _qp_data(mpc: Any, parts: _RobustParts, z, p) -> tuple:
     X = ca.mtimes(Xall, parts.sel0)
     X1 = ca.mtimes(Xall, parts.sel1)
     U = ca.mtimes(Uall, parts.sel0)
-    F, An, Bn = parts.lin.map(N).map(S)(X, U, tau, parts.theta)
+    # one column per stage, scenario-major: a (·, S) argument would be
+    # tiled by the map, stage k of scenario s getting scenario (sN+k) mod S
+    F, An, Bn = parts.lin.map(N).map(S)(X, U, per_stage(tau, N),
+                                        per_stage(parts.theta, N))
     a = ca.DM([[1.0] * (N - 1) + [0.0]])
     c = ca.DM([[1.0] * (N - 1) + [w.terminal]])
     Qn, q = parts.stage.map(N).map(S)(X1, qf, a, c)

@@ -228,6 +228,9 @@ def test_tilted_axes_match_with_mounting_errors():
         np.testing.assert_allclose(
             stack[s], arr.with_mounting_errors(ta[s], tb[s]).axes,
             atol=1e-15)
+    one = tilted_axes(arr.axes, ta[0], tb[0])     # (N,) tilts: (3, N)
+    assert one.shape == (3, 4)
+    np.testing.assert_allclose(one, stack[0], rtol=0, atol=1e-15)
 
 
 def test_orthogonal_triad_coupling_angle_is_the_axis_tilt():

@@ -93,11 +93,18 @@ def test_every_scenario_keeps_its_bounds(corners_loop):
         assert s.violation <= 1e-9
 
 
-def test_one_robust_step_is_the_dense_stacked_qp(corners_loop):
+@pytest.mark.parametrize("k", [2, 3])
+def test_one_robust_step_is_the_dense_stacked_qp(corners_loop, k):
     """The tree's QP written out densely (every scenario's δx through its
-    own sensitivities, the shared δu_0 one variable) and solved by DAQP."""
+    own sensitivities, the shared δu_0 one variable) and solved by DAQP.
+
+    Step 3: the same point to 1e-10. Step 2: the QP is flat along one
+    direction (1e-5 N·m in δu moves its cost 1e-9 of itself): the
+    interior point, stopped at a KKT residual of 1e-9, and DAQP agree on
+    the optimal cost to 1e-9 (relative) and on the point to 2e-5 N·m.
+    """
     mpc, steps = corners_loop
-    x, z_prev, _ = steps[2]
+    x, z_prev, _ = steps[k]
     p = np.r_[x, QF, np.zeros(3)]
     z0 = np.array(mpc.shift_function(x, z_prev, np.zeros(mpc.nz),
                                      np.zeros(mpc.ng))[0]).ravel()
@@ -113,7 +120,16 @@ def test_one_robust_step_is_the_dense_stacked_qp(corners_loop):
     base = z0.reshape(S, -1)
     got = np.concatenate([plans[s][mpc._us[k]] - base[s][mpc._us[k]]
                           for s in range(S) for k in range(N)])
-    np.testing.assert_allclose(got, T @ v + c, rtol=0, atol=1e-10)
+    vo = np.linalg.lstsq(T, got - c, rcond=None)[0]   # ours in v
+    np.testing.assert_allclose(T @ vo + c, got, rtol=0, atol=1e-14)
+
+    def cost(v):
+        return 0.5 * v @ H @ v + grad @ v
+
+    assert abs(cost(vo) - cost(v)) <= 1e-9 * abs(cost(v))
+    assert np.all(C @ vo <= ub + 1e-12) and np.all(C @ vo >= lb - 1e-12)
+    np.testing.assert_allclose(got, T @ v + c, rtol=0,
+                               atol=1e-10 if k == 3 else 2e-5)
 
 
 def _dense_tree(parts, dU0, dX0, A, B, Q, q, g, r, lo, hi):
@@ -215,3 +231,27 @@ def test_the_closed_loop_can_fly_another_plant():
     assert d > 1e-3                      # the plant's inertia was used
     with pytest.raises(InvalidValueError, match="plant"):
         simulate_mpc(mpc, [1, 0, 0, 0], QF, t_final=1.0, plant="x")
+
+
+def test_every_scenario_plans_with_its_own_dynamics():
+    """Converged, each scenario's plan follows its own craft (its inertia,
+    axes and disturbance), integrated by that craft's own RK4: a scenario's
+    parameters must not leak into another's stages."""
+    A = scenario_grid(MODEL.inertia, WHEELS.axes,
+                      misalignment=(np.deg2rad(1.0),))[0].axes
+    scen = [Scenario(MODEL.inertia),
+            Scenario(np.diag([3.6, 2.0, 3.5]), tau=[1e-3, 0.0, -2e-3]),
+            Scenario(np.diag([2.4, 3.0, 4.2]), axes=A)]
+    mpc = RobustMPC(MODEL, scen, horizon=10, dt=0.5, rti=False)
+    x0 = MODEL.state([1.0, 0.0, 0.0, 0.0])
+    s = mpc.step(x0, QF)
+    assert s.defect <= 1e-9
+    for sc, plan in zip(scen, mpc.scenario_plans(s.plan)):
+        craft = rigid_spacecraft(sc.inertia, WHEELS if sc.axes is None
+                                 else WHEELS.with_axes(sc.axes))
+        f = craft.rk4_step(1)
+        for k in range(10):
+            nxt = np.array(f(plan[mpc._xs[k]], plan[mpc._us[k]], sc.tau,
+                             0.5)).ravel()
+            np.testing.assert_allclose(nxt, plan[mpc._xs[k + 1]], rtol=0,
+                                       atol=1e-9)

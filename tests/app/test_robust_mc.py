@@ -1,0 +1,129 @@
+"""Monte Carlo of nominal against robust MPC: draws, Dask = serial, CLI.
+
+The draws stay inside the uncertainty set and are reproducible draw by
+draw; the Monte Carlo on a 2-worker `distributed.LocalCluster` equals the
+serial loop exactly (every output but the step times); a draw's nominal
+loop is `simulate_mpc` on the drawn plant, flown here directly.
+"""
+
+import numpy as np
+import pytest
+
+distributed = pytest.importorskip(
+    "distributed", reason="the Monte Carlo runs on the [sweep] extra")
+
+from adcs.cli import main  # noqa: E402
+from adcs.robust_mc import (CONTROLLERS, MISALIGNMENT, draw_plant,  # noqa
+                            robust_mc_params, robust_mc_table,
+                            run_robust_mc, summarise)
+from adcs.sweep import SWEEPS  # noqa: E402
+from adcs_common.exceptions import InvalidValueError  # noqa: E402
+from allocation import WheelArray  # noqa: E402
+from ocp import quat_from_axis_angle, rigid_spacecraft  # noqa: E402
+from ocp.mpc import AttitudeMPC, simulate_mpc  # noqa: E402
+
+J = np.diag([3.0, 2.5, 3.5])
+WHEELS = WheelArray.pyramid(h_max=0.2, m_max=0.05)
+OPTIONS = {"seed": 7, "t_final": 6.0}
+
+
+def test_draws_stay_in_the_uncertainty_set_and_repeat():
+    from adcs.studies.accuracy import MOUNT_TOL
+
+    assert MISALIGNMENT == MOUNT_TOL          # the accuracy study's model
+    draws = [draw_plant(J, WHEELS, 3, k) for k in range(40)]
+    f = np.array([d.factors for d in draws])
+    p = np.array([d.products for d in draws])
+    t = np.array([np.r_[d.tilt_a, d.tilt_b] for d in draws])
+    assert np.all(np.abs(f - 1.0) <= 0.2) and np.ptp(f) > 0.3
+    assert np.all(np.abs(p) <= 0.05) and np.ptp(p) > 0.05
+    assert np.all(np.abs(t) <= np.deg2rad(0.5))
+    d = draws[5]
+    # factors scale the principal moments in ascending order
+    np.testing.assert_allclose(np.sort(np.diag(d.inertia)),
+                               np.sort([2.5, 3.0, 3.5] * f[5]), rtol=1e-14)
+    assert d.inertia[0, 1] == pytest.approx(3.5 * p[5, 0], rel=1e-14)
+    # the axes are the accuracy model's tilts (with_mounting_errors)
+    np.testing.assert_allclose(
+        d.wheels.axes, WHEELS.with_mounting_errors(d.tilt_a, d.tilt_b).axes,
+        rtol=0, atol=1e-15)
+    ang = np.arccos(np.clip(np.sum(d.wheels.axes * WHEELS.axes, 0), -1, 1))
+    assert 0 < ang.max() <= np.sqrt(2) * np.deg2rad(0.5)
+    again = draw_plant(J, WHEELS, 3, 5)       # draw 5 alone: the same
+    np.testing.assert_array_equal(again.inertia, d.inertia)
+    assert not np.array_equal(draw_plant(J, WHEELS, 4, 5).inertia,
+                              d.inertia)
+    with pytest.raises(InvalidValueError, match="draw"):
+        draw_plant(J, WHEELS, 0, -1)
+    with pytest.raises(InvalidValueError, match="positive definite"):
+        draw_plant(np.diag([1.0, 1.0, 100.0]), WHEELS, 0, 0, products=0.9)
+
+
+@pytest.fixture(scope="module")
+def serial():
+    return run_robust_mc(4, **OPTIONS)
+
+
+def test_the_monte_carlo_on_two_workers_equals_the_serial_loop(serial):
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True,
+        host="127.0.0.1", dashboard_address=None, silence_logs=50)
+    try:
+        with distributed.Client(cluster) as client:
+            there = run_robust_mc(4, client=client, **OPTIONS)
+    finally:
+        cluster.close()
+    assert serial.sizes["case"] == 4 and there.attrs["chunks"] == 4
+    assert list(serial["error"].values) == [""] * 4
+    names = [k for k in serial.data_vars if not k.endswith("step_time")]
+    assert len(names) > 20
+    for k in names:
+        np.testing.assert_array_equal(there[k].values, serial[k].values,
+                                      err_msg=k)
+
+
+def test_a_draw_is_the_closed_loop_of_its_plant(serial):
+    d = draw_plant(J, WHEELS, 7, 2)
+    plant = rigid_spacecraft(d.inertia, d.wheels)
+    mpc = AttitudeMPC(rigid_spacecraft(J, WHEELS), solver="stagewise",
+                      rti=True)
+    r = simulate_mpc(mpc, [1, 0, 0, 0], quat_from_axis_angle(
+        [1.0, 1.0, 0.0], np.deg2rad(90.0)), t_final=6.0, plant=plant)
+    assert serial["nominal_energy"].values[2] == r.energy
+    assert serial["nominal_final_error"].values[2] == r.final_error
+    assert serial["factor_1"].values[2] == d.factors[0]
+    # the robust loop flew the same plant to a different end
+    assert serial["robust_energy"].values[2] != r.energy
+    assert r.energy > 1e-3
+
+
+def test_the_summary_counts_the_draws(serial):
+    nom, rob = summarise(serial)
+    for s, c in zip((nom, rob), CONTROLLERS):
+        assert s.controller == c and s.draws == 4 and s.failed == 0
+        # dH/dt = m exactly: no plant leaves the bounds of the plans
+        assert s.momentum == 0 and s.torque == 0 and s.rate == 0
+        assert s.energy_median == pytest.approx(
+            np.median(serial[f"{c}_energy"].values), rel=1e-15)
+        assert s.settled == 0              # 6 s: the slew is under way
+    table = robust_mc_table(serial)
+    assert "| loops broken | 0 | 0 |" in table
+    assert f"{rob.energy_median / nom.energy_median:.2f}" in table
+
+
+def test_params_and_the_registered_sweep():
+    rows = SWEEPS["robust"][1](True)
+    assert len(rows) == 8 and rows[3]["draw"] == 3
+    assert rows[0]["t_final"] == 30.0 and rows[0]["rate_max"] == 0.0
+    assert len(SWEEPS["robust"][1](False)) == 200
+    with pytest.raises(InvalidValueError, match="draws"):
+        robust_mc_params(0)
+
+
+def test_cli_sweep_robust(tmp_path, capsys):
+    assert main(["sweep", "robust", "--quick", "--sync", "--samples", "1",
+                 "--no-progress", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "1 cases, 0 failed" in out
+    assert (tmp_path / "robust.nc").exists()
+    assert (tmp_path / "robust.png").exists()

@@ -1,0 +1,30 @@
+"""The `robust` report study: its table is the Monte Carlo's summary."""
+
+import pytest
+
+pytest.importorskip("distributed", reason="the study runs on the sweep "
+                    "engine ([sweep] extra)")
+
+from adcs.report import STUDIES, StudyContext  # noqa: E402
+from adcs.robust_mc import run_robust_mc, summarise  # noqa: E402
+from adcs.studies import robust as study  # noqa: E402
+
+
+def test_robust_study_table_is_the_monte_carlo(tmp_path):
+    section = study.run(StudyContext(out=tmp_path, quick=True))
+    assert section.key == "robust" and "robust" in STUDIES
+    assert (tmp_path / section.figures[0].filename).stat().st_size > 10_000
+    (table,) = section.tables
+    rows = {r[0]: r[1:] for r in table.rows}
+    nom, rob = summarise(run_robust_mc(4, t_final=30.0))
+    assert rows["loops broken"][:2] == [nom.failed, rob.failed] == [0, 0]
+    assert rows["settled (0.1°)"][:2] == [4, 4]
+    assert rows["energy, median [N²·m²·s]"][:2] == [nom.energy_median,
+                                                    rob.energy_median]
+    assert rows["settling time, worst [s]"][:2] == [nom.settle_worst,
+                                                    rob.settle_worst]
+    assert rows["energy, median [N²·m²·s]"][2] == pytest.approx(
+        rob.energy_median / nom.energy_median, rel=1e-15)
+    assert 20.0 < nom.settle_median < 30.0            # a 90° slew, 30 s
+    assert 0 < rows["final error, largest [deg]"][0] < 0.1    # settled
+    assert "robust / nominal: energy" in section.summary[1]
