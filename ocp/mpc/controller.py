@@ -122,7 +122,8 @@ class AttitudeMPC:
     solver : {None, "condensed", "stagewise", "sqpmethod", "ipopt", "fatrop"}
         NLP solver. None (default): `default_mpc_solver`, which is
         ``"condensed"`` for wheel-only models up to 40 stages,
-        ``"stagewise"`` beyond, and ``"sqpmethod"`` with thrusters. ``"condensed"``: the toolbox's Gauss–Newton SQP whose
+        ``"stagewise"`` beyond (``"condensed"`` with a rate bound), and
+        ``"sqpmethod"`` with thrusters. ``"condensed"``: the toolbox's Gauss–Newton SQP whose
         QP keeps the controls only (`ocp.mpc.condensed`; wheel-only
         models), exact dense active set, each QP point certified by its
         KKT residual; its step Functions also return ``iterations``.
@@ -205,6 +206,10 @@ class AttitudeMPC:
                 f"horizon must be an integer >= 2, got {horizon!r}")
         if solver is None:
             solver = default_mpc_solver(model, horizon)
+            if solver == "stagewise" and rate_max is not None:
+                # an active rate box breaks the stage-wise step's Riccati
+                # factor on some steps (docs: long horizons)
+                solver = "condensed"
         self.dt = as_finite_scalar(dt, "dt")
         check_positive(self.dt, "dt")
         if not isinstance(solver, str) or solver not in MPC_SOLVERS:

@@ -38,7 +38,7 @@ import numpy as np
 
 from .stagewise_kernels import (reverse_columns, root_kernel, root_rhs,
                                 root_solve, root_terms)
-from .stagewise_polish import POLISH_ACCEPT, polish
+from .stagewise_polish import POLISH_ACCEPT, polish, reduced_active
 
 #: KKT residual [scaled, 1] at which the interior point stops.
 IPM_TOL = 1e-9
@@ -397,9 +397,18 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     # the certificate: the residual recomputed at the point returned, the
     # interior point's or its polish on the active set, the smaller
     kkt = _residual(kern, lay, tree, (nx, nu), ipm_point, data, sr)
-    pol = polish(kern, lay, tree, (nx, nu), flags, ipm_point, data,
-                 _sweeps(kern, tree))
-    kkt_p = _residual(kern, lay, tree, (nx, nu), list(pol), data, sr)
+    sweeps = _sweeps(kern, tree)
+    pol = list(polish(kern, lay, tree, (nx, nu), flags, ipm_point, data,
+                      sweeps))
+    kkt_p = _residual(kern, lay, tree, (nx, nu), pol, data, sr)
+    # a second polish without the rows whose multiplier came out with the
+    # wrong sign (dependent boxes), from the first polish's point
+    pol2 = list(polish(kern, lay, tree, (nx, nu), flags, pol, data,
+                       sweeps, reduced_active(pol)))
+    kkt_2 = _residual(kern, lay, tree, (nx, nu), pol2, data, sr)
+    second = kkt_2 < kkt_p
+    pol = [ca.if_else(second, a, b) for a, b in zip(pol2, pol)]
+    kkt_p = ca.fmin(kkt_p, kkt_2)
     # the polish is the active set's exact solution: kept unless its
     # residual is worse than both the interior point's and POLISH_ACCEPT
     better = kkt_p <= ca.fmax(kkt, POLISH_ACCEPT)

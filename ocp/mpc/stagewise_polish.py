@@ -32,14 +32,17 @@ POLISH_ACCEPT = 1e-8
 
 
 def polish(kern: dict, lay, tree, dims: tuple, flags: np.ndarray,
-           point: list, data: list, sweeps: dict) -> tuple:
+           point: list, data: list, sweeps: dict,
+           active: tuple | None = None) -> tuple:
     """``(dU, dX, Sl, Su, Ll, Lu)``: the polished point and multipliers.
 
     ``point`` is the interior point's ``(dU, dX, Sl, Su, Ll, Lu)``,
     ``data`` its QP data (`ipm_iteration`'s), ``sweeps`` its mapped
-    kernels (`stagewise_ipm._sweeps`). The slacks returned are the boxes'
-    distances (negative where a box is broken); the multipliers are those
-    of the augmented Lagrangian, split by sign.
+    kernels (`stagewise_ipm._sweeps`); ``active`` the 0/1 masks of the
+    lower and upper boxes taken as equalities (default: λ > s). The
+    slacks returned are the boxes' distances (negative where a box is
+    broken); the multipliers are those of the augmented Lagrangian, split
+    by sign.
     """
     nx, nu = dims
     dU, dX, Sl, Su, Ll, Lu = point
@@ -47,8 +50,8 @@ def polish(kern: dict, lay, tree, dims: tuple, flags: np.ndarray,
     C = tree.C
     s, sr = ca.DM(flags).T, ca.DM(flags[::-1]).T
     zx, zu = ca.DM.zeros(nx), ca.DM.zeros(nu)
-    act_l = ca.if_else(Ll > Sl, 1.0, 0.0)
-    act_u = ca.if_else(Lu > Su, 1.0, 0.0)
+    act_l, act_u = active if active is not None else (
+        ca.if_else(Ll > Sl, 1.0, 0.0), ca.if_else(Lu > Su, 1.0, 0.0))
     act = act_l + act_u
     target = act_l * lo + act_u * hi
     lam = act * (Lu - Ll)
@@ -93,3 +96,21 @@ def polish(kern: dict, lay, tree, dims: tuple, flags: np.ndarray,
     V = lay.values(dU, dX)
     return (dU, dX, V - lo, hi - V, ca.fmax(-lam, 0.0),
             ca.fmax(lam, 0.0))
+
+
+def reduced_active(point: list) -> tuple:
+    """The active masks of a polished point less its wrong-signed rows.
+
+    A box held as an equality whose multiplier came out with the wrong
+    sign (a lower bound pushing up, an upper one pushing down) is not
+    active at the optimum; with dependent boxes (a torque bound and the
+    rate bound it drives) one of the pair is such a row. The active-set
+    method's step: drop it and solve again.
+    """
+    _, _, Sl, Su, Ll, Lu = point
+    tight = 1e-9
+    act_l = ca.if_else(ca.fabs(Sl) <= tight, 1.0, 0.0) * ca.if_else(
+        Lu > 0, 0.0, 1.0)
+    act_u = ca.if_else(ca.fabs(Su) <= tight, 1.0, 0.0) * ca.if_else(
+        Ll > 0, 0.0, 1.0)
+    return act_l, act_u

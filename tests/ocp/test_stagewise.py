@@ -244,3 +244,18 @@ def test_the_default_solver_follows_the_horizon():
     assert default_mpc_solver(MODEL, LONG_HORIZON) == "condensed"
     assert default_mpc_solver(MODEL, LONG_HORIZON + 1) == "stagewise"
     assert AttitudeMPC(MODEL, horizon=60, rti=True).solver == "stagewise"
+
+
+def test_a_rate_bounded_closed_loop_keeps_its_certificate():
+    """With the rate bound at 0.04 rad/s every RTI step of the slew is its
+    QP's certified solution (the second polish drops the wrong-signed row
+    of a dependent torque and rate pair). At 0.06 rad/s step 17 still
+    fails (5e-6): an active rate box drives the barrier past 1e12 and the
+    Riccati factor breaks down, so the default solver keeps "condensed"
+    when a rate bound is set."""
+    mpc = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="stagewise",
+                      rti=True, rate_max=0.04)
+    r = simulate_mpc(mpc, [1, 0, 0, 0], QF, t_final=40.0)
+    assert np.max(np.abs(r.trajectory.w)) <= 0.04 * (1 + 1e-6)
+    assert AttitudeMPC(MODEL, horizon=60, rti=True,
+                       rate_max=0.06).solver == "condensed"
