@@ -38,6 +38,7 @@ import numpy as np
 
 from .stagewise_kernels import (reverse_columns, root_kernel, root_rhs,
                                 root_solve, root_terms)
+from .stagewise_lq import FactoredLQ
 from .stagewise_polish import POLISH_ACCEPT, polish, reduced_active
 
 #: KKT residual [scaled, 1] at which the interior point stops.
@@ -223,8 +224,6 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     state = [dU, dX, Sl, Su, Ll, Lu, rd, rp]
     data = [A, B, Q, q, g, r, lo, hi, Ar, Br, Qr, rr_]
     sw = _sweeps(kern, tree)
-    s, sr = ca.DM(flags).T, ca.DM(flags[::-1]).T
-    zx, zu = ca.DM.zeros(nx), ca.DM.zeros(nu)
     m = 2.0 * nb * C
 
     V = lay.values(dU, dX)
@@ -239,32 +238,13 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
         rt = gu + ca.mtimes(lay.Eu.T, beta)
         return reverse_columns(qt), reverse_columns(rt)
 
-    def solve(qr_, rr_v):
-        _, _, k_ = sw["vec"](zx, zu, Ar, Br, Mr, Lr, qr_, rr_v, sr)
-        if tree.root:
-            k_ = tree.with_root(k_, tree.root_again(Re_s, Lroot, k_, nu),
-                                nu)
-        dXn, _, dUn = sw["fwd"](zx, zu, A, B, K, reverse_columns(k_), s)
-        return dUn, dXn
-
-    def forward(kff_r, K):
-        dXn, _, dUn = sw["fwd"](zx, zu, A, B, K, reverse_columns(kff_r), s)
-        dv = lay.values(dUn, dXn)
-        return dUn, dXn, dv + rpl, rpu - dv
+    def box_steps(dU_, dX_):
+        dv = lay.values(dU_, dX_)
+        return dv + rpl, rpu - dv
 
     qr, rrt = sweep_in(Ll * rpl / Sl - Lu * rpu / Su)
-    *_, Kr, kr, Lr, Mr = sw["ric"](
-        ca.DM.zeros(nx * (nx + 1) // 2), zx, ca.DM.zeros(nx, nu),
-        ca.DM.zeros(nu, nu), zu, Ar, Br, Qr,
-        reverse_columns(sig[lay.nbu:, :]), reverse_columns(sig[:lay.nbu, :]),
-        qr, rrt, rr_, sr)
-    Re_s: Any = None
-    Lroot: Any = None
-    if tree.root:
-        v0, Re_s, Lroot = tree.root_factor(Lr, kr, nu)
-        kr = tree.with_root(kr, v0, nu)
-    K = reverse_columns(Kr)
-    _, _, dSl_a, dSu_a = forward(kr, K)
+    lq = FactoredLQ(sw, lay, tree, (nx, nu), flags, data, sig, qr, rrt)
+    dSl_a, dSu_a = box_steps(*lq.first())
     dLl_a = -Ll - Ll * dSl_a / Sl
     dLu_a = -Lu - Lu * dSu_a / Su
     box = {k: f.map(C) for k, f in box_kernels(nb).items()}
@@ -275,9 +255,8 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     smu = (mu_aff / mu) ** 3 * mu
     cl, cu = dSl_a * dLl_a, dSu_a * dLu_a
     beta = (Ll * rpl - smu + cl) / Sl - (Lu * rpu - smu + cu) / Su
-    ddU, ddX = solve(*sweep_in(beta))
-    dv = lay.values(ddU, ddX)
-    dSl, dSu = dv + rpl, rpu - dv
+    ddU, ddX = lq.solve(*sweep_in(beta))
+    dSl, dSu = box_steps(ddU, ddX)
     dLl = -Ll + (smu - cl - Ll * dSl) / Sl
     dLu = -Lu + (smu - cu - Lu * dSu) / Su
     ds = [dSl, dSu, dLl, dLu]

@@ -17,12 +17,11 @@ smaller, so a wrong active set costs nothing but the time.
 
 from __future__ import annotations
 
-from typing import Any
-
 import casadi as ca
 import numpy as np
 
 from .stagewise_kernels import reverse_columns
+from .stagewise_lq import FactoredLQ
 
 #: The augmented Lagrangian's penalty [scaled, 1].
 POLISH_RHO = 1e8
@@ -46,10 +45,8 @@ def polish(kern: dict, lay, tree, dims: tuple, flags: np.ndarray,
     """
     nx, nu = dims
     dU, dX, Sl, Su, Ll, Lu = point
-    A, B, Q, q, g, r, lo, hi, Ar, Br, Qr, rr_ = data
+    _, _, Q, q, g, r, lo, hi, *_ = data
     C = tree.C
-    s, sr = ca.DM(flags).T, ca.DM(flags[::-1]).T
-    zx, zu = ca.DM.zeros(nx), ca.DM.zeros(nu)
     act_l, act_u = active if active is not None else (
         ca.if_else(Ll > Sl, 1.0, 0.0), ca.if_else(Lu > Su, 1.0, 0.0))
     act = act_l + act_u
@@ -64,35 +61,12 @@ def polish(kern: dict, lay, tree, dims: tuple, flags: np.ndarray,
         gu = r * dU + g + ca.mtimes(lay.Eu.T, beta)
         return reverse_columns(gx), reverse_columns(gu)
 
-    qr, rr = gradient(dU, dX, lam)
-    *_, Kr, kr, Lr, Mr = sweeps["ric"](
-        ca.DM.zeros(nx * (nx + 1) // 2), zx, ca.DM.zeros(nx, nu),
-        ca.DM.zeros(nu, nu), zu, Ar, Br, Qr,
-        reverse_columns(sig[lay.nbu:, :]), reverse_columns(sig[:lay.nbu, :]),
-        qr, rr, rr_, sr)
-    K = reverse_columns(Kr)
-    Re_s: Any = None
-    Lroot: Any = None
-    if tree.root:
-        v0, Re_s, Lroot = tree.root_factor(Lr, kr, nu)
-        kr = tree.with_root(kr, v0, nu)
-
-    def step(dU, dX, kr_):
-        dXn, _, dUn = sweeps["fwd"](zx, zu, A, B, K, reverse_columns(kr_), s)
+    lq = FactoredLQ(sweeps, lay, tree, (nx, nu), flags, data, sig,
+                    *gradient(dU, dX, lam))
+    for k in range(2):
+        dUn, dXn = lq.first() if k == 0 else lq.solve(*gradient(dU, dX, lam))
         dU, dX = dU + dUn, dX + dXn
-        return dU, dX, lam_of(dU, dX)
-
-    def lam_of(dU, dX):
-        return POLISH_RHO * act * (lay.values(dU, dX) - target)
-
-    dU, dX, dl = step(dU, dX, kr)
-    lam = lam + dl
-    qr, rr = gradient(dU, dX, lam)
-    _, _, kr2 = sweeps["vec"](zx, zu, Ar, Br, Mr, Lr, qr, rr, sr)
-    if tree.root:
-        kr2 = tree.with_root(kr2, tree.root_again(Re_s, Lroot, kr2, nu), nu)
-    dU, dX, dl = step(dU, dX, kr2)
-    lam = lam + dl
+        lam = lam + POLISH_RHO * act * (lay.values(dU, dX) - target)
     V = lay.values(dU, dX)
     return (dU, dX, V - lo, hi - V, ca.fmax(-lam, 0.0),
             ca.fmax(lam, 0.0))
