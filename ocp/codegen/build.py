@@ -91,8 +91,8 @@ def run_driver(res: ExportResult, timeout: float = 300.0,
         C name -> ``{"first_us": ..., "median_us": ..., "max_us": ...,
         "calls": ..., "flag": ...}`` (the first, cold call; the median and
         worst of all calls; ``flag`` 0 when every call returned 0). For
-        ``closed_loop:<name>``: the per-step times of the closed loop the
-        driver runs with the generated RK4 as plant, ``max_warm_us`` (the
+        ``closed_loop:<name>``: the per-step times ``steps_us`` (in step
+        order) of the closed loop the driver runs with the generated RK4 as plant, ``max_warm_us`` (the
         worst step after the cold first one) and the final error angle
         ``final_error_deg``, and the check's ``loop_*`` figures:
         ``loop_steps``, ``loop_dt`` and ``loop_seconds`` [s] (its length),
@@ -132,6 +132,11 @@ def _parse_driver(text: str) -> dict[str, dict[str, float]]:
                      r"(?: final_error_deg=(\S+))?(?: max_warm_us=(\S+))?")
     for line in text.splitlines():
         if parse_loop_line(line, out):
+            continue
+        if line.startswith("STEPS "):
+            name, vals = line[6:].rsplit(":", 1)
+            out.setdefault(name, {})["steps_us"] = [
+                float(v) for v in vals.split()]  # type: ignore[assignment]
             continue
         m = pat.match(line)
         if m:

@@ -216,8 +216,8 @@ def run_target(res: ExportResult, timeout: float = 600.0,
         "calls": ..., "flag": ..., "outputs": [[...], ...], "work":
         (sz_arg, sz_res, sz_iw, sz_w), "stack_measured": bytes}``, counts
         in instructions; ``closed_loop:<name>``: the per-step counts of
-        the closed loop, ``max_warm``, ``final_error_deg``, ``state`` (the
-        final state) and the check's ``loop_*`` figures (as
+        the closed loop (``steps``, in step order), ``max_warm``,
+        ``final_error_deg``, ``state`` (the final state) and the check's ``loop_*`` figures (as
         `ocp.codegen.run_driver`). ``_stdout``: the driver's output.
 
     Raises
@@ -280,6 +280,10 @@ def parse_target_output(text: str) -> dict[str, dict]:
             if m[8] is not None:
                 rec["final_error_deg"] = float(m[8])
             out.setdefault(m[1], {}).update(rec)
+        elif line.startswith("STEPS "):
+            name, vals = line[6:].rsplit(":", 1)
+            out.setdefault(name, {})["steps"] = [k * float(v)
+                                                 for v in vals.split()]
         elif line.startswith(("OUT ", "WORK ", "STACK ", "STATE ")):
             _parse_detail(line, out)
     out["_stdout"] = {"text": text}

@@ -47,7 +47,8 @@ from adcs_common.validation import as_finite_scalar, check_positive
 from .acceleration import anderson_function
 from .condensed_qp import ROW_TOL, routed_qp
 from .problem import momentum_residual, pointing_residuals
-from .riccati import factor_rows, riccati_kernels
+from .riccati import (adjoint, closed_loop, factor_rows, factors,
+                      riccati_kernels)
 
 
 #: Default step ``max |δu / m_max|`` [1] at which the condensed SQP stops.
@@ -142,7 +143,7 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     m_max = np.asarray(wh.m_max, dtype=float)
     A, B, d, Q, e, g = _stages(mpc, kern, z, qf, tau)
     rate_rows = mpc.rate_max is not None
-    winv, Rows = _factor(mpc, kern, A, B, Q)
+    rk, K, Acl, Lit = _riccati(mpc, kern, A, B, Q)
     h_max = np.asarray(wh.h_max, dtype=float)
     h_now = ca.vertcat(*[z[xs[k]][7:] + e[k][7:] for k in range(1, N + 1)])
     lba, uba = [-np.tile(h_max, N) - h_now], [np.tile(h_max, N) - h_now]
@@ -155,12 +156,25 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     u_bar = ca.vertcat(*[z[us[k]] for k in range(N)])
     lam_a0 = [lx0[xs[k]][7:] for k in range(1, N + 1)] + (
         [lx0[xs[k]][4:7] for k in range(1, N + 1)] if rate_rows else [])
-    y, lam_u, lam_a, kkt = routed_qp(plugin, N, nu, nw, winv.sparsity(),
-                                 Rows.sparsity(), **qp_tols)(
-        ca.mtimes(winv.T, g), winv, Rows, np.tile(u_lo, N) - u_bar,
-        np.tile(u_hi, N) - u_bar, ca.vertcat(*lba), ca.vertcat(*uba),
-        ca.vertcat(*[lx0[us[k]] for k in range(N)]), ca.vertcat(*lam_a0))
-    du = ca.mtimes(winv, y)
+    # the QP in y has the Hessian I: its unconstrained optimum is -W⁻ᵀg,
+    # and the answer (zero multipliers) when it keeps every bound and
+    # row; W⁻¹ (O(N²) sweeps) and the conic only otherwise
+    gy = adjoint(rk, A, B, K, Lit, g)
+    du0, dx0 = closed_loop(rk, A, B, K, Lit, -gy)
+    rows0 = ca.vertcat(*[v[7:] for v in dx0],
+                       *([v[4:7] for v in dx0] if rate_rows else []))
+    qp_in = [ca.horzcat(*B), ca.horzcat(*K), ca.horzcat(*Acl),
+             ca.horzcat(*Lit), gy, du0, rows0,
+             np.tile(u_lo, N) - u_bar, np.tile(u_hi, N) - u_bar,
+             ca.vertcat(*lba), ca.vertcat(*uba),
+             ca.vertcat(*[lx0[us[k]] for k in range(N)]), ca.vertcat(*lam_a0)]
+    lbu, ubu, lba_, uba_ = qp_in[7:11]
+    inside = ca.mmax(ca.vertcat(du0 - ubu, lbu - du0, rows0 - uba_,
+                                lba_ - rows0)) <= 0
+    qp = ca.Function.if_else(
+        "cond_qp_first", _free_qp(qp_in),
+        _constrained_qp(rk, qp_in, plugin, (N, nu, nw), rate_rows, qp_tols))
+    du, lam_u, lam_a, kkt = qp(inside, *qp_in)
     parts, lam_parts = _expand(kern, z, xs, us, A, B, d, du, lam_u, lam_a,
                                nw, rate_rows)
     step = ca.mmax(ca.fabs(du) / ca.DM(np.tile(np.r_[m_max], N)))
@@ -208,8 +222,45 @@ def _stages(mpc: Any, kern: dict, z, qf, tau) -> tuple:
     return A, B, d, Q, e, ca.vertcat(*grad)
 
 
-def _factor(mpc: Any, kern: dict, A: list, B: list, Q: list) -> tuple:
-    """``(W⁻¹, rows)`` of the QP in y (`ocp.mpc.riccati.factor_rows`)."""
+def _qp_symbols(qp_in: list, sym: Any) -> list:
+    return [sym.sym(f"i{i}", v.sparsity()) for i, v in enumerate(qp_in)]
+
+
+def _free_qp(qp_in: list) -> ca.Function:
+    """``cond_qp_free(qp_in…) -> (δu, λ_u, λ_a, kkt)``: the unconstrained
+    optimum, its multipliers zero and its KKT residual (stationarity
+    holds exactly, so the residual is its bounds' excess). SX, so that it
+    reads the few inputs it needs (an MX Function copies every input)."""
+    i = _qp_symbols(qp_in, ca.SX)
+    du0, rows0, lbu, ubu, lba, uba = i[5], i[6], i[7], i[8], i[9], i[10]
+    size = 1.0 + ca.mmax(ca.fabs(ca.vertcat(lbu, ubu, lba, uba)))
+    excess = ca.mmax(ca.vertcat(du0 - ubu, lbu - du0, rows0 - uba,
+                                lba - rows0, 0.0))
+    return ca.Function("cond_qp_free", i,
+                       [du0, ca.SX.zeros(du0.numel()),
+                        ca.SX.zeros(rows0.numel()), excess / size])
+
+
+def _constrained_qp(rk: dict, qp_in: list, plugin: str, dims: tuple,
+                    rate_rows: bool, qp_tols: dict) -> ca.Function:
+    """``cond_qp_full(qp_in…) -> (δu, λ_u, λ_a, kkt)``: W⁻¹ and the rows
+    from the factors (`riccati.factor_rows`), then the routed conic."""
+    N, nu, nw = dims
+    i = _qp_symbols(qp_in, ca.MX)
+    Bm, Km, Am, Lm, gy = i[:5]
+    B, K, Acl, Lit = (ca.horzsplit(M, M.size2() // N)
+                      for M in (Bm, Km, Am, Lm))
+    winv, rows = factor_rows(rk, B, K, Acl, Lit, rate_rows)
+    y, lam_u, lam_a, kkt = routed_qp(plugin, N, nu, nw, winv.sparsity(),
+                                     rows.sparsity(), **qp_tols)(
+        gy, winv, rows, *i[7:])
+    return ca.Function("cond_qp_full", i,
+                       [ca.mtimes(winv, y), lam_u, lam_a, kkt])
+
+
+def _riccati(mpc: Any, kern: dict, A: list, B: list, Q: list) -> tuple:
+    """``(kernels, K, Acl, Lit)``: the Riccati factors of the QP in y
+    (`ocp.mpc.riccati.factors`) and the kernels that use them."""
     wh = mpc.wheels
     m_max = np.asarray(wh.m_max, dtype=float)
     r_diag = ca.DM(2.0 * mpc.weights.torque / m_max ** 2
@@ -218,7 +269,7 @@ def _factor(mpc: Any, kern: dict, A: list, B: list, Q: list) -> tuple:
                          kern["lin"].sparsity_out(1),
                          kern["lin"].sparsity_out(2),
                          mpc.dt * np.asarray(wh.scale * wh.active, float))
-    return factor_rows(rk, A, B, Q, r_diag, mpc.rate_max is not None)
+    return (rk, *factors(rk, A, B, Q, r_diag))
 
 
 def qp_factor_function(mpc: Any) -> ca.Function:
@@ -234,7 +285,8 @@ def qp_factor_function(mpc: Any) -> ca.Function:
     z = ca.MX.sym("z", mpc.nz)
     p = ca.MX.sym("p", nx + 7)
     A, B, _, Q, _, g = _stages(mpc, kern, z, p[nx:nx + 4], p[nx + 4:])
-    winv, rows = _factor(mpc, kern, A, B, Q)
+    rk, K, Acl, Lit = _riccati(mpc, kern, A, B, Q)
+    winv, rows = factor_rows(rk, B, K, Acl, Lit, mpc.rate_max is not None)
     return ca.Function("cond_factor", [z, p], [winv, rows, g],
                        ["z", "p"], ["Winv", "rows", "g"])
 

@@ -126,8 +126,9 @@ def qp_kkt(y, lam_u, lam_a, g, W, R, lbu, ubu, lba, uba):
     products), no unrolling.
     """
     v, a = ca.mtimes(W, y), ca.mtimes(R, y)
-    stat = ca.mmax(ca.fabs(y + g + ca.mtimes(W.T, lam_u)
-                           + ca.mtimes(R.T, lam_a)))
+    # (λᵀW)ᵀ, not Wᵀλ: a transposed sparse matrix is a copy in C
+    stat = ca.mmax(ca.fabs(y + g + ca.mtimes(lam_u.T, W).T
+                           + ca.mtimes(lam_a.T, R).T))
     scale_g = 1.0 + ca.mmax(ca.fabs(g))
     size = 1.0 + ca.mmax(ca.vertcat(ca.fabs(lbu), ca.fabs(ubu),
                                     ca.fabs(lba), ca.fabs(uba)))

@@ -53,6 +53,21 @@ def inv_lower(L: ca.SX) -> ca.SX:
     return X
 
 
+def _symmetric(Q, A, PA, M) -> ca.SX:
+    """``Q + AᵀPA − MᵀM`` (= Q + AᵀPA + (BᵀPA)ᵀK), lower triangle formed,
+    mirrored: the recursion's P stays exactly symmetric at half the
+    products."""
+    n = A.shape[1]
+    Pk = ca.SX.zeros(n, n)
+    Qd = ca.densify(Q)
+    for j in range(n):
+        for i in range(j, n):
+            v = Qd[i, j] + ca.dot(A[:, i], PA[:, j]) - ca.dot(M[:, i], M[:, j])
+            Pk[i, j] = v
+            Pk[j, i] = v
+    return Pk
+
+
 def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
                     sp_b: ca.Sparsity, mom_gain) -> dict[str, ca.Function]:
     """SX kernels of the recursion and of the forward sweep.
@@ -74,9 +89,9 @@ def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
     BPA = ca.mtimes(B.T, PA)
     Re = ca.diag(r) + ca.mtimes([B.T, P, B])
     Lit = inv_lower(chol_lower(Re)).T
-    K = -ca.mtimes([Lit, Lit.T, BPA])
-    Pk = Q + ca.mtimes(A.T, PA) + ca.mtimes(BPA.T, K)
-    Pk = 0.5 * (Pk + Pk.T)
+    M = ca.mtimes(Lit.T, BPA)           # L⁻¹BᵀPA: K = -L⁻ᵀM
+    K = -ca.mtimes(Lit, M)
+    Pk = _symmetric(Q, A, PA, M)
     Acl = (A + ca.mtimes(B, K))[:7, :]
     Ks = ca.SX.sym("K", nu, nx)
     Acls = ca.SX.sym("Acl", 7, nx)
@@ -87,6 +102,12 @@ def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
     S1 = ca.vertcat(ca.mtimes(Acls, S),
                     S[7:, :] + ca.mtimes(ca.diag(ca.DM(mom_gain)),
                                          KS[:nx - 7, :]))
+    # W⁻¹ y and W⁻ᵀ g without W⁻¹: the closed loop forward, its adjoint
+    # backward (one stage each)
+    yk, dx = ca.SX.sym("y", nu), ca.SX.sym("dx", nx)
+    gk, mu = ca.SX.sym("g", nu), ca.SX.sym("mu", nx)
+    du = ca.mtimes(Lits, yk) + ca.mtimes(Ks, dx)
+    gt = gk + ca.mtimes(B.T, mu)
     return {
         "ric": ca.Function("ric_step", [P, Q, A, B, r],
                            [ca.densify(Pk), ca.densify(K), ca.densify(Acl),
@@ -96,21 +117,22 @@ def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
                             [S0, S0[7:, :], S0[4:7, :]]),
         "sweep": ca.Function("ric_sweep", [Ks, Acls, S],
                              [KS, S1, S1[7:, :], S1[4:7, :]]),
+        "roll": ca.Function("ric_roll", [A, B, Ks, Lits, yk, dx],
+                            [du, ca.mtimes(A, dx) + ca.mtimes(B, du)]),
+        "adj": ca.Function("ric_adj", [A, B, Ks, Lits, gk, mu],
+                           [ca.mtimes(Lits.T, gt),
+                            ca.mtimes(Ks.T, gt) + ca.mtimes(A.T, mu)]),
     }
 
 
-def factor_rows(kern: dict, A: list, B: list, Q: list, r_diag: ca.DM,
-                rate_rows: bool) -> tuple[ca.MX, ca.MX]:
-    """``(W⁻¹, rows)`` of the condensed QP in ``y``.
+def factors(kern: dict, A: list, B: list, Q: list, r_diag: ca.DM
+            ) -> tuple[list, list, list]:
+    """``(K, Acl, Lit)`` per stage (k = 0…N−1): the recursion (module doc).
 
     ``A``, ``B`` (k = 0…N−1) and ``Q`` (k = 1…N; ``Q[0]`` unused) are the
-    stage matrices; δu = W⁻¹ y; ``rows`` stacks the momentum deviations
-    of the states k = 1…N (N·n_w rows), then, with ``rate_rows``, their
-    rate deviations (3N rows), as functions of y. All lower block
-    triangular, with N·n_u columns.
+    stage matrices (MX); ``Acl`` holds the closed loop's first 7 rows.
     """
     N = len(A)
-    nx, nu = B[0].shape
     P = ca.densify(Q[N])
     # MX blocks, filled backwards
     K: list[Any] = [None] * N
@@ -120,6 +142,47 @@ def factor_rows(kern: dict, A: list, B: list, Q: list, r_diag: ca.DM,
     for k in range(N - 1, -1, -1):
         P, K[k], Acl[k], Lit[k] = kern["ric"](P, Q[k] if k else zero_q,
                                               A[k], B[k], r_diag)
+    return K, Acl, Lit
+
+
+def closed_loop(kern: dict, A: list, B: list, K: list, Lit: list, y
+                ) -> tuple[ca.MX, list]:
+    """``(δu, δx)``: ``δu = W⁻¹ y`` (N·n_u,) and the states δx_1…δx_N
+    (n_x, each) it makes from δx_0 = 0, in O(N) (no W⁻¹)."""
+    nx, nu = B[0].shape
+    dx = ca.MX.zeros(nx)
+    du, xs = [], []
+    for k in range(len(A)):
+        duk, dx = kern["roll"](A[k], B[k], K[k], Lit[k],
+                               y[k * nu:(k + 1) * nu], dx)
+        du.append(duk)
+        xs.append(dx)
+    return ca.vertcat(*du), xs
+
+
+def adjoint(kern: dict, A: list, B: list, K: list, Lit: list, g) -> ca.MX:
+    """``W⁻ᵀ g`` (N·n_u,) by the closed loop's adjoint, in O(N)."""
+    nx, nu = B[0].shape
+    N = len(A)
+    mu = ca.MX.zeros(nx)
+    out: list[Any] = [None] * N
+    for k in range(N - 1, -1, -1):
+        out[k], mu = kern["adj"](A[k], B[k], K[k], Lit[k],
+                                 g[k * nu:(k + 1) * nu], mu)
+    return ca.vertcat(*out)
+
+
+def factor_rows(kern: dict, B: list, K: list, Acl: list, Lit: list,
+                rate_rows: bool) -> tuple[ca.MX, ca.MX]:
+    """``(W⁻¹, rows)`` of the condensed QP in ``y``, from `factors`.
+
+    δu = W⁻¹ y; ``rows`` stacks the momentum deviations of the states
+    k = 1…N (N·n_w rows), then, with ``rate_rows``, their rate
+    deviations (3N rows), as functions of y. All lower block triangular,
+    with N·n_u columns.
+    """
+    N = len(B)
+    nx, nu = B[0].shape
     # structural zeros above the diagonal: W⁻¹ and the rows are lower
     # block triangular
     winv = [[ca.MX(nu, nu)] * N for _ in range(N)]

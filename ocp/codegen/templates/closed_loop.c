@@ -59,6 +59,9 @@ static int closed_loop(const char* name, eval_t f, work_t work,
   for (k = 0; k < steps; ++k) if (drv_t[k] > tmax) tmax = drv_t[k];
   /* the first step starts cold (x0 everywhere, no multipliers) */
   for (k = 1; k < steps; ++k) if (drv_t[k] > twarm) twarm = drv_t[k];
+  printf("STEPS closed_loop:%s:", name);
+  for (k = 0; k < steps; ++k) printf(" %.3f", drv_t[k]);
+  printf("\n");
   sort_doubles(drv_t, steps);
   printf("TIME closed_loop:%s median_" TIME_UNIT "=%.3f max_" TIME_UNIT
          "=%.3f calls=%d flag=%d final_error_deg=%.3e max_warm_" TIME_UNIT
