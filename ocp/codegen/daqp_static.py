@@ -88,11 +88,12 @@ _SETUP_STATIC = r"""/* (ocp.codegen.patch_daqp_static) DAQP's setup_daqp
  * time.
  * Soft and binary constraints (which need more storage) are refused. */
 static int casadi_daqp_setup_static(DAQPProblem* qp, DAQPWorkspace* work,
-    c_float* w, int nw, int* iw, int niw) {
+    c_float* w, int nw, int* iw, int niw, int diag) {
   int i, mask = UPDATE_M+UPDATE_d+UPDATE_sense;
   int n = qp->n, m = qp->m, ms = qp->ms;
   for (i=0; i<m; ++i) if (qp->sense[i] & (SOFT|BINARY)) return -100;
-  if (5*(n+1) + (n+1)*(n+2)/2 + 2*n + 3*m + n*(m-ms) + n*(n+1)/2 + n > nw
+  if (5*(n+1) + (n+1)*(n+2)/2 + 2*n + 3*m + (diag ? 0 : n*(m-ms))
+      + (diag ? n : n*(n+1)/2) + n > nw
       || (n+1) + m > niw) return -101;
   /* allocate_daqp_workspace(work, n, 0) */
   work->n = n;
@@ -113,13 +114,17 @@ static int casadi_daqp_setup_static(DAQPProblem* qp, DAQPWorkspace* work,
   work->n = n; work->m = m; work->ms = ms; work->qp = qp;
   work->scaling = w; w += m;
   for (i=0; i<ms; ++i) work->scaling[i] = 1;
-  work->M = w; w += n*(m-ms);
+  /* a diagonal H (by its sparsity): DAQP scales A by H's diagonal
+   * element by element (update_M), so M may be A itself, and H's factor
+   * is its diagonal (update_Rinv's RinvD) */
+  if (diag) work->M = qp->A;
+  else { work->M = w; w += n*(m-ms); }
   work->dupper = w; w += m;
   work->dlower = w; w += m;
   work->sense = iw; iw += m;
   work->RinvD = NULL;
   if (qp->H != NULL) {
-    work->Rinv = w; w += n*(n+1)/2;
+    work->Rinv = w; w += diag ? n : n*(n+1)/2;
     mask += UPDATE_Rinv;
   } else {
     work->Rinv = NULL;
@@ -144,11 +149,12 @@ _DATA_END = "  int nodecount;\n  int bnb_itercount;\n};\n"
 _DATA_END_NEW = ("  int nodecount;\n  int bnb_itercount;\n"
                  "  c_float* ws;  /* static workspace "
                  "(ocp.codegen.patch_daqp_static) */\n"
-                 "  int* iws;\n  int nws, niws;\n};\n")
+                 "  int* iws;\n  int nws, niws;\n"
+                 "  int diag_h;  /* H's sparsity is diagonal */\n};\n")
 _SOLVE_HEAD = "int casadi_daqp_solve(struct casadi_daqp_data* d,"
 _SETUP_CALL = "setup_daqp(&d->daqp,&d->work,&(d->res.setup_time))"
 _SETUP_NEW = ("casadi_daqp_setup_static(&d->daqp,&d->work,"
-              "d->ws,d->nws,d->iws,d->niws)")
+              "d->ws,d->nws,d->iws,d->niws,d->diag_h)")
 _FREES = re.compile(r"^[ \t]*free_daqp_(?:workspace|ldp)\(&d->work\);\n",
                     re.M)
 _CONIC = re.compile(
@@ -158,19 +164,31 @@ _CONIC = re.compile(
     r"(?P<body>(?:(?!^\}).*\n)*?)"
     r"  casadi_daqp_set_work\(d, &arg, &res, &iw, &w\);\n", re.M)
 _SPARSITY = re.compile(r"static const casadi_int (casadi_s\d+)\[\d+\] = "
-                       r"\s*\{\s*(\d+),\s*(\d+),")
+                       r"\s*\{([\d,\s]*)\}")
 
 
-def daqp_static_sizes(n: int, na: int) -> tuple[int, int]:
+def daqp_static_sizes(n: int, na: int, diag: bool = False
+                      ) -> tuple[int, int]:
     """Reals and ints of the static workspace of one DAQP conic.
 
     ``n`` variables, ``na`` general rows (``m = n + na`` constraints, the
-    first ``n`` the bounds): what ``setup_daqp`` would allocate.
+    first ``n`` the bounds): what ``setup_daqp`` would allocate. With
+    ``diag`` (H's sparsity diagonal) DAQP's M is A itself (scaled in
+    place) and H's factor its diagonal: n·na + n(n−1)/2 reals fewer.
     """
     m = n + na
-    nw = (5 * (n + 1) + (n + 1) * (n + 2) // 2 + 2 * n + 3 * m + n * na
-          + n * (n + 1) // 2 + n)
+    nw = (5 * (n + 1) + (n + 1) * (n + 2) // 2 + 2 * n + 3 * m
+          + (0 if diag else n * na) + (n if diag else n * (n + 1) // 2) + n)
     return nw, (n + 1) + m
+
+
+def _is_diagonal(pattern: list[int]) -> bool:
+    """Is a CasADi sparsity array ``{nrow, ncol, colind…, row…}`` the
+    full diagonal of a square matrix?"""
+    nrow, ncol = pattern[:2]
+    colind, row = pattern[2:3 + ncol], pattern[3 + ncol:]
+    return (nrow == ncol and colind == list(range(ncol + 1))
+            and row == list(range(ncol)))
 
 
 def patch_daqp_static(source: str) -> tuple[str, dict[str, tuple[int, int]]]:
@@ -199,7 +217,7 @@ def patch_daqp_static(source: str) -> tuple[str, dict[str, tuple[int, int]]]:
     """
     if _INCLUDE not in source:
         return source, {}
-    sparsity = {m[1]: (int(m[2]), int(m[3]))
+    sparsity = {m[1]: [int(v) for v in m[2].replace(",", " ").split()]
                 for m in _SPARSITY.finditer(source)}
     conics: dict[str, tuple[int, int]] = {}
 
@@ -210,10 +228,12 @@ def patch_daqp_static(source: str) -> tuple[str, dict[str, tuple[int, int]]]:
             raise AdcsError(f"DAQP conic {m[1]}: no H/A sparsity found")
         n = sparsity[sp_h[1]][1]
         na = sparsity[sp_a[1]][0]
-        conics[m[1]] = daqp_static_sizes(n, na)
+        diag = _is_diagonal(sparsity[sp_h[1]])
+        conics[m[1]] = daqp_static_sizes(n, na, diag)
         nw, niw = conics[m[1]]
         return (m[0] + f"  d->ws = {m[1]}_daqp_w[mem]; d->nws = {nw};\n"
-                f"  d->iws = {m[1]}_daqp_iw[mem]; d->niws = {niw};\n")
+                f"  d->iws = {m[1]}_daqp_iw[mem]; d->niws = {niw};\n"
+                f"  d->diag_h = {int(diag)};\n")
 
     text = _CONIC.sub(_conic, source)
     for name, (nw, niw) in conics.items():

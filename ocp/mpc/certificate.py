@@ -3,7 +3,7 @@
 An SQP step is a QP's point; `qp_kkt_function` measures how far the
 point and multipliers a solver returned are from that QP's KKT
 conditions, so a step reported as taken is that QP's solution
-(`ocp.mpc.condensed_qp.qp_kkt` does the same for the condensed QP).
+(`ocp.mpc.condensed_qp.kkt_residual` does the same for the condensed QP).
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ are added only when that point breaks one.
 from __future__ import annotations
 
 import casadi as ca
+import numpy as np
 
 
 #: Largest excess of a momentum or rate row [N·m·s, rad/s] at which the
@@ -54,7 +55,7 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     """Build the QP in ``y`` (`ocp.mpc.riccati`): Hessian I, bounds as rows.
 
     ``qp(g, W⁻¹, rows, lbu, ubu, lba, uba, lam_u0, lam_a0) -> (y, lam_u,
-    lam_a, kkt)``: minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
+    lam_a)``: minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
     ubu`` (the bounds on δu) and ``lba ≤ rows·y ≤ uba`` (momentum, rate).
     When the warm start holds no active row (holds, small slews): the QP
     with the bounds alone first; its point is the answer when it meets
@@ -62,7 +63,8 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     set), else the QP with the rows, started from its active set. When
     rows were active: the QP with the rows directly, started from the
     bounds and the rows of the warm start (`_independent_rows`).
-    ``kkt`` is the point's optimality certificate (`qp_kkt`).
+    The point's optimality certificate is the caller's (`kkt_residual`,
+    from products it can form in O(N)).
     ``row_tol`` replaces `ROW_TOL` and ``qp_tol`` (qrqp only) its
     ``constr_viol_tol`` / ``dual_inf_tol`` (float exports,
     `ocp.codegen.precision.TOLERANCES`).
@@ -81,12 +83,12 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     eye = ca.DM.eye(n)
     box = ca.conic("cond_qp_box", plugin, {"h": eye.sparsity(),
                                            "a": sp_w}, opts)
-    WR = ca.vertcat(W, R)    # evaluated in the branches with the rows
     full = ca.conic("cond_qp", plugin, {"h": eye.sparsity(),
-                                        "a": WR.sparsity()}, opts)
+                                        "a": _stacked(W, R).sparsity()}, opts)
 
     def with_rows(lam_u, lam_a):
-        s = full(h=eye, g=g, a=WR, lba=ca.vertcat(lbu, lba),
+        # evaluated in the branches with the rows
+        s = full(h=eye, g=g, a=_stacked(W, R), lba=ca.vertcat(lbu, lba),
                  uba=ca.vertcat(ubu, uba), lam_a0=ca.vertcat(lam_u, lam_a))
         return [s["x"], s["lam_a"][:n], s["lam_a"][n:]]
 
@@ -111,24 +113,32 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     direct = ca.Function("cond_qp_direct", ins, with_rows(lu0, warm))
     route = ca.Function.if_else("cond_qp_route", direct, staged)
     y, lam_u, lam_a = route(ca.mmax(ca.fabs(la0)) > 0, *ins)
-    kkt = qp_kkt(y, lam_u, lam_a, g, W, R, lbu, ubu, lba, uba)
-    return ca.Function("cond_qp_routed", ins, [y, lam_u, lam_a, kkt])
+    return ca.Function("cond_qp_routed", ins, [y, lam_u, lam_a])
 
 
-def qp_kkt(y, lam_u, lam_a, g, W, R, lbu, ubu, lba, uba):
-    """Optimality certificate of the QP's point: the KKT residual.
+def _stacked(W: ca.MX, R: ca.MX) -> ca.MX:
+    """``vertcat(W, R)`` as one permutation of their nonzeros (MX
+    concatenation of sparse matrices goes through transposes in C)."""
+    tag = ca.vertcat(ca.DM(W.sparsity(), np.arange(W.nnz(), dtype=float)),
+                     ca.DM(R.sparsity(), np.arange(W.nnz(), W.nnz()
+                                                   + R.nnz(), dtype=float)))
+    perm = [int(v) for v in tag.nonzeros()]
+    nz = ca.vertcat(W.nz[:], R.nz[:])
+    return ca.MX(tag.sparsity(), nz[perm])
 
-    The largest of stationarity ``|y + g + W⁻ᵀλ_u + Rᵀλ_a|_∞``
-    (relative to ``1 + |g|_∞``), the row violations and the
-    complementarity ``λ⁺ (ub - v) + λ⁻ (v - lb)`` of every row ``v``
+
+def kkt_residual(y, g, dual, v, a, lam_u, lam_a, lbu, ubu, lba, uba):
+    """Optimality certificate of the QP's point y: the KKT residual.
+
+    ``v = W⁻¹y`` and ``a = rows·y`` are the point's bounded values and
+    ``dual = W⁻ᵀλ_u + rowsᵀλ_a`` its multipliers' gradient (the caller
+    forms them in O(N), `ocp.mpc.riccati`). The largest of stationarity
+    ``|y + g + dual|_∞`` (relative to ``1 + |g|_∞``), the row violations
+    and the complementarity ``λ⁺ (ub - v) + λ⁻ (v - lb)`` of every row
     (relative to the rows' scale): zero at the QP's optimum (the QP is
-    strictly convex), whatever conic solved it. Loops in generated C (MX
-    products), no unrolling.
+    strictly convex), whatever conic solved it.
     """
-    v, a = ca.mtimes(W, y), ca.mtimes(R, y)
-    # (λᵀW)ᵀ, not Wᵀλ: a transposed sparse matrix is a copy in C
-    stat = ca.mmax(ca.fabs(y + g + ca.mtimes(lam_u.T, W).T
-                           + ca.mtimes(lam_a.T, R).T))
+    stat = ca.mmax(ca.fabs(y + g + dual))
     scale_g = 1.0 + ca.mmax(ca.fabs(g))
     size = 1.0 + ca.mmax(ca.vertcat(ca.fabs(lbu), ca.fabs(ubu),
                                     ca.fabs(lba), ca.fabs(uba)))

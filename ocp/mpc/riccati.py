@@ -160,13 +160,21 @@ def closed_loop(kern: dict, A: list, B: list, K: list, Lit: list, y
     return ca.vertcat(*du), xs
 
 
-def adjoint(kern: dict, A: list, B: list, K: list, Lit: list, g) -> ca.MX:
-    """``W⁻ᵀ g`` (N·n_u,) by the closed loop's adjoint, in O(N)."""
+def adjoint(kern: dict, A: list, B: list, K: list, Lit: list, g,
+            c: list | None = None) -> ca.MX:
+    """``W⁻ᵀ g`` (N·n_u,) by the closed loop's adjoint, in O(N).
+
+    With ``c`` (n_x each, k = 1…N): the gradient in y of ``gᵀδu +
+    Σ c_kᵀδx_k`` along the closed loop (`closed_loop`): a row's
+    multipliers injected at its state.
+    """
     nx, nu = B[0].shape
     N = len(A)
     mu = ca.MX.zeros(nx)
     out: list[Any] = [None] * N
     for k in range(N - 1, -1, -1):
+        if c is not None:
+            mu = mu + c[k]
         out[k], mu = kern["adj"](A[k], B[k], K[k], Lit[k],
                                  g[k * nu:(k + 1) * nu], mu)
     return ca.vertcat(*out)
@@ -195,23 +203,26 @@ def factor_rows(kern: dict, B: list, K: list, Acl: list, Lit: list,
         for k in range(j + 1, N):
             winv[k][j], S, mom[k][j], rate[k][j] = kern["sweep"](
                 K[k], Acl[k], S)
-    mats = [_lower_blocks(winv, nu, nu)]
-    rows = [_lower_blocks(mom, nx - 7, nu)]
-    if rate_rows:
-        rows.append(_lower_blocks(rate, 3, nu))
-    return mats[0], (rows[0] if len(rows) == 1 else ca.vertcat(*rows))
+    rows = [(mom, nx - 7)] + ([(rate, 3)] if rate_rows else [])
+    return _lower_blocks([(winv, nu)], nu), _lower_blocks(rows, nu)
 
 
-def _lower_blocks(grid: list, h: int, w: int) -> ca.MX:
-    """Return the lower block-triangular matrix of ``grid[k][j]`` (k ≥ j).
+def _lower_blocks(grids: list, w: int) -> ca.MX:
+    """Stack the lower block-triangular matrices of ``grid[k][j]`` (k ≥
+    j, blocks h × w) of each ``(grid, h)`` of ``grids``.
 
     Written block by block into one matrix (in-place copies in generated
     C); MX concatenation would go through transposes there.
     """
-    N = len(grid)
-    sp = ca.kron(ca.DM(ca.Sparsity.lower(N), 1.0), ca.DM.ones(h, w))
+    N = len(grids[0][0])
+    sp = ca.vertcat(*[ca.kron(ca.DM(ca.Sparsity.lower(N), 1.0),
+                              ca.DM.ones(h, w)) for _, h in grids])
     M = ca.MX(sp.sparsity())
-    for j in range(N):
-        for k in range(j, N):
-            M[k * h:(k + 1) * h, j * w:(j + 1) * w] = grid[k][j]
+    top = 0
+    for grid, h in grids:
+        for j in range(N):
+            for k in range(j, N):
+                M[top + k * h:top + (k + 1) * h,
+                  j * w:(j + 1) * w] = grid[k][j]
+        top += N * h
     return M
