@@ -68,7 +68,10 @@ def test_the_summary_says_which_mpc_did_not_settle(feedback):
         32.0, "not settled (within 0.1° only from 300.4 s)",
         "not settled (never within 0.1°)",
         "not settled (within 0.1° only from 51 s)"]
-    assert phrase == ("MPC settle to 0.1° (hold window 15 s): 32 s "
-                      "(sqpmethod (RTI)), not settled in 60 s (ipopt, hold "
-                      "error 0.22°), not settled in 60 s (qrqp, hold error "
-                      "3°)")
+    assert phrase == ("MPC settling to 0.1° (held over the last 15 s): "
+                      "32 s (sqpmethod (RTI)), not settled in 60 s (ipopt, "
+                      "hold error 0.22°), not settled in 60 s (qrqp, hold "
+                      "error 3°)")
+    _, phrase = mpc_rows([held, fb], 60.0)
+    assert phrase == ("MPC settles to 0.1° (held over the last 15 s) in "
+                      "32 s (sqpmethod (RTI))")
