@@ -168,7 +168,8 @@ def six_unit_lines(t: ThrusterSet) -> list[str] | None:
 
     Only the fields that differ from what ``R``, ``L`` and ``thrust``
     give are written (``thrust_offset`` when an engine has one, so that
-    ``thrust`` stays the steady thrust the user wrote). None when ``t`` is not such a unit exactly.
+    ``thrust`` stays the steady thrust the user wrote). None when ``t``
+    is not such a unit exactly.
     """
     from .toml_io import _same, _strings, _vec
 
