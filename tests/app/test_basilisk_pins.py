@@ -130,3 +130,17 @@ def test_the_readme_installs_what_the_report_needs():
     ci = (ROOT / ".ci" / "run").read_text()
     extras = re.search(r'pip install -e "\.\[([^\]]*)\]"', ci).group(1)
     assert {"solvers", "basilisk"} <= set(extras.split(","))
+
+
+def test_without_basilisk_the_study_says_why_in_one_line(monkeypatch,
+                                                         tmp_path):
+    import adcs.studies.basilisk as study
+    from adcs.report import StudyContext
+
+    monkeypatch.setattr(study, "basilisk_available", lambda: False)
+    section = study.run(StudyContext(out=tmp_path, quick=True))
+    assert section.summary == [
+        'skipped: Basilisk not installed; pip install -e ".[basilisk]" (the '
+        "bsk package, Basilisk 2.12; about 75 MB)"]
+    assert not section.tables and not section.figures
+    assert "docs/basilisk.md" in section.intro
