@@ -27,8 +27,10 @@ def run(ctx: StudyContext) -> Section:
     """Compute the study (skipped, and saying why, without Basilisk)."""
     if not basilisk_available():
         section = Section("basilisk", TITLE, "Skipped: Basilisk is not "
-                          f"installed ({INSTALL_HINT}).")
-        section.summary = ["skipped: Basilisk not installed"]
+                          f"installed ({INSTALL_HINT}). The README's first "
+                          "command installs it; docs/basilisk.md lists "
+                          "the versions it pins.")
+        section.summary = [f"skipped: Basilisk not installed; {INSTALL_HINT}"]
         return section
     from adcs.basilisk.plots import plot_loops
     from adcs.basilisk.scenarios import compare_loops

@@ -136,11 +136,12 @@ def mpc_row(mpc, dt: float, t_final: float) -> tuple[list, str]:
     Settled means: within ``mpc.settle_angle`` from the settle time to
     the end of the run, and over the whole hold window (its hold error
     within the same band). A run that only dips into the band, or whose
-    hold error exceeds it, is reported as not settled.
+    hold error exceeds it, is reported as not settled
+    (`ClosedLoopResult.settled`, the definition of the slews study too).
     """
     band = float(np.rad2deg(mpc.settle_angle))
     hold = float(np.rad2deg(mpc.hold_error))
-    settled = np.isfinite(mpc.settle_time) and hold < band
+    settled = mpc.settled
     label = f"MPC, RTI (horizon 20, dt {dt:.3g} s)"
     note = (f"hold error {hold:.2g}° (band {band:g}°), peak |m_i| "
             f"{mpc.peak_torque:.3g} N·m")

@@ -67,6 +67,17 @@ class ClosedLoopResult(ResultMixin):
         Per-step controller time [s] (NaN for closed forms).
     extras : dict
         Anything else (solver status counts, NLP solve time...).
+    hold : float
+        Length of the final window of ``hold_error`` [s] (0: the last
+        sample only, so ``hold_error`` is ``final_error``).
+
+    Notes
+    -----
+    `settled` is the one verdict the reports use: the error stays below
+    ``settle_angle`` from ``settle_time`` to the end *and* over the whole
+    hold window (``hold_error < settle_angle``). A run that enters the
+    band only inside the hold window has a finite ``settle_time`` but a
+    hold error above the band: it has not settled.
     """
 
     name: str
@@ -83,6 +94,18 @@ class ClosedLoopResult(ResultMixin):
     step_time_median: float = float("nan")
     step_time_max: float = float("nan")
     extras: dict[str, Any] = field(default_factory=dict)
+    hold: float = 0.0
+
+    @property
+    def settled(self) -> bool:
+        """Whether the run settled (see Notes of the class).
+
+        True when ``settle_time`` is finite and ``hold_error <
+        settle_angle``: within the band from ``settle_time`` on and over
+        the whole hold window.
+        """
+        return bool(np.isfinite(self.settle_time)
+                    and self.hold_error < self.settle_angle)
 
 
 def _settle_time(t: np.ndarray, err: np.ndarray, angle: float) -> float:
@@ -114,7 +137,8 @@ def _result_from_trajectory(name: str, traj: SlewTrajectory, wheels,
         torque_violation=max(tv, 0.0), momentum_violation=max(hv, 0.0),
         final_error=float(err[-1]), hold_error=float(np.max(err[in_hold])),
         step_time_median=float(np.median(st)),
-        step_time_max=float(np.max(st)), extras=dict(extras or {}))
+        step_time_max=float(np.max(st)), extras=dict(extras or {}),
+        hold=float(hold))
 
 
 def simulate_mpc(mpc: AttitudeMPC, q0: ArrayLike, qf: ArrayLike, *,
@@ -319,9 +343,10 @@ def compare_slew(model: SpacecraftModel, q0: ArrayLike, qf: ArrayLike, *,
 def closed_loop_table(results: Any) -> str:
     """Markdown table of `ClosedLoopResult` metrics.
 
-    Columns: settle time [s], energy [N²·m²·s], peak ``|m|`` [N·m], peak
-    ``|H|`` [N·m·s], torque and momentum violations, final and hold errors
-    [deg], median / max step time [ms].
+    Columns: settle time [s] ('not settled' unless
+    `ClosedLoopResult.settled`), energy [N²·m²·s], peak ``|m|`` [N·m],
+    peak ``|H|`` [N·m·s], torque and momentum violations, final and hold
+    errors [deg], median / max step time [ms].
     """
     head = ("| controller | settle [s] | energy [N²m²s] | peak abs(m) [Nm] "
             "| peak abs(H) [Nms] | m viol. | H viol. | final err [deg] | "
@@ -332,7 +357,9 @@ def closed_loop_table(results: Any) -> str:
               f"{1e3 * r.step_time_median:.2f} / "
               f"{1e3 * r.step_time_max:.2f}")
         lines.append(
-            f"| {r.name} | {r.settle_time:.1f} | {r.energy:.4g} | "
+            f"| {r.name} | "
+            f"{f'{r.settle_time:.1f}' if r.settled else 'not settled'} | "
+            f"{r.energy:.4g} | "
             f"{r.peak_torque:.4g} | {r.peak_momentum:.4g} | "
             f"{r.torque_violation:.1e} | {r.momentum_violation:.1e} | "
             f"{np.rad2deg(r.final_error):.2e} | "
@@ -347,6 +374,7 @@ def closed_loop_frame(results: Any) -> pd.DataFrame:
     results = check_items(results, ClosedLoopResult, "results")
     return pd.DataFrame([{
         "controller": r.name, "settle_time": r.settle_time,
+        "settled": r.settled,
         "energy": r.energy, "peak_torque": r.peak_torque,
         "peak_momentum": r.peak_momentum,
         "torque_violation": r.torque_violation,

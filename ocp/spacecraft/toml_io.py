@@ -42,6 +42,7 @@ _WHEELS = set(_WHEEL_LAYOUTS) | {"h_max", "m_max", "failed", "names"}
 _THRUSTER_KINDS = ("six_thruster_unit", "custom")
 #: ThrusterSet fields a file may set for either kind
 _THRUSTER_COMMON = ("center_of_mass", "pressure", "correction",
+                    "thrust_offset",
                     "min_on_time", "open_delay", "close_delay", "rise_time",
                     "tail_time", "isp", "names")
 _THRUSTERS = {"six_thruster_unit": {"kind", "R", "L", "thrust",
@@ -205,7 +206,7 @@ def _thrusters(r: _Reader, t: Any) -> ThrusterSet:
                     isinstance(n, str) for n in t[k]):
                 raise r.fail("thrusters.names", "must be a list of strings")
             kw[k] = tuple(t[k])
-        elif k in ("center_of_mass", "correction"):
+        elif k in ("center_of_mass", "correction", "thrust_offset"):
             kw[k] = r.numbers(t[k], f"thrusters.{k}")
         else:
             kw[k] = r.number(t[k], f"thrusters.{k}")
@@ -235,13 +236,20 @@ def _thrusters(r: _Reader, t: Any) -> ThrusterSet:
         raise r.fail("thrusters.pairs", "must be a list of [i, j] thruster "
                      f"numbers 1..{n}")
     pressure = kw.pop("pressure", 9.0 * 98066.5)
+    offset = kw.pop("thrust_offset", np.zeros(n))
+    if offset.ndim == 0:
+        offset = offset * np.ones(n)
     P = thrust * np.ones(n) if thrust.ndim == 0 else thrust
+    if P.shape != (n,) or offset.shape != (n,):
+        raise r.fail("thrusters.thrust" if P.shape != (n,) else
+                     "thrusters.thrust_offset", f"must be one value or "
+                     f"one per thruster ({n})")
     norms = np.linalg.norm(dirs, axis=1)
     if np.any(norms == 0):
         raise r.fail("thrusters.directions", "a zero direction")
     return r.build("thrusters", partial(
         ThrusterSet, positions=pos.T, directions=(dirs / norms[:, None]).T,
-        pressure_slope=P / pressure, thrust_offset=np.zeros(n),
+        pressure_slope=(P - offset) / pressure, thrust_offset=offset,
         pressure=pressure, pairs=tuple((i - 1, j - 1) for i, j in pairs),
         **kw))
 
@@ -341,11 +349,13 @@ def spacecraft_to_toml(sc: Spacecraft) -> str:
     The wheels as a layout (``pyramid = { delta_deg = 55.0, ... }``) and
     a six-thruster unit with its ``R`` and ``L`` when reading that back
     gives the same arrays exactly (`toml_layout`); otherwise the general
-    form (axes, custom thrusters). Numbers are written with ``repr``:
-    reading the text back gives the same craft (thrust levels to the last
-    bit of ``thrust / pressure``).
+    form (axes, custom thrusters). Numbers are written with ``repr``, the
+    thrust as the shortest decimals that give the same pressure slope,
+    and the per-engine ``thrust_offset`` (eq. 1) when there is one:
+    reading the text back gives the same craft to the last bit.
     """
-    from .toml_layout import degrees, six_unit_lines, wheel_layout
+    from .toml_layout import (degrees, six_unit_lines, thrust_levels,
+                              wheel_layout)
 
     w = sc.wheels
     lines = [f"name = {_string(sc.name)}"]
@@ -373,7 +383,7 @@ def spacecraft_to_toml(sc: Spacecraft) -> str:
         lines += ["", "[thrusters]", 'kind = "custom"',
                   f"positions = {_vec(t.positions.T)}   # m",
                   f"directions = {_vec(t.directions.T)}",
-                  f"thrust = {_same(t.steady_thrust)}   # N",
+                  f"thrust = {_same(thrust_levels(t))}   # N",
                   f"pressure = {_num(t.pressure)}   # Pa",
                   f"center_of_mass = {_vec(t.center_of_mass)}",
                   f"correction = {_vec(t.correction)}",
@@ -381,6 +391,8 @@ def spacecraft_to_toml(sc: Spacecraft) -> str:
         for k in ("min_on_time", "open_delay", "close_delay", "rise_time",
                   "tail_time", "isp"):
             lines.append(f"{k} = {_num(getattr(t, k))}")
+        if np.any(t.thrust_offset != 0):
+            lines.append(f"thrust_offset = {_same(t.thrust_offset)}   # N")
         if t.pairs:
             lines.append("pairs = [" + ", ".join(
                 f"[{i + 1}, {j + 1}]" for i, j in t.pairs) + "]")

@@ -25,7 +25,7 @@ from allocation import WheelArray
 from allocation.arrays import PYRAMID_SIGN_Y, PYRAMID_SIGN_Z
 from thrusters import ThrusterSet
 
-__all__ = ["degrees", "six_unit_lines", "wheel_layout"]
+__all__ = ["degrees", "six_unit_lines", "thrust_levels", "wheel_layout"]
 
 
 def _num(x: float) -> str:
@@ -45,6 +45,33 @@ def degrees(rad: float, ulps: int = 0) -> float:
         if abs(float(np.deg2rad(cand)) - rad) <= tol:
             return cand
     return deg
+
+
+def thrust_levels(t: ThrusterSet) -> np.ndarray:
+    """Steady thrusts [N] to write, one per engine, that read back exactly.
+
+    A file gives the steady thrust ``P`` at ``pressure`` and the offset
+    ``b`` (eq. 1); reading gives the slope ``a = (P - b) / pressure``. For
+    each engine this is the shortest decimal ``P`` whose slope is ``a`` to
+    the last bit (0.5 where the user wrote 0.5, not ``a p + b`` =
+    0.5000000000000001), searched within 4 ulps of ``a p + b``; ``a p +
+    b`` itself when none does.
+    """
+    a, b, p = t.pressure_slope, t.thrust_offset, t.pressure
+    steady = t.steady_thrust
+    out = steady.copy()
+    for i, P in enumerate(steady):
+        # a p + b lies within an ulp or two of the P that gave a
+        near = [P]
+        for _ in range(4):
+            near = [np.nextafter(near[0], -np.inf), *near,
+                    np.nextafter(near[-1], np.inf)]
+        found = next((c for digits in range(1, 18) for c in
+                      (float(f"{x:.{digits}g}") for x in near)
+                      if (c - b[i]) / p == a[i]), None)
+        if found is not None:
+            out[i] = found
+    return out
 
 
 def _read_wheels(text: str) -> WheelArray | None:
@@ -140,7 +167,9 @@ def six_unit_lines(t: ThrusterSet) -> list[str] | None:
     """``[thrusters]`` lines of a six-thruster unit with its R and L.
 
     Only the fields that differ from what ``R``, ``L`` and ``thrust``
-    give are written. None when ``t`` is not such a unit exactly.
+    give are written (``thrust_offset`` when an engine has one, so that
+    ``thrust`` stays the steady thrust the user wrote). None when ``t``
+    is not such a unit exactly.
     """
     from .toml_io import _same, _strings, _vec
 
@@ -150,11 +179,12 @@ def six_unit_lines(t: ThrusterSet) -> list[str] | None:
     L = float(t.positions[1, 3])
     lines = ['kind = "six_thruster_unit"', f"R = {_num(R)}   # m",
              f"L = {_num(L)}   # m",
-             f"thrust = {_same(t.steady_thrust)}   # N"]
+             f"thrust = {_same(thrust_levels(t))}   # N"]
     base = _read_set(lines)
     if base is None:
         return None
     extra: dict[str, Any] = {
+        "thrust_offset": f"{_same(t.thrust_offset)}   # N",
         "pressure": _num(t.pressure),
         "center_of_mass": _vec(t.center_of_mass),
         "correction": _same(t.correction),

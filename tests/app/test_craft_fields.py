@@ -74,6 +74,10 @@ FIELDS = {
     # pressure alone changes no tool (`DutyCycleAllocator.set_pressure`
     # uses it in flight)
     "thrusters.pressure": (_set("thrusters.pressure", 8.0e5), set()),
+    # the offset b_i of P = a_i p + b_i: `thrust` stays the steady thrust
+    # at the file's pressure, so it too changes no tool's nominal output
+    "thrusters.thrust_offset": (_set("thrusters.thrust_offset", 0.1),
+                                set()),
     "thrusters.correction": (_set("thrusters.correction", 0.9),
                              THRUSTER_TOOLS),
     # the propellant figures; one Isp for all engines leaves the duties

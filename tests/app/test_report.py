@@ -307,23 +307,33 @@ def test_failure_labels_name_every_failed_wheel():
         "as given", "wheel 1 failed"]
 
 
+def _result(**kw):
+    """A `ClosedLoopResult` with the given metrics (no trajectory)."""
+    from ocp.mpc import ClosedLoopResult
+
+    base = dict(name="MPC test", trajectory=None, settle_time=0.0,
+                settle_angle=0.0, energy=0.0, peak_torque=0.0,
+                peak_momentum=0.0, torque_violation=0.0,
+                momentum_violation=0.0, final_error=0.0, hold_error=0.0)
+    return ClosedLoopResult(**{**base, **kw})
+
+
 def test_mpc_settles_only_when_it_stays_within_the_band():
     import math
-    from types import SimpleNamespace
 
     import numpy as np
 
     from adcs.studies.spacecraft import mpc_row
 
     band = np.deg2rad(0.1)
-    dipped = SimpleNamespace(settle_time=300.38, settle_angle=band,
-                             hold_error=np.deg2rad(0.22), peak_torque=0.2)
+    dipped = _result(settle_time=300.38, settle_angle=band,
+                     hold_error=np.deg2rad(0.22), peak_torque=0.2)
     row, phrase = mpc_row(dipped, 10.0, 300.38)
     assert math.isnan(row[1]) and row[2] == "not settled to 0.1° in 300.4 s"
     assert "hold error 0.22° (band 0.1°)" in row[3]
     assert phrase == "MPC not settled to 0.1° in 300.4 s (hold error 0.22°)"
-    held = SimpleNamespace(settle_time=21.83, settle_angle=band,
-                           hold_error=np.deg2rad(0.03), peak_torque=0.05)
+    held = _result(settle_time=21.83, settle_angle=band,
+                   hold_error=np.deg2rad(0.03), peak_torque=0.05)
     row, phrase = mpc_row(held, 0.5, 30.0)
     assert row[1] == 21.83 and row[2] == "settled to 0.1°"
     assert phrase == "MPC settles to 0.1° in 21.83 s"

@@ -110,6 +110,7 @@ def test_compare_slew_table(model):
     frame = closed_loop_frame(res)
     assert list(frame["controller"]) == [r.name for r in res]
     assert frame["settle_time"].iloc[0] == res[0].settle_time
+    assert list(frame["settled"]) == [r.settled for r in res]
 
 
 def test_unknown_solver_raises(model):

@@ -247,13 +247,14 @@ def _same_craft(a, b, axes_atol: float = 0.0) -> None:
                                       getattr(b.wheels, k))
     assert a.wheels.failed == b.wheels.failed
     assert a.wheels.names == b.wheels.names
+    assert (a.thrusters is None) == (b.thrusters is None)
     if a.thrusters is not None:
-        for k in ("positions", "directions", "pressure_slope", "correction",
-                  "center_of_mass"):
-            np.testing.assert_array_equal(getattr(a.thrusters, k),
-                                          getattr(b.thrusters, k))
-        assert a.thrusters.min_on_time == b.thrusters.min_on_time
-        assert a.thrusters.pairs == b.thrusters.pairs
+        from dataclasses import fields
+
+        for f in fields(a.thrusters):     # every field, offsets included
+            np.testing.assert_array_equal(getattr(a.thrusters, f.name),
+                                          getattr(b.thrusters, f.name),
+                                          err_msg=f.name)
 
 
 def test_save_writes_the_layout_and_its_parameters(tmp_path):
@@ -319,3 +320,107 @@ def test_arrays_no_layout_gives_are_saved_as_axes(tmp_path):
     text = (tmp_path / "named.toml").read_text()
     assert 'names = ["A", "B", "C", "D"]' in text and "pyramid" in text
     _same_craft(load_spacecraft(tmp_path / "named.toml"), named)
+
+
+# -- #26: the per-engine thrust offset (eq. 1) survives save -----------------
+OFFSET_FILE = USER_FILE.replace(
+    "thrust = 0.5\n", "thrust = 0.5\npressure = 800000.0\n"
+    "thrust_offset = [0.1, 0.12, 0.08, 0.1, 0.1, 0.11]\n")
+
+
+def test_save_keeps_the_thrust_offset_the_user_wrote(tmp_path):
+    sc = spacecraft_from_toml(OFFSET_FILE, "offset.toml")
+    t = sc.thrusters
+    np.testing.assert_array_equal(
+        t.thrust_offset, [0.1, 0.12, 0.08, 0.1, 0.1, 0.11])
+    # a_i = (P - b_i) / p: 0.5 N at 8e5 Pa, 0.4 N of it from the pressure
+    assert t.pressure_slope[0] == (0.5 - 0.1) / 8e5 == 5e-7
+    np.testing.assert_allclose(t.steady_thrust, 0.5, rtol=0, atol=1e-16)
+    path = tmp_path / "offset.toml"
+    sc.save(path)
+    text = path.read_text()
+    for line in ('kind = "six_thruster_unit"', "R = 0.3", "L = 0.4",
+                 "thrust = 0.5   # N", "pressure = 800000.0",
+                 "thrust_offset = [0.1, 0.12, 0.08, 0.1, 0.1, 0.11]",
+                 "pyramid = { delta_deg = 50.5, gamma_deg = 40.25 }"):
+        assert line in text, (line, text)
+    assert "custom" not in text and "positions" not in text
+    back = load_spacecraft(path)
+    _same_craft(back, sc)                   # pressure_slope to the bit
+    assert back.to_toml() == text
+    # at half the pressure the offset keeps 0.1 + 0.2 = 0.3 N, not 0.25 N
+    half = replace_pressure(back.thrusters, 4e5)
+    assert half.steady_thrust[0] == pytest.approx(0.3, abs=1e-15)
+
+
+def replace_pressure(t, p):
+    from dataclasses import replace
+
+    return replace(t, pressure=p)
+
+
+@pytest.mark.parametrize("make", [
+    lambda: six_thruster_unit(thrust=0.5, thrust_offset=0.05, pressure=8e5),
+    lambda: six_thruster_unit(
+        thrust=np.random.default_rng(1).uniform(0.3, 0.7, 6),
+        thrust_offset=np.random.default_rng(2).uniform(0.0, 0.2, 6),
+        pressure=7.7e5),
+    lambda: _moved(six_thruster_unit(thrust_offset=0.07)),
+], ids=["scalar", "random", "custom"])
+def test_a_unit_with_offsets_round_trips_to_the_last_bit(make, tmp_path):
+    sc = Spacecraft("py", np.diag([3.0, 2.5, 3.5]), WheelArray.pyramid(
+        np.deg2rad(60.0), np.deg2rad(30.0), h_max=1.0, m_max=0.1), make())
+    sc.save(tmp_path / "py.toml")
+    text = (tmp_path / "py.toml").read_text()
+    assert "thrust_offset = " in text and "pyramid = " in text
+    back = load_spacecraft(tmp_path / "py.toml")
+    _same_craft(back, sc)
+    assert back.to_toml() == text
+    again = tmp_path / "again.toml"
+    back.save(again)
+    _same_craft(load_spacecraft(again), sc)
+
+
+def _moved(unit):
+    """``unit`` with D1 and D4 moved 1 cm in x: no six-unit layout."""
+    from dataclasses import replace
+
+    pos = np.array(unit.positions)
+    pos[0, [0, 3]] += 0.01
+    return replace(unit, positions=pos)
+
+
+def test_custom_thrusters_take_an_offset_and_the_scalar_form(tmp_path):
+    text = """
+name = "c"
+inertia = [3.0, 2.5, 3.5]
+[wheels]
+pyramid = { delta_deg = 55.0, gamma_deg = 45.0 }
+h_max = 0.2
+m_max = 0.05
+[thrusters]
+kind = "custom"
+positions = [[0.5, 0.0, 0.2], [-0.5, 0.0, 0.2]]
+directions = [[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]]
+thrust = 1.0
+thrust_offset = 0.25
+"""
+    sc = spacecraft_from_toml(text, "c.toml")
+    np.testing.assert_array_equal(sc.thrusters.thrust_offset, [0.25, 0.25])
+    np.testing.assert_array_equal(sc.thrusters.steady_thrust, [1.0, 1.0])
+    out = sc.to_toml()
+    assert "thrust = 1.0   # N" in out and "thrust_offset = 0.25" in out
+    _same_craft(spacecraft_from_toml(out), sc)
+
+
+@pytest.mark.parametrize("value, problem", [
+    ("[0.1, 0.2]", "thrust_offset must have shape (6)"),
+    ('"a"', "must be a number or a list of numbers"),
+])
+def test_a_bad_thrust_offset_names_its_key(value, problem):
+    bad = USER_FILE.replace("thrust = 0.5\n",
+                            f"thrust = 0.5\nthrust_offset = {value}\n")
+    with pytest.raises(SpacecraftFileError, match="thrust_offset") as exc:
+        spacecraft_from_toml(bad, "bad.toml")
+    assert problem in str(exc.value)
+    assert "\n" not in str(exc.value)
