@@ -35,7 +35,7 @@ import warnings
 
 import numpy as np
 
-from benchmarks.peers import _mpc_problem
+from benchmarks.peers import _mpc_problem, do_mpc_controller
 
 SPREAD = 0.2
 
@@ -99,49 +99,12 @@ def do_mpc_robust_model(model, qf, scales: np.ndarray, dt: float = 0.5,
                         horizon: int = 20):
     """do-mpc's multi-stage MPC over the scale factors ``scales`` (S, 3).
 
-    Robust horizon 1; the scenarios set through do-mpc's parameter
-    template (``set_p_fun``), so any set (not only a Cartesian product)
-    can be given. Costs and bounds as `benchmarks.peers.do_mpc_model`.
+    Robust horizon 1, its own RK4 of the scaled craft (`_rk4_scaled`);
+    costs, bounds and the scenario template of
+    `benchmarks.peers.do_mpc_controller`.
     """
-    import casadi as ca
-    import do_mpc
-
-    from adcs_common.quaternion import quat_conj, quat_mul
-    from ocp.mpc import MPCWeights
-
-    w, wh = MPCWeights(), model.wheels
-    m = do_mpc.model.Model("discrete")
-    x = m.set_variable("_x", "x", (model.nx, 1))
-    u = m.set_variable("_u", "u", (model.nu, 1))
-    s = m.set_variable("_p", "s", (3, 1))
-    m.set_rhs("x", _rk4_scaled(model, dt)(x, u, s))
-    qe = quat_mul(quat_conj(qf), x[:4])
-    att = w.attitude * ca.sumsqr(qe[1:]) + w.rate * ca.sumsqr(x[4:7])
-    m.set_expression("att", att)
-    m.set_expression("stage", att + w.momentum * ca.sumsqr(
-        x[7:] / ca.DM(wh.h_max)) + w.torque * ca.sumsqr(u / ca.DM(wh.m_max)))
-    m.setup()
-    mpc = do_mpc.controller.MPC(m)
-    mpc.settings.n_horizon = horizon
-    mpc.settings.t_step = dt
-    mpc.settings.n_robust = 1
-    mpc.settings.store_full_solution = False
-    mpc.settings.nlpsol_opts = {"ipopt.print_level": 0, "print_time": 0,
-                                "ipopt.sb": "yes", "ipopt.tol": 1e-8}
-    mpc.set_objective(mterm=w.terminal * m.aux["att"], lterm=m.aux["stage"])
-    mpc.set_rterm(u=0.0)
-    mpc.bounds["lower", "_u", "u"] = -np.asarray(wh.m_max)
-    mpc.bounds["upper", "_u", "u"] = np.asarray(wh.m_max)
-    lo, hi = np.full(model.nx, -np.inf), np.full(model.nx, np.inf)
-    lo[7:], hi[7:] = -np.asarray(wh.h_max), np.asarray(wh.h_max)
-    mpc.bounds["lower", "_x", "x"] = lo
-    mpc.bounds["upper", "_x", "x"] = hi
-    template = mpc.get_p_template(len(scales))
-    for i, row in enumerate(scales):
-        template["_p", i] = np.asarray(row, float)
-    mpc.set_p_fun(lambda _t: template)
-    mpc.setup()
-    return mpc
+    return do_mpc_controller(model, qf, _rk4_scaled(model, dt), dt=dt,
+                             horizon=horizon, scales=np.asarray(scales))
 
 
 def _do_mpc_loop(n: int, steps: int) -> dict:
