@@ -6,12 +6,14 @@ all share the first command, and the step is the scenario tree's QP
 solution (equal to the dense QP of the stacked scenarios, DAQP).
 """
 
+from concurrent.futures import ThreadPoolExecutor
+
 import casadi as ca
 import daqp
 import numpy as np
 import pytest
 
-from adcs_common.exceptions import InvalidValueError
+from adcs_common.exceptions import InvalidValueError, ThreadOwnershipError
 from allocation import WheelArray
 from ocp import quat_from_axis_angle, rigid_spacecraft
 from ocp.mpc import (AttitudeMPC, RobustMPC, Scenario, inertia_corners,
@@ -255,3 +257,59 @@ def test_every_scenario_plans_with_its_own_dynamics():
                              0.5)).ravel()
             np.testing.assert_allclose(nxt, plan[mpc._xs[k + 1]], rtol=0,
                                        atol=1e-9)
+
+
+def _thread_loop(mpc, n=6):
+    """Commands of the first n steps of the slew (RK4 plant), after a
+    reset in the calling thread."""
+    rk4 = MODEL.rk4_step(1)
+    x = MODEL.state([1.0, 0.0, 0.0, 0.0])
+    mpc.reset()
+    us = []
+    for _ in range(n):
+        u = mpc.step(x, QF).u
+        x = np.array(rk4(x, u, np.zeros(3), mpc.dt)).ravel()
+        us.append(u)
+    return np.array(us)
+
+
+def test_one_robust_mpc_per_thread_follows_its_trajectory_exactly():
+    """RobustMPC is an AttitudeMPC: one trajectory per thread. Four
+    threads, one RobustMPC each, fly the loop one thread flies alone."""
+    scen = inertia_corners(MODEL.inertia, 0.2)
+    ref = _thread_loop(RobustMPC(MODEL, scen, horizon=8, rti=True))
+    assert np.abs(ref).max() > 1e-2            # the slew is under way
+    mpcs = [RobustMPC(MODEL, scen, horizon=8, rti=True) for _ in range(4)]
+    with ThreadPoolExecutor(4) as pool:
+        runs = list(pool.map(_thread_loop, mpcs))
+    for us in runs:
+        np.testing.assert_allclose(us, ref, rtol=0, atol=1e-12)
+
+
+def test_a_shared_robust_mpc_refuses_other_threads_until_reset():
+    """Four threads on one RobustMPC: the owner's steps go on, the three
+    others are refused (its warm start is the owner's trajectory) until
+    one of them takes it over by reset()."""
+    scen = inertia_corners(MODEL.inertia, 0.2)
+    mpc = RobustMPC(MODEL, scen, horizon=8, rti=True)
+    twin = RobustMPC(MODEL, scen, horizon=8, rti=True)   # never shared
+    x = MODEL.state([1.0, 0.0, 0.0, 0.0])
+    u0 = mpc.step(x, QF).u
+    np.testing.assert_allclose(twin.step(x, QF).u, u0, rtol=0, atol=0)
+    with ThreadPoolExecutor(3) as pool:
+        errors = [f.exception() for f in
+                  [pool.submit(mpc.step, x, QF) for _ in range(3)]]
+    assert all(isinstance(e, ThreadOwnershipError) for e in errors)
+    assert "reset" in str(errors[0])
+    # the refused calls left the owner's warm start alone: its second
+    # step is the twin's
+    x1 = np.array(MODEL.rk4_step(1)(x, u0, np.zeros(3), 0.5)).ravel()
+    u1 = mpc.step(x1, QF).u
+    np.testing.assert_allclose(u1, twin.step(x1, QF).u, rtol=0, atol=1e-12)
+    assert np.abs(u1 - u0).max() > 1e-4        # a warm-started step
+    with ThreadPoolExecutor(1) as pool:
+        pool.submit(mpc.reset).result()        # hand it over
+        u = pool.submit(mpc.step, x, QF).result().u
+    np.testing.assert_allclose(u, u0, rtol=0, atol=1e-12)
+    with pytest.raises(ThreadOwnershipError):
+        mpc.step(x, QF)
