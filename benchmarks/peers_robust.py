@@ -42,6 +42,7 @@ import tempfile
 import time
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -52,6 +53,10 @@ SPREAD = 0.2
 
 #: The exported robust steps timed beside do-mpc.
 C_VARIANTS = ("mpc_robust_rti_step", "mpc_robust_step")
+
+if TYPE_CHECKING:
+    from ocp.codegen.result import ExportResult
+    from ocp.mpc import RobustMPC
 
 
 def scale_sets() -> dict[int, np.ndarray]:
@@ -176,7 +181,7 @@ def do_mpc_median(scenarios: int = 9, steps: int = 20) -> float:
     return statistics.median(_do_mpc_loop(scenarios, steps)["times"])
 
 
-def export_robust(model, n: int, out: str | Path):
+def export_robust(model: Any, n: int, out: str | Path) -> ExportResult:
     """Export and build ``mpc_robust_rti_step`` and ``mpc_robust_step``.
 
     Scenario set ``n`` (9 or 27) of ``model``, horizon 20, dt 0.5 s,
@@ -190,7 +195,8 @@ def export_robust(model, n: int, out: str | Path):
                     mpc_scenarios=our_scenarios(model, n))
 
 
-def c_controller(model, n: int, res, name: str):
+def c_controller(model: Any, n: int, res: ExportResult,
+                 name: str) -> RobustMPC:
     """A RobustMPC over set ``n`` whose step is the exported C ``name``.
 
     The C function is loaded from the built shared library
@@ -211,7 +217,7 @@ def c_controller(model, n: int, res, name: str):
     return mpc
 
 
-def _c_equals_python(res, name: str) -> float:
+def _c_equals_python(res: ExportResult, name: str) -> float:
     """Largest difference of the C ``name`` from its CasADi Function.
 
     On the export's sample input (the slew's first step, cold).
@@ -225,8 +231,8 @@ def _c_equals_python(res, name: str) -> float:
                                ext.call(args)))
 
 
-def _plan_difference(ctl, plans: list[np.ndarray], nx: int, nu: int,
-                     horizon: int) -> float:
+def _plan_difference(ctl: Any, plans: list[np.ndarray], nx: int,
+                     nu: int, horizon: int) -> float:
     """Largest |Δ| between do-mpc's tree and our scenario plans.
 
     ``plans``: our plan per scenario (`RobustMPC.scenario_plans`, the
@@ -249,7 +255,7 @@ def _plan_difference(ctl, plans: list[np.ndarray], nx: int, nu: int,
     return worst
 
 
-def compare_c(n: int, steps: int, out: str | Path) -> dict:
+def compare_c(n: int, steps: int, out: str | Path) -> dict[str, Any]:
     """do-mpc and our exported C on scenario set ``n``, in one run.
 
     Exports and builds the two robust C steps (`export_robust`), runs
