@@ -182,13 +182,37 @@ def _mpc_problem():
     return model, quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
 
 
-def do_mpc_model(model, qf, dt: float = 0.5, horizon: int = 20):
-    """Write the toolbox's MPC problem for do-mpc (the same NLP).
+def do_mpc_controller(model, qf, step, *, dt: float = 0.5,
+                      horizon: int = 20, scales: np.ndarray | None = None):
+    """do-mpc's MPC of the toolbox's problem, with the discrete step ``step``.
 
-    Discrete model by the toolbox's RK4 step; stage cost with the same
-    weights (`MPCWeights`): attitude and rate, wheel momentum and torque;
-    terminal factor on the last attitude and rate terms; the same bounds.
-    do-mpc adds the stage-0 attitude term, a constant (x_0 is fixed).
+    The one do-mpc setup of the peers' benchmarks (`do_mpc_model`,
+    `benchmarks.peers_robust.do_mpc_robust_model`): stage cost with the
+    toolbox's weights (`MPCWeights`: attitude and rate, wheel momentum
+    and torque), the terminal factor on the last attitude and rate
+    terms, the torque box ``|u_i| <= m_max`` [N·m] and the momentum box
+    ``|h_i| <= h_max`` [N·m·s], IPOPT at tol 1e-8. do-mpc adds the
+    stage-0 attitude term, a constant (x_0 is fixed).
+
+    Parameters
+    ----------
+    model : SpacecraftModel
+        The wheeled craft (its ``nx``, ``nu`` and wheels).
+    qf : array_like (4,)
+        Target quaternion (scalar-first).
+    step : callable
+        ``step(x, u) -> x⁺`` (nominal) or ``step(x, u, s) -> x⁺`` with
+        the uncertain parameters ``s`` (``scales`` given); CasADi
+        expressions, one interval of ``dt`` [s].
+    dt : float
+        Sample time [s].
+    horizon : int
+        Stages N.
+    scales : numpy.ndarray (S, k), optional
+        Scenarios of the uncertain parameters: a multi-stage MPC with
+        robust horizon 1 over them (do-mpc's ``n_robust = 1``; set
+        through its parameter template, so any set, not only a Cartesian
+        product, can be given). None: the nominal MPC.
     """
     import casadi as ca
     import do_mpc
@@ -201,7 +225,11 @@ def do_mpc_model(model, qf, dt: float = 0.5, horizon: int = 20):
     m = do_mpc.model.Model("discrete")
     x = m.set_variable("_x", "x", (model.nx, 1))
     u = m.set_variable("_u", "u", (model.nu, 1))
-    m.set_rhs("x", model.rk4_step(1)(x, u, ca.DM.zeros(3), dt))
+    if scales is None:
+        m.set_rhs("x", step(x, u))
+    else:
+        s = m.set_variable("_p", "s", (np.shape(scales)[1], 1))
+        m.set_rhs("x", step(x, u, s))
     qe = quat_mul(quat_conj(qf), x[:4])
     att = w.attitude * ca.sumsqr(qe[1:]) + w.rate * ca.sumsqr(x[4:7])
     m.set_expression("att", att)
@@ -211,6 +239,8 @@ def do_mpc_model(model, qf, dt: float = 0.5, horizon: int = 20):
     mpc = do_mpc.controller.MPC(m)
     mpc.settings.n_horizon = horizon
     mpc.settings.t_step = dt
+    if scales is not None:
+        mpc.settings.n_robust = 1
     mpc.settings.store_full_solution = False
     mpc.settings.nlpsol_opts = {"ipopt.print_level": 0, "print_time": 0,
                                 "ipopt.sb": "yes", "ipopt.tol": 1e-8}
@@ -223,8 +253,27 @@ def do_mpc_model(model, qf, dt: float = 0.5, horizon: int = 20):
     lo[7:], hi[7:] = -np.asarray(wh.h_max), np.asarray(wh.h_max)
     mpc.bounds["lower", "_x", "x"] = lo
     mpc.bounds["upper", "_x", "x"] = hi
+    if scales is not None:
+        template = mpc.get_p_template(len(scales))
+        for i, row in enumerate(scales):
+            template["_p", i] = np.asarray(row, float)
+        mpc.set_p_fun(lambda _t: template)
     mpc.setup()
     return mpc
+
+
+def do_mpc_model(model, qf, dt: float = 0.5, horizon: int = 20):
+    """Write the toolbox's MPC problem for do-mpc (the same NLP).
+
+    Discrete model by the toolbox's RK4 step; costs and bounds of
+    `do_mpc_controller`.
+    """
+    import casadi as ca
+
+    rk4 = model.rk4_step(1)
+    return do_mpc_controller(
+        model, qf, lambda x, u: rk4(x, u, ca.DM.zeros(3), dt), dt=dt,
+        horizon=horizon)
 
 
 def mpc_closed_loops(steps: int = 80) -> list[tuple]:

@@ -23,8 +23,9 @@ from ocp.spacecraft.definition import Spacecraft
 from .condensed import ANDERSON_MEMORY, STEP_TOL, sqp_step_functions
 from .controller import AttitudeMPC
 from .plan import plan_bounds, shift_function
-from .robust_qp import (param_rk4, per_stage, robust_iteration,
-                        scenario_parameters, split_plan)
+from .robust_qp import (param_rk4, per_stage, plan_stages,
+                        robust_iteration, scenario_parameters,
+                        stage_selections)
 from .scenarios import Scenario
 from .stagewise import check_stagewise_options
 from .stagewise_ipm import IPM_MAX_ITER, IPM_TOL
@@ -173,17 +174,14 @@ def _robust_check(mpc: RobustMPC, cost: ca.Function) -> ca.Function:
         / ca.DM(scale[first]),
         ca.fmax(z[first] - ca.DM(mpc.ubz[first]), 0)
         / ca.DM(scale[first]), 0.0))
-    Xall, Uall = split_plan(mpc, z)
-    cols = np.arange((N + 1) * S).reshape(S, N + 1)
-    X, U = Xall[:, list(cols[:, :N].ravel())], Uall[:, list(
-        cols[:, :N].ravel())]
-    X1 = Xall[:, list(cols[:, 1:].ravel())]
+    sel0, sel1, sel_first = stage_selections(N, S, first=True)
+    Xall, _, X, U, X1 = plan_stages(mpc, z, (sel0, sel1))
     tau = ca.repmat(p[nx + 4:], 1, S) + ca.DM(
         np.array([s.tau for s in mpc.scenarios]).T)
     F = param_rk4(mpc).map(N).map(S)(
         X, U, per_stage(tau, N),
         per_stage(ca.DM(scenario_parameters(mpc)), N))
-    x0 = Xall[:, list(cols[:, 0])] - ca.repmat(p[:nx], 1, S)
+    x0 = ca.mtimes(Xall, sel_first) - ca.repmat(p[:nx], 1, S)
     defect = ca.mmax(ca.fabs(ca.vertcat(ca.vec(F - X1), ca.vec(x0))))
     return ca.Function(
         "mpc_robust_check", [z, p], [c, viol, viol1, defect],

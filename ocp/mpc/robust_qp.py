@@ -120,9 +120,7 @@ class _RobustParts:
         self.theta = ca.DM(scenario_parameters(mpc))
         self.tau = ca.DM(np.array([sc.tau for sc in mpc.scenarios]).T)
         # column selections of the (N + 1)·S states: k < N, k ≥ 1
-        cols = np.arange((N + 1) * S).reshape(S, N + 1)
-        self.sel0 = _selection(cols[:, :N].ravel(), (N + 1) * S)
-        self.sel1 = _selection(cols[:, 1:].ravel(), (N + 1) * S)
+        self.sel0, self.sel1 = stage_selections(N, S)
         rows = [i for i in range(self.lay.nbu) for _ in range(1, S)]
         cols_ = [s_ * N for _ in range(self.lay.nbu) for s_ in range(1, S)]
         self.unbox = ca.DM(ca.Sparsity.triplet(self.lay.nb, N * S, rows,
@@ -138,6 +136,38 @@ def _selection(columns: np.ndarray, n: int) -> ca.DM:
     """The (n × len(columns)) 0/1 matrix picking ``columns``."""
     return ca.DM(ca.Sparsity.triplet(n, len(columns), list(columns),
                                      list(range(len(columns)))), 1.0)
+
+
+def stage_selections(N: int, S: int, first: bool = False) -> tuple:
+    """Selections of the stage columns of a robust plan (`split_plan`).
+
+    ``(sel0, sel1)``: the ((N+1)·S × N·S) 0/1 matrices picking, from the
+    (N + 1)·S stage columns of `split_plan` (scenario-major), each
+    scenario's stages k < N and k ≥ 1; ``first`` adds a third, the
+    ((N+1)·S × S) selection of each scenario's stage 0. ``Xall @ sel0``
+    picks, ``dX @ sel1.T`` puts back.
+    """
+    n = (N + 1) * S
+    cols = np.arange(n).reshape(S, N + 1)
+    sels = (_selection(cols[:, :N].ravel(), n),
+            _selection(cols[:, 1:].ravel(), n))
+    return sels + (_selection(cols[:, 0], n),) if first else sels
+
+
+def plan_stages(mpc: Any, z, sels: tuple | None = None) -> tuple:
+    """``(Xall, Uall, X, U, X1)`` of a robust plan ``z``.
+
+    `split_plan`'s stages and, picked by `stage_selections` (or the
+    given ``sels``), the states and controls of the stages k < N (X,
+    U: n_x × N·S, n_u × N·S) and the states of the stages k ≥ 1 (X1),
+    scenario-major: the arguments of a ``f.map(N).map(S)`` over the
+    stages and the states it should reach.
+    """
+    sel0, sel1 = sels if sels is not None else stage_selections(
+        mpc.horizon, len(mpc.scenarios))
+    Xall, Uall = split_plan(mpc, z)
+    return (Xall, Uall, ca.mtimes(Xall, sel0), ca.mtimes(Uall, sel0),
+            ca.mtimes(Xall, sel1))
 
 
 def per_stage(v: Any, N: int) -> Any:
@@ -177,10 +207,7 @@ def _qp_data(mpc: Any, parts: _RobustParts, z, p) -> tuple:
     lay = parts.lay
     qf = p[nx:nx + 4]
     tau = ca.repmat(p[nx + 4:], 1, S) + parts.tau
-    Xall, Uall = split_plan(mpc, z)
-    X = ca.mtimes(Xall, parts.sel0)
-    X1 = ca.mtimes(Xall, parts.sel1)
-    U = ca.mtimes(Uall, parts.sel0)
+    Xall, Uall, X, U, X1 = plan_stages(mpc, z, (parts.sel0, parts.sel1))
     # one column per stage, scenario-major: a (·, S) argument would be
     # tiled by the map, stage k of scenario s getting scenario (sN+k) mod S
     F, An, Bn = parts.lin.map(N).map(S)(X, U, per_stage(tau, N),

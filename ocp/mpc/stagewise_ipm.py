@@ -169,24 +169,31 @@ class Tree:
         rhs = ca.sum2(root_rhs(nu).map(self.S)(Re_s, kff))
         return root_solve(nu)(Lroot, rhs)
 
+    def root_mask(self, nu: int) -> np.ndarray:
+        """(n_u × C) 1 in the columns of the scenarios' first stages.
+
+        In reversed time (the sweeps' order) a scenario's first stage is
+        its last column, ``N - 1`` of each block of N; 0 elsewhere.
+        """
+        mask = np.zeros((nu, self.C))
+        mask[:, self.N - 1::self.N] = 1.0
+        return mask
+
     def with_root(self, kr, v, nu: int) -> ca.MX:
         """The reversed feed-forwards with each first stage's set to v.
 
         With x_0 fixed a first stage applies its feed-forward: v there
         makes every scenario apply the shared control.
         """
-        mask = np.zeros((nu, self.C))
-        mask[:, self.N - 1::self.N] = 1.0
-        M = ca.DM(mask)
+        M = ca.DM(self.root_mask(nu))
         return kr * (1.0 - M) + ca.mtimes(v, ca.DM.ones(1, self.C)) * M
 
     def root_residual(self, rho_r, nu: int) -> ca.MX:
         """The reduced gradients: the root's the sum of the scenarios'
         first stages', the other stages' their own (reversed, n_u × C)."""
-        mask = np.zeros((nu, self.C))
-        mask[:, self.N - 1::self.N] = 1.0
         first = ca.sum2(ca.reshape(rho_r, nu, self.C)[:, self.N - 1::self.N])
-        return ca.vertcat(ca.vec(rho_r * ca.DM(1.0 - mask)), first)
+        return ca.vertcat(ca.vec(rho_r * ca.DM(1.0 - self.root_mask(nu))),
+                          first)
 
 
 def _sweeps(kern: dict, tree: Tree) -> dict:

@@ -3,7 +3,7 @@
 do-mpc (optional, ``pip install do-mpc``) writes the scenario tree over
 the principal-inertia scale factors as one NLP for IPOPT, with its own
 RK4 (`benchmarks.peers_robust`); RobustMPC solved to convergence gives
-the same first command from the same state.
+the same first command from the same state, and the same tree.
 """
 
 import warnings
@@ -14,8 +14,9 @@ import pytest
 pytest.importorskip("do_mpc", reason="do-mpc is a peer, not a dependency")
 
 from benchmarks.peers import _mpc_problem  # noqa: E402
-from benchmarks.peers_robust import (do_mpc_robust_model,  # noqa: E402
-                                     our_scenarios, scale_sets)
+from benchmarks.peers_robust import (_plan_difference,  # noqa: E402
+                                     do_mpc_robust_model, our_scenarios,
+                                     scale_sets)
 from ocp.mpc import RobustMPC  # noqa: E402
 
 
@@ -35,6 +36,15 @@ def test_do_mpc_multi_stage_gives_robust_mpc_s_first_command():
     ctl.x0 = x
     ctl.set_initial_guess()
     u_do = np.asarray(ctl.make_step(x)).ravel()
-    u = RobustMPC(model, our_scenarios(model, 9), rti=False).step(x, qf).u
-    np.testing.assert_allclose(u, u_do, rtol=0, atol=1e-5)
-    assert np.abs(u).max() > 1e-3
+    mpc = RobustMPC(model, our_scenarios(model, 9), rti=False)
+    step = mpc.step(x, qf)
+    np.testing.assert_allclose(step.u, u_do, rtol=0, atol=1e-5)
+    assert np.abs(step.u).max() > 1e-3
+    # the whole tree: every scenario's states and commands (do-mpc's
+    # branch b is our scenario b)
+    d = _plan_difference(ctl, mpc.scenario_plans(step.plan), model.nx,
+                         model.nu, 20)
+    assert d < 1e-4
+    # a mismatched order would be far off
+    plans = mpc.scenario_plans(step.plan)
+    assert _plan_difference(ctl, plans[::-1], model.nx, model.nu, 20) > 1e-2
