@@ -46,6 +46,7 @@ from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_finite_scalar, check_positive
 from .acceleration import anderson_function
 from .condensed_qp import ROW_TOL, kkt_residual, routed_qp
+from .plan import nan_unless_finite
 from .problem import momentum_residual, pointing_residuals
 from .riccati import (adjoint, closed_loop, factor_rows, factors,
                       riccati_kernels)
@@ -418,8 +419,9 @@ def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
     us0 = mpc._us[0]
 
     def outputs(z, lx, n, kkt):
+        # a NaN plan's certificate is NaN (its check's figures are too)
         return [z[us0], z, lx, ca.MX.zeros(ng),
-                *mpc.check_function(z, p), n, kkt]
+                *mpc.check_function(z, p), n, *nan_unless_finite(z, kkt)]
 
     z1, lx1, _, kkt1 = it(z0, lx0, p)
     rti = ca.Function(prefix + "_rti", ins, outputs(z1, lx1, 1.0, kkt1),

@@ -7,6 +7,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from .plan import nan_unless_finite
 from .problem import BOUND_TOL, QP_KKT_TOL
 
 
@@ -31,7 +32,8 @@ def build_nlp_step(self: Any, x_par, qf, tau, p) -> None:
               "first_violation", "defect", "qp_kkt"])
     # RTI: the one SQP step's QP point, certified (a converged SQP's
     # last step is its QP's point too)
-    kkt = self.qp_kkt_function(sh[0], zo, lxo, lgo, p)
+    kkt, = nan_unless_finite(zo, self.qp_kkt_function(sh[0], zo, lxo, lgo,
+                                                      p))
     #: ``step_function`` without the RTI fallback: what `step` calls
     #: (through a bound buffer) with ``rti=True``.
     self.rti_function = ca.Function(
@@ -53,12 +55,13 @@ def build_nlp_step(self: Any, x_par, qf, tau, p) -> None:
         pick = ca.Function.if_else("mpc_pick", full, keep)
         # the step is not its QP's solution, or leaves a bound: the
         # full SQP from the same warm start
-        bad = ca.logic_or(self.check_function(zo, p)[2] > BOUND_TOL,
-                          ca.logic_not(kkt <= QP_KKT_TOL))
+        bad = ca.logic_not(ca.logic_and(
+            self.check_function(zo, p)[2] <= BOUND_TOL, kkt <= QP_KKT_TOL))
         zo, lxo, lgo = pick(bad, sh[0], sh[1], sh[2], p, zo, lxo, lgo)
         # the full SQP's plan is not one QP step from the warm start
         kkt = ca.if_else(bad, np.nan, kkt)
     chk = self.check_function(zo, p)
+    kkt, = nan_unless_finite(zo, kkt)
     self.step_function = ca.Function(
         "mpc_step",
         [x_par, qf, tau, z_prev, lam_x_prev, lam_g_prev],

@@ -30,13 +30,26 @@ def shift_function(nx: int, nu: int, nz: int, ng: int) -> ca.Function:
         ["z0", "lam_x0", "lam_g0"])
 
 
+def nan_unless_finite(z: ca.MX, *values: ca.MX) -> list[ca.MX]:
+    """``values``, or NaN each when ``z`` holds a NaN or an infinity.
+
+    A plan's figures (violations, defect, certificate) are maxima, and
+    ``fmax``/``mmax`` skip NaN: without this a NaN plan would report a
+    violation of 0 (a check ``violation <= tol`` must then fail, also in
+    generated C, where nothing raises).
+    """
+    finite = ca.mmin(ca.fabs(z) < np.inf)
+    return [ca.if_else(finite, v, np.nan) for v in values]
+
+
 def check_function(mpc: Any, p: ca.MX) -> ca.Function:
     """``check(z, p) -> (cost, violation, first_violation, defect)``.
 
     ``mpc`` is the `AttitudeMPC` (its bounds, their scale, the residuals);
     the violations are scaled by each bound [1], ``first_violation`` over
     the applied command and the state after it; ``defect`` is the largest
-    dynamics defect of the plan [state units].
+    dynamics defect of the plan [state units]. A plan with a NaN or an
+    infinity has NaN violations and defect (`nan_unless_finite`).
     """
     nz, scale = mpc.nz, mpc._bound_scale
     zs = ca.MX.sym("z", nz)
@@ -51,6 +64,8 @@ def check_function(mpc: Any, p: ca.MX) -> ca.Function:
         ca.fmax(zs[first] - ca.DM(mpc.ubz[first]), 0)
         / ca.DM(scale[first]), 0.0))
     defect = ca.mmax(ca.fabs(gs))
+    viol, viol_first, defect = nan_unless_finite(zs, viol, viol_first,
+                                                 defect)
     return ca.Function(
         "mpc_check", [zs, p], [cost, viol, viol_first, defect],
         ["z", "p"], ["cost", "violation", "first_violation", "defect"])

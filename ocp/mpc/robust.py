@@ -22,7 +22,7 @@ from ocp.models.rigid import SpacecraftModel
 from ocp.spacecraft.definition import Spacecraft
 from .condensed import ANDERSON_MEMORY, STEP_TOL, sqp_step_functions
 from .controller import AttitudeMPC
-from .plan import plan_bounds, shift_function
+from .plan import nan_unless_finite, plan_bounds, shift_function
 from .robust_qp import (param_rk4, per_stage, plan_stages,
                         robust_iteration, scenario_parameters,
                         stage_selections)
@@ -153,7 +153,8 @@ def _robust_check(mpc: RobustMPC, cost: ca.Function) -> ca.Function:
     Over every scenario: the weighted cost; the bounds' violation scaled
     by each bound; the applied command's and each scenario's x_1; the
     largest defect of each scenario's dynamics (its own inertia, axes and
-    disturbance) [state units].
+    disturbance) [state units]; NaN when the plan is not finite
+    (`plan.nan_unless_finite`).
     """
     nz, scale, S = mpc.nz, mpc._bound_scale, len(mpc.scenarios)
     nx, N = mpc.model.nx, mpc.horizon
@@ -183,6 +184,7 @@ def _robust_check(mpc: RobustMPC, cost: ca.Function) -> ca.Function:
         per_stage(ca.DM(scenario_parameters(mpc)), N))
     x0 = ca.mtimes(Xall, sel_first) - ca.repmat(p[:nx], 1, S)
     defect = ca.mmax(ca.fabs(ca.vertcat(ca.vec(F - X1), ca.vec(x0))))
+    viol, viol1, defect = nan_unless_finite(z, viol, viol1, defect)
     return ca.Function(
         "mpc_robust_check", [z, p], [c, viol, viol1, defect],
         ["z", "p"], ["cost", "violation", "first_violation", "defect"])
