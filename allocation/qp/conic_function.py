@@ -131,9 +131,9 @@ def conic_allocator_function(array: WheelArray,
         violation). Called from Python with numbers, it refuses NaN, inf
         or a wrong shape (`InvalidValueError` / `ShapeError`); through a
         buffer, ``call``, ``map`` or generated C (which cannot raise), NaN
-        or inf in ``M`` or ``h`` give NaN torques and a NaN
-        ``violation``: that output is the status, and ``violation <= tol``
-        is then false.
+        or inf in ``M`` or ``h`` give a NaN ``violation`` (and NaN in
+        ``M`` NaN torques): that output is the status, and
+        ``violation <= tol`` is then false.
     """
     check_instance(array, WheelArray, "array")
     array.require_full_rank()
@@ -144,60 +144,49 @@ def conic_allocator_function(array: WheelArray,
     V = np.ones(n) if weights is None else as_vector(weights, n, "weights")
     check_positive(V, "weights")
     A = array.working_axes
-    active = array.active.astype(float)
     nullity = int(array.active.sum()) - 3
     closed = wheel_qp_method(array, fast_path) == "closed form"
     normals = facet_normals(A[:, array.active])
-    NA = np.abs(normals @ A)
 
-    # SX for the closed form, MX around a conic call (either: Any)
-    sym: Any = ca.SX if closed else ca.MX
-    M = sym.sym("M", 3)
+    # the bounds, the scale and the check in SX (scalar arithmetic); the
+    # conic, when one is needed, in MX around them
+    M = ca.SX.sym("M", 3)
     inputs, names = [M], ["M"]
-    m_max = ca.DM(array.m_max)
-    lo, hi = -m_max, m_max
+    h = None
     if dt is not None:
         dt = as_finite_scalar(dt, "dt")
         if dt <= 0:
             raise InvalidValueError(f"dt must be positive, got {dt}")
-        h = sym.sym("h", n)
+        h = ca.SX.sym("h", n)
         inputs.append(h)
         names.append("h")
-        h_max = ca.DM(array.h_max)
-        lo = ca.fmax(lo, (-h_max - h) / dt)
-        hi = ca.fmin(hi, (h_max - h) / dt)
-        back = -ca.sign(h) * m_max
-        over = lo > hi
-        lo = ca.if_else(over, back, lo)
-        hi = ca.if_else(over, back, hi)
-    lo = lo * ca.DM(active)
-    hi = hi * ca.DM(active)
-
-    center = ca.DM(A) @ ((lo + hi) / 2)
-    d = ca.DM(normals) @ center + ca.DM(NA) @ ((hi - lo) / 2)
-    s = ca.DM(normals) @ M
-    ratio = ca.if_else(s > 1e-15, d / s, ca.inf)
-    alpha = ca.fmax(ca.fmin(1.0, ca.mmin(ratio)), 0.0)
-    alpha = ca.if_else(alpha < 1.0, alpha * (1.0 - margin), alpha)
+    lo, hi = _torque_bounds(array, h, dt)
+    alpha = _scale(normals, A, lo, hi, M, margin)
     target = alpha * M
-
-    if fast_path:
-        m0 = ca.DM(weighted_pseudo_inverse(array, V)) @ target
+    P = ca.DM(weighted_pseudo_inverse(array, V))
     if closed:
-        m = m0
+        m = P @ target
         if nullity == 1:
-            m = m0 + _segment_step(_null_direction(array), m0, lo, hi)
-    else:
-        m = _conic_call(name, plugin, plugin_options, n, V, A, target, lo,
-                        hi)
-        if fast_path:
-            inside = ca.mmax(ca.vertcat(lo - m0, m0 - hi)) <= 0.0
-            m = ca.if_else(inside, m0, m, True)
-    # NaN or inf anywhere in or out makes the violation NaN (a check
-    # `violation <= tol` then fails): mmax alone skips NaN (even to -inf)
-    finite = ca.mmin(ca.fabs(ca.vertcat(m, *inputs)) < np.inf)
-    violation = ca.if_else(finite, ca.mmax(ca.vertcat(
-        ca.fabs(ca.DM(A) @ m - target), lo - m, m - hi)), np.nan)
+            m = _segment_step(_null_direction(array), m, lo, hi)
+        violation = _violation(A, m, target, lo, hi, inputs)
+        return WheelQPFunction(ca.Function(
+            name, inputs, [m, alpha, violation], names,
+            ["m", "alpha", "violation"]))
+    m_s, t_s = ca.SX.sym("m", n), ca.SX.sym("t", 3)
+    scale = ca.Function(f"{name}_scale", inputs,
+                        [ca.vertcat(*lo), ca.vertcat(*hi), alpha])
+    check = ca.Function(f"{name}_check", [m_s, t_s, *inputs],
+                        [_violation(A, m_s, t_s, lo, hi, inputs)])
+    inputs = [ca.MX.sym(k, x.sparsity()) for k, x in zip(names, inputs)]
+    lo_v, hi_v, alpha = scale(*inputs)
+    target = alpha * inputs[0]
+    m = _conic_call(name, plugin, plugin_options, n, V, A, target, lo_v,
+                    hi_v)
+    if fast_path:
+        m0 = P @ target
+        inside = ca.mmax(ca.vertcat(lo_v - m0, m0 - hi_v)) <= 0.0
+        m = ca.if_else(inside, m0, m, True)
+    violation = check(m, target, *inputs)
     return WheelQPFunction(ca.Function(name, inputs, [m, alpha, violation],
                                        names, ["m", "alpha", "violation"]))
 
@@ -225,24 +214,179 @@ class WheelQPFunction(ca.Function):
         return super().__call__(*args, **kwargs)
 
 
-def _segment_step(direction: np.ndarray, m0, lo, hi):
-    """``s n`` with ``s`` = 0 clamped to ``{s : lo <= m0 + s n <= hi}``.
+def _dot(coeffs: np.ndarray, xs: list) -> Any:
+    """``Σ c_i x_i`` over the non-zero constants ``c_i`` (0 if none)."""
+    out: Any = None
+    for c, x in zip(coeffs, xs):
+        if c != 0.0:
+            term = x if c == 1.0 else (-x if c == -1.0 else float(c) * x)
+            out = term if out is None else out + term
+    return 0.0 if out is None else out
 
-    ``direction`` (N,) is constant; wheels with ``n_i`` = 0 do not bound
-    ``s`` (their torque is fixed by the equality).
+
+def _lesser(a: Any, b: Any) -> Any:
+    """``min(a, b)`` as one comparison and a select.
+
+    For operands that are never NaN where the result matters (the ratios
+    of the scale, the segment's ends, the violation's terms: a NaN there
+    comes from NaN or inf in ``M`` or ``h``, which make the torques or
+    the violation NaN anyway), or for a NaN ``b`` only: the result is
+    then ``a``, as C99 ``fmin`` gives (the torque bounds). In C it is
+    about 5 instructions, against 9 for ``fmin``'s NaN rules
+    (`ocp.codegen.patches.patch_minmax`).
     """
-    tol = 1e-12 * float(np.abs(direction).max())
-    s_lo, s_hi = [], []
-    for i, ni in enumerate(direction):
-        if abs(ni) <= tol:
+    return ca.if_else(b < a, b, a)
+
+
+def _greater(a: Any, b: Any) -> Any:
+    """``max(a, b)`` as one comparison and a select (see `_lesser`)."""
+    return ca.if_else(b > a, b, a)
+
+
+def _torque_bounds(array: WheelArray, h: Any, dt: float | None
+                   ) -> tuple[list, list]:
+    """Per-wheel torque bounds ``lo``, ``hi`` [N·m] (lists of N scalars).
+
+    As `allocation.qp.problem.torque_bounds`: ``|m_i| <= m_max_i`` and,
+    with ``h`` (wheel momenta [N·m·s]) and ``dt`` [s], ``|h_i + m_i dt|
+    <= h_max_i``; failed wheels at 0. A wheel beyond ``h_max`` by more
+    than one step of torque gets ``lo = hi = -sign(h_i) m_max_i``: that
+    is the momentum bound clamped to ``[-m_max, m_max]`` (the bound whose
+    interval is empty lies beyond ``m_max`` on the side of ``-h``), so
+    four minima/maxima per wheel give the numpy law's bounds bit for bit.
+    NaN in ``h_i`` gives ``±m_max``, as C99 ``fmax``/``fmin`` would (the
+    NaN operand is the compared one, so the select keeps the constant;
+    the violation reports the NaN).
+    """
+    lo, hi = [], []
+    for i in range(array.n_wheels):
+        mx = float(array.m_max[i]) if array.active[i] else 0.0
+        if dt is None or mx == 0.0:
+            lo.append(-mx)
+            hi.append(mx)
             continue
-        a = (lo[i] - m0[i]) / ni
-        b = (hi[i] - m0[i]) / ni
-        s_lo.append(a if ni > 0 else b)
-        s_hi.append(b if ni > 0 else a)
-    step = ca.fmin(ca.fmax(0.0, ca.mmax(ca.vertcat(*s_lo))),
-                   ca.mmin(ca.vertcat(*s_hi)))
-    return step * ca.DM(direction)
+        hx = float(array.h_max[i])
+        lo.append(_lesser(_greater(-mx, (-hx - h[i]) / dt), mx))
+        hi.append(_greater(_lesser(mx, (hx - h[i]) / dt), -mx))
+    return lo, hi
+
+
+def _facet_pairs(normals: np.ndarray) -> tuple[list[int], list[int]]:
+    """Rows of ``normals`` one per ``±n`` pair (exact negation), and the
+    rows without a partner."""
+    pairs, singles, used = [], [], set()
+    for k, row in enumerate(normals):
+        if k in used:
+            continue
+        partner = [j for j in range(k + 1, len(normals)) if j not in used
+                   and np.array_equal(normals[j], -row)]
+        used.add(k)
+        if partner:
+            used.add(partner[0])
+            pairs.append(k)
+        else:
+            singles.append(k)
+    return pairs, singles
+
+
+def _scale(normals: np.ndarray, A: np.ndarray, lo: list, hi: list, M: Any,
+           margin: float) -> Any:
+    """The largest ``α`` in [0, 1] with ``α M`` attainable, times
+    ``1 - margin`` when below 1.
+
+    Facet ``k`` (unit normal ``n``, ``b = n A``) bounds ``α n·M <= d``
+    with ``d = Σ_i max(b_i lo_i, b_i hi_i)`` [N·m] (the support of the
+    zonotope: centre and half-widths folded in), counted where
+    ``n·M > 1e-15``. The normals come in ``±n`` pairs: one ``n·M`` and
+    one set of products ``b_i lo_i``, ``b_i hi_i`` serve both, and only
+    the one facet of a pair that faces ``M`` costs a division.
+    """
+    B = normals @ A
+    Ms = [M[j] for j in range(3)]
+    pairs, singles = _facet_pairs(normals)
+    alpha: Any = 1.0
+    for k in pairs + singles:
+        b = B[k]
+        s = _dot(normals[k], Ms)
+        up = [hi[i] if b[i] > 0 else lo[i] for i in range(len(b))]
+        down = [lo[i] if b[i] > 0 else hi[i] for i in range(len(b))]
+        d_plus = _dot(b, up)
+        if k in singles:
+            t, d_sel = s, d_plus
+        else:
+            t = ca.fabs(s)
+            d_sel = ca.if_else(s > 0, d_plus, -_dot(b, down))
+        # min(α, d/t) over the facets with t > 1e-15 (the others bound
+        # nothing): one select, the guard and the comparison joined
+        ratio = d_sel / t
+        alpha = ca.if_else(ca.logic_and(t > 1e-15, ratio < alpha), ratio,
+                           alpha)
+    alpha = _greater(alpha, 0.0)
+    return alpha * ca.if_else(alpha < 1.0, 1.0 - margin, 1.0)
+
+
+def _violation(A: np.ndarray, m: Any, target: Any, lo: list, hi: list,
+               inputs: list) -> Any:
+    """The largest violation of ``A m = target`` or of the bounds [N·m];
+    NaN when ``m`` or an input holds NaN or inf.
+
+    A bound's violation is written ``|m_i - c_i| - r_i`` (centre ``c``,
+    half-width ``r``: one maximum per wheel instead of two). The NaN test
+    is one sum: ``Σ`` of those terms and of ``2⁻ᵏ x`` over the inputs
+    (scaled so that finite inputs cannot overflow it; NaN, or infinities
+    of either sign, make it NaN or infinite) is finite exactly when every
+    part is.
+    """
+    terms = [ca.fabs(r) for r in ca.vertsplit(ca.DM(A) @ m - target)]
+    for i in range(len(lo)):
+        c, r = 0.5 * (lo[i] + hi[i]), 0.5 * (hi[i] - lo[i])
+        terms.append(ca.fabs(m[i] - c) - r)
+    values = [x[j] for x in inputs for j in range(x.numel())]
+    scale = 2.0 ** -int(np.ceil(np.log2(len(values) + 2)))
+    total = terms[0]
+    for t in terms[1:]:
+        total = total + t
+    for x in values:
+        total = total + scale * x
+    worst = terms[0]
+    for t in terms[1:]:
+        worst = _greater(worst, t)
+    return ca.if_else(ca.fabs(total) < np.inf, worst, np.nan)
+
+
+def _segment_step(direction: np.ndarray, m0: Any, lo: list, hi: list
+                  ) -> Any:
+    """``m0 + s n`` with ``s`` = 0 clamped to ``{s : lo <= m0 + s n <= hi}``.
+
+    ``direction`` (N,) spans the null space of the working axes; it is
+    scaled to a largest entry of 1, and entries within 1e-14 of ±1 are
+    taken as ±1 (the pyramid's null vector is exactly ``(±1, …)``:
+    subtractions instead of products). Wheels with ``n_i`` = 0 do not
+    bound ``s`` (their torque is fixed by the equality). ``m0``: the
+    minimum-norm torques (N,) [N·m]; ``lo``, ``hi``: lists of N bounds
+    [N·m]. Returns the torques (N,) [N·m].
+    """
+    n = direction / float(np.abs(direction).max())
+    n = np.where(np.abs(np.abs(n) - 1.0) <= 1e-14, np.sign(n), n)
+    step: Any = 0.0
+    s_hi: Any = None
+    for i, ni in enumerate(n):
+        if abs(ni) <= 1e-12:
+            continue
+        if abs(ni) == 1.0:
+            a, b = lo[i] - m0[i], hi[i] - m0[i]
+            low, high = (a, b) if ni > 0 else (-b, -a)
+        else:
+            inv = 1.0 / float(ni)
+            a, b = (lo[i] - m0[i]) * inv, (hi[i] - m0[i]) * inv
+            low, high = (a, b) if ni > 0 else (b, a)
+        step = _greater(step, low)
+        s_hi = high if s_hi is None else _lesser(s_hi, high)
+    step = _lesser(step, s_hi)
+    return ca.vertcat(*[
+        m0[i] if abs(ni) <= 1e-12 else m0[i] + step if ni == 1.0
+        else m0[i] - step if ni == -1.0 else m0[i] + step * float(ni)
+        for i, ni in enumerate(n)])
 
 
 def _conic_call(name: str, plugin: str, plugin_options: dict | None,

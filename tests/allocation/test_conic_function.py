@@ -110,3 +110,46 @@ def test_fast_path_equals_conic_qp(plugin, n_wheels, failed):
         assert a[2][0] < 1e-12
         kinds["saturated" if a[1][0] < 1.0 else "interior"] += 1
     assert min(kinds.values()) > 20
+
+
+def test_closed_form_bounds_are_the_numpy_laws_bit_for_bit():
+    """The momentum bound clamped to ±m_max is `torque_bounds` exactly,
+    wheels driven back past h_max and a failed wheel included."""
+    from allocation.qp.conic_function import _torque_bounds
+    from allocation.qp.problem import torque_bounds
+
+    arr = _array().with_failed(1)
+    h = ca.SX.sym("h", 4)
+    lo, hi = _torque_bounds(arr, h, 0.5)
+    f = ca.Function("b", [h], [ca.vertcat(*lo), ca.vertcat(*hi)])
+    driven_back = 0
+    for k in range(300):
+        hk = RNG.uniform(-4.2, 4.2, 4)
+        if k % 3 == 0:
+            hk[k % 4] = (4.0 + 0.1 * 0.5 + 1e-3) * (-1) ** k
+        ref_lo, ref_hi, over = torque_bounds(arr, hk, 0.5)
+        got_lo, got_hi = (x.full().ravel() for x in f(hk))
+        np.testing.assert_array_equal(got_lo, ref_lo)
+        np.testing.assert_array_equal(got_hi, ref_hi)
+        driven_back += int(over.sum())
+    assert driven_back > 50
+
+
+def test_facets_pair_up_and_the_violation_flags_only_nonfinite_input():
+    from allocation.qp.conic_function import _facet_pairs
+    from allocation.qp.problem import facet_normals
+
+    pairs, singles = _facet_pairs(facet_normals(_array().axes))
+    assert (len(pairs), singles) == (6, [])
+    f = conic_allocator_function(_array(), dt=0.5)
+    M, h = np.array([0.01, -0.02, 0.005]), np.array([1.0, -2.0, 0.5, 3.0])
+    for i in range(7):
+        for bad in (np.nan, np.inf, -np.inf):
+            x = np.r_[M, h]
+            x[i] = bad
+            assert np.isnan(float(f.call([x[:3], x[3:]])[2]))
+    # huge but finite input: a scaled sum, no overflow to a false NaN
+    m, alpha, viol = f.call([np.array([1e308, -1e308, 1e308]),
+                             np.array([1e308, -1e308, 1e308, -1e308])])
+    assert 0.0 <= float(viol) < 1e-12
+    assert float(alpha) < 1e-300 and np.abs(m.full()).max() <= 0.2

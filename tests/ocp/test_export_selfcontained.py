@@ -5,7 +5,9 @@ Issue #28 items 1-2: every solver source travels in the export folder
 paths, the folder builds with a C compiler and libm alone (make or
 CMake, -Wall -Wextra -Werror), and no exported function reaches malloc,
 calloc, realloc or free (checked on the objects' symbol tables and by a
-driver linked against a heap that aborts).
+driver linked against a heap that aborts): the condensed steps with
+DAQP, and the stage-wise and robust steps (host, and the Cortex-M7's
+symbols).
 """
 
 import os
@@ -27,6 +29,7 @@ from ocp.codegen.daqp_static import (
     vendored_daqp,
 )
 from ocp.codegen.export import daqp_available, export_c
+from ocp.codegen.target import toolchain_missing
 from thrusters import six_thruster_unit
 
 pytestmark = [
@@ -140,25 +143,38 @@ def test_the_folder_builds_alone_warning_free_and_runs(built):
     assert all("flag=0" in ln for ln in times if "flag=" in ln)
 
 
-def test_no_exported_function_reaches_the_heap(built):
-    """Symbol tables: no allocator; a driver linked to a trapping heap."""
-    dst, _ = built
-    nm = subprocess.run(["nm", "-u", *map(str, _objects(dst))],
-                        capture_output=True, text=True, check=True).stdout
-    undefined = {ln.split()[-1] for ln in nm.splitlines()
-                 if ln.strip() and not ln.endswith(":")}
-    assert undefined & set(HEAP) == set(), undefined & set(HEAP)
-    assert "sqrt" in undefined          # nm did read the objects
+def _undefined(objects: list[Path], nm: str = "nm") -> set[str]:
+    """Symbols the objects use but do not define (``nm -u``)."""
+    out = subprocess.run([nm, "-u", *map(str, objects)],
+                         capture_output=True, text=True, check=True).stdout
+    return {ln.split()[-1] for ln in out.splitlines()
+            if ln.strip() and not ln.endswith(":")}
+
+
+def _driver_on_a_trapping_heap(dst: Path, objects: list[Path]
+                               ) -> subprocess.CompletedProcess:
+    """The folder's driver linked to `TRAP_HEAP`, run; asserts it ran
+    through without a heap call."""
     (dst / "trap_heap.c").write_text(TRAP_HEAP)
     subprocess.run(["cc", "-O2", "-std=c99", "-c", "-o", "main_trap.o",
                     "main.c"], cwd=dst, env=SYSTEM_ENV, check=True)
     link = ["cc", "-o", "driver_trap", "trap_heap.c", "main_trap.o",
-            *[str(p.relative_to(dst)) for p in _objects(dst)], "-lm"]
+            *[str(p.relative_to(dst)) for p in objects], "-lm"]
     subprocess.run(link, cwd=dst, env=SYSTEM_ENV, check=True)
     drv = subprocess.run(["./driver_trap"], cwd=dst, env=SYSTEM_ENV,
                          capture_output=True, text=True, timeout=300)
     assert drv.returncode == 0, drv.stderr[-2000:]
     assert "heap trap" not in drv.stderr
+    return drv
+
+
+def test_no_exported_function_reaches_the_heap(built):
+    """Symbol tables: no allocator; a driver linked to a trapping heap."""
+    dst, _ = built
+    undefined = _undefined(_objects(dst))
+    assert undefined & set(HEAP) == set(), undefined & set(HEAP)
+    assert "sqrt" in undefined          # nm did read the objects
+    drv = _driver_on_a_trapping_heap(dst, _objects(dst))
     assert drv.stdout.count("TIME ") >= 10
     # the trap springs: a call of malloc from the same objects aborts
     (dst / "uses_heap.c").write_text(
@@ -169,6 +185,62 @@ def test_no_exported_function_reaches_the_heap(built):
     bad = subprocess.run(["./uses_heap"], cwd=dst, capture_output=True,
                          text=True, timeout=60)
     assert bad.returncode != 0 and "heap trap: malloc" in bad.stderr
+
+
+#: The stage-wise and robust MPC steps (their own runtimes: the Riccati
+#: interior point with its polish, the scenario tree of 9 plants) at the
+#: smallest horizon, 2, whose code is the horizon-20 code with shorter
+#: loops: 1.7 MB of C, a few seconds to build at -O1.
+SW_ROBUST = ("mpc_sw_step", "mpc_sw_rti_step", "mpc_robust_rti_step")
+
+
+def _sw_robust_export(out: Path, **kw):
+    return export_c(out, wheels=WheelArray.pyramid(h_max=0.2, m_max=0.05),
+                    horizon=2, mpc_variants=SW_ROBUST, repeats=5, **kw)
+
+
+def test_stagewise_and_robust_steps_never_reach_the_heap(tmp_path):
+    """The stage-wise and robust exports (host build, the folder copied
+    elsewhere): no allocator in the symbol table, and the driver, linked
+    to a heap that aborts, flies each step's 86-step closed loop to its
+    target with every call returning 0."""
+    res = _sw_robust_export(tmp_path / "adcs-c")
+    dst = tmp_path / "copy"
+    shutil.copytree(res.out_dir, dst)
+    run = subprocess.run(["make", "-j2", "adcs_codegen.o",
+                          "CFLAGS=-O1 -std=c99"], cwd=dst, env=SYSTEM_ENV,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    objects = [dst / "adcs_codegen.o"]
+    undefined = _undefined(objects)
+    assert undefined & set(HEAP) == set(), undefined & set(HEAP)
+    assert "sqrt" in undefined          # nm did read the object
+    drv = _driver_on_a_trapping_heap(dst, objects)
+    loops = {ln.split()[1]: ln for ln in drv.stdout.splitlines()
+             if ln.startswith("LOOP ")}
+    for name in SW_ROBUST:
+        line = loops[f"closed_loop:{name}"]
+        assert "steps=86" in line and " flag=0 " in line, line
+        assert line.endswith(" ok=1"), line
+
+
+@pytest.mark.skipif(toolchain_missing() is not None,
+                    reason=str(toolchain_missing()))
+def test_stagewise_and_robust_steps_have_no_heap_on_the_m7(tmp_path):
+    """The same steps cross-compiled for the Cortex-M7 (-O3): no
+    allocator in the object's symbol table, nor among the library calls
+    of any function linked alone (the memory report)."""
+    res = _sw_robust_export(tmp_path / "m7", target="cortex-m7",
+                            build=True)
+    obj = res.out_dir / "adcs_codegen_cortex-m7.o"
+    undefined = _undefined([obj], "arm-none-eabi-nm")
+    assert undefined & set(HEAP) == set(), undefined & set(HEAP)
+    assert "sqrt" in undefined
+    functions = res.extras["memory"]["functions"]
+    for name in SW_ROBUST:
+        rec = functions[name]
+        assert rec["heap"] is False and rec["flash"] > 100_000, (name, rec)
+        assert not set(rec["library_calls"]) & set(HEAP), rec
 
 
 @pytest.mark.skipif(shutil.which("cmake") is None, reason="needs cmake")
