@@ -1,8 +1,10 @@
 """Sphinx configuration: the pages, the notebooks and the API reference."""
 
+import json
 import os
 import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 from adcs.provenance import version as _version
@@ -11,6 +13,14 @@ os.environ.setdefault("ADCS_NOTEBOOK_SMALL", "1")
 # the kernels draw inline so that the pages carry the figures (CI exports
 # MPLBACKEND=Agg, which would draw nothing)
 os.environ["MPLBACKEND"] = "module://matplotlib_inline.backend_inline"
+# a quiet build log: each notebook's kernel would warn that its local TCP
+# transport is not encrypted (the build's own kernels, on this machine);
+# a private IPython directory (outside the tree) sets their log level
+_ipython = Path(tempfile.mkdtemp(prefix="adcs-docs-ipython-"))
+(_ipython / "profile_default").mkdir()
+(_ipython / "profile_default" / "ipython_kernel_config.json").write_text(
+    json.dumps({"IPKernelApp": {"log_level": "ERROR"}}))
+os.environ["IPYTHONDIR"] = str(_ipython)
 # the notebooks live at the top of the repository: copy them in. Their
 # links to the pages are written for the repository (notebooks/ ->
 # ../docs/x.md); in the copy, docs/notebooks/, the page is ../x.md

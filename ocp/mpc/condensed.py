@@ -108,7 +108,6 @@ def _kernels(mpc: Any) -> dict[str, ca.Function]:
     Qs = ca.SX.sym("Q", Q.sparsity())
     As = ca.SX.sym("A", A.sparsity())
     Bs = ca.SX.sym("B", B.sparsity())
-    du = ca.SX.sym("du", nu)
     e = ca.SX.sym("e", nx)
     d = ca.SX.sym("d", nx)
     lam = ca.SX.sym("lam", nx)
@@ -120,9 +119,6 @@ def _kernels(mpc: Any) -> dict[str, ca.Function]:
         "gbw": ca.Function("cond_gbw", [Qs, e, q, As, lam],
                            [ca.mtimes(Qs, e) + q + ca.mtimes(As.T, lam)]),
         "bt": ca.Function("cond_bt", [Bs, lam], [ca.mtimes(Bs.T, lam)]),
-        # the expansion: δx_{k+1} = A δx + B δu + d
-        "xfw": ca.Function("cond_xfw", [As, Bs, e, du, d],
-                           [ca.mtimes(As, e) + ca.mtimes(Bs, du) + d]),
     }
 
 
@@ -146,7 +142,7 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     m_max = np.asarray(wh.m_max, dtype=float)
     A, B, d, Q, e, g = _stages(mpc, kern, z, qf, tau)
     rate_rows = mpc.rate_max is not None
-    rk, K, Acl, Lit = _riccati(mpc, kern, A, B, Q)
+    rk, K, Lit = _riccati(mpc, kern, A, B, Q)
     h_max = np.asarray(wh.h_max, dtype=float)
     h_now = ca.vertcat(*[z[xs[k]][7:] + e[k][7:] for k in range(1, N + 1)])
     lba, uba = [-np.tile(h_max, N) - h_now], [np.tile(h_max, N) - h_now]
@@ -165,20 +161,22 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     gy = adjoint(rk, A, B, K, Lit, g)
     du0, dx0 = closed_loop(rk, A, B, K, Lit, -gy)
     rows0 = _rows_of(dx0, rate_rows)
-    qp_in = [ca.horzcat(*A), ca.horzcat(*B), ca.horzcat(*K),
-             ca.horzcat(*Acl), ca.horzcat(*Lit), gy, du0, rows0,
-             np.tile(u_lo, N) - u_bar, np.tile(u_hi, N) - u_bar,
-             ca.vertcat(*lba), ca.vertcat(*uba),
-             ca.vertcat(*[lx0[us[k]] for k in range(N)]), ca.vertcat(*lam_a0)]
-    lbu, ubu, lba_, uba_ = qp_in[8:12]
-    inside = ca.mmax(ca.vertcat(du0 - ubu, lbu - du0, rows0 - uba_,
-                                lba_ - rows0)) <= 0
+    lbu, ubu = np.tile(u_lo, N) - u_bar, np.tile(u_hi, N) - u_bar
+    lba_, uba_ = ca.vertcat(*lba), ca.vertcat(*uba)
+    excess = ca.mmax(ca.vertcat(du0 - ubu, lbu - du0, rows0 - uba_,
+                                lba_ - rows0))
+    inside = excess <= 0
+    # the stages' matrices enter one by one (no copies into one matrix
+    # on the unconstrained path; `_QP_TAIL` names the rest)
+    qp_in = [*A, *B, *K, *Lit, *dx0, gy, du0, rows0, lbu, ubu, lba_, uba_,
+             ca.vertcat(*[lx0[us[k]] for k in range(N)]), ca.vertcat(*lam_a0),
+             excess]
     qp = ca.Function.if_else(
-        "cond_qp_first", _free_qp(qp_in),
+        "cond_qp_first", _free_qp(qp_in, N),
         _constrained_qp(rk, qp_in, plugin, (N, nu, nw), rate_rows, qp_tols))
-    du, lam_u, lam_a, kkt = qp(inside, *qp_in)
-    parts, lam_parts = _expand(kern, z, xs, us, A, B, d, du, lam_u, lam_a,
-                               nw, rate_rows)
+    du, dx, lam_u, lam_a, kkt = qp(inside, *qp_in)
+    parts, lam_parts = _expand(z, xs, us, e, du, dx, lam_u, lam_a, nw,
+                               rate_rows)
     step = ca.mmax(ca.fabs(du) / ca.DM(np.tile(np.r_[m_max], N)))
     return ca.Function("cond_iter", [z, lx0, p],
                        [ca.vertcat(*parts), ca.vertcat(*lam_parts), step,
@@ -224,40 +222,49 @@ def _stages(mpc: Any, kern: dict, z, qf, tau) -> tuple:
     return A, B, d, Q, e, ca.vertcat(*grad)
 
 
-def _qp_symbols(qp_in: list, sym: Any) -> list:
-    return [sym.sym(f"i{i}", v.sparsity()) for i, v in enumerate(qp_in)]
+#: The QP branches' inputs after the 5N stage inputs (A, B, K, Lit, δx₀
+#: of each stage): W⁻ᵀg, the unconstrained point's δu and rows, the
+#: bounds, the warm start's multipliers, the unconstrained point's excess.
+_QP_TAIL = ("gy", "du0", "rows0", "lbu", "ubu", "lba", "uba", "lam_u0",
+            "lam_a0", "excess")
 
 
-def _free_qp(qp_in: list) -> ca.Function:
-    """``cond_qp_free(qp_in…) -> (δu, λ_u, λ_a, kkt)``: the unconstrained
-    optimum, its multipliers zero and its KKT residual (stationarity
-    holds exactly, so the residual is its bounds' excess). SX, so that it
+def _qp_symbols(qp_in: list, sym: Any, N: int) -> tuple[list, list, dict]:
+    """``(all, stages, tail)``: symbols of the branches' inputs; stages
+    ``[A, B, K, Lit, dx0]`` as lists of N, the tail by `_QP_TAIL` name."""
+    i = [sym.sym(f"i{k}", v.sparsity()) for k, v in enumerate(qp_in)]
+    stages = [i[j * N:(j + 1) * N] for j in range(5)]
+    return i, stages, dict(zip(_QP_TAIL, i[5 * N:]))
+
+
+def _free_qp(qp_in: list, N: int) -> ca.Function:
+    """``cond_qp_free(qp_in…) -> (δu, δx, λ_u, λ_a, kkt)``: the unconstrained
+    optimum, its multipliers zero and its KKT residual: stationarity and
+    complementarity hold exactly, so the residual is the bounds' largest
+    excess (the last input), 0 where this branch runs. SX, so that it
     reads the few inputs it needs (an MX Function copies every input)."""
-    i = _qp_symbols(qp_in, ca.SX)
-    du0, rows0, lbu, ubu, lba, uba = i[6:12]
-    size = 1.0 + ca.mmax(ca.fabs(ca.vertcat(lbu, ubu, lba, uba)))
-    excess = ca.mmax(ca.vertcat(du0 - ubu, lbu - du0, rows0 - uba,
-                                lba - rows0, 0.0))
+    i, stages, t = _qp_symbols(qp_in, ca.SX, N)
     return ca.Function("cond_qp_free", i,
-                       [du0, ca.SX.zeros(du0.numel()),
-                        ca.SX.zeros(rows0.numel()), excess / size])
+                       [t["du0"], ca.horzcat(*stages[4]),
+                        ca.SX.zeros(t["du0"].numel()),
+                        ca.SX.zeros(t["rows0"].numel()),
+                        ca.fmax(t["excess"], 0.0)])
 
 
 def _constrained_qp(rk: dict, qp_in: list, plugin: str, dims: tuple,
                     rate_rows: bool, qp_tols: dict) -> ca.Function:
-    """``cond_qp_full(qp_in…) -> (δu, λ_u, λ_a, kkt)``: W⁻¹ and the rows
+    """``cond_qp_full(qp_in…) -> (δu, δx, λ_u, λ_a, kkt)``: W⁻¹ and the rows
     from the factors (`riccati.factor_rows`), the routed conic, then δu,
     the rows and the certificate (`condensed_qp.kkt_residual`) along the
     closed loop and its adjoint, in O(N)."""
     N, nu, nw = dims
-    i = _qp_symbols(qp_in, ca.MX)
-    Am, Bm, Km, Cm, Lm, gy = i[:6]
-    A, B, K, Acl, Lit = (ca.horzsplit(M, M.size2() // N)
-                         for M in (Am, Bm, Km, Cm, Lm))
-    winv, rows = factor_rows(rk, B, K, Acl, Lit, rate_rows)
+    i, (A, B, K, Lit, _), t = _qp_symbols(qp_in, ca.MX, N)
+    gy = t["gy"]
+    bounds = [t[n] for n in ("lbu", "ubu", "lba", "uba")]
+    winv, rows = factor_rows(rk, A, B, K, Lit, rate_rows)
     y, lam_u, lam_a = routed_qp(plugin, N, nu, nw, winv.sparsity(),
                                 rows.sparsity(), **qp_tols)(
-        gy, winv, rows, *i[8:])
+        gy, winv, rows, *bounds, t["lam_u0"], t["lam_a0"])
     du, dx = closed_loop(rk, A, B, K, Lit, y)
     a = _rows_of(dx, rate_rows)
     nx = B[0].shape[0]
@@ -269,8 +276,9 @@ def _constrained_qp(rk: dict, qp_in: list, plugin: str, dims: tuple,
                             lam_a[k * nw:(k + 1) * nw], ca.MX.zeros(
                                 nx - 7 - nw)))
     dual = adjoint(rk, A, B, K, Lit, lam_u, c)
-    kkt = kkt_residual(y, gy, dual, du, a, lam_u, lam_a, *i[8:12])
-    return ca.Function("cond_qp_full", i, [du, lam_u, lam_a, kkt])
+    kkt = kkt_residual(y, gy, dual, du, a, lam_u, lam_a, *bounds)
+    return ca.Function("cond_qp_full", i,
+                       [du, ca.horzcat(*dx), lam_u, lam_a, kkt])
 
 
 def _rows_of(dx: list, rate_rows: bool) -> ca.MX:
@@ -280,7 +288,7 @@ def _rows_of(dx: list, rate_rows: bool) -> ca.MX:
 
 
 def _riccati(mpc: Any, kern: dict, A: list, B: list, Q: list) -> tuple:
-    """``(kernels, K, Acl, Lit)``: the Riccati factors of the QP in y
+    """``(kernels, K, Lit)``: the Riccati factors of the QP in y
     (`ocp.mpc.riccati.factors`) and the kernels that use them."""
     wh = mpc.wheels
     m_max = np.asarray(wh.m_max, dtype=float)
@@ -306,19 +314,23 @@ def qp_factor_function(mpc: Any) -> ca.Function:
     z = ca.MX.sym("z", mpc.nz)
     p = ca.MX.sym("p", nx + 7)
     A, B, _, Q, _, g = _stages(mpc, kern, z, p[nx:nx + 4], p[nx + 4:])
-    rk, K, Acl, Lit = _riccati(mpc, kern, A, B, Q)
-    winv, rows = factor_rows(rk, B, K, Acl, Lit, mpc.rate_max is not None)
+    rk, K, Lit = _riccati(mpc, kern, A, B, Q)
+    winv, rows = factor_rows(rk, A, B, K, Lit, mpc.rate_max is not None)
     return ca.Function("cond_factor", [z, p], [winv, rows, g],
                        ["z", "p"], ["Winv", "rows", "g"])
 
 
-def _expand(kern, z, xs, us, A, B, d, du, lam_u, lam_a, nw, rate_rows):
-    """Return the new plan ``z + δz`` and its multipliers (z's layout)."""
-    N, nu, nx = len(A), B[0].shape[1], B[0].shape[0]
-    dx = ca.MX.zeros(nx)
+def _expand(z, xs, us, e, du, dx, lam_u, lam_a, nw, rate_rows):
+    """Return the new plan ``z + δz`` and its multipliers (z's layout).
+
+    δx_k = e_k + dx_k: the defects carried along (``e``, δu = 0) plus
+    the closed loop's response to δu (``dx``, n_x × N: δx_1…δx_N) — the
+    dynamics are linear in (δu, defects).
+    """
+    N, nu, nx = len(xs) - 1, du.numel() // (len(xs) - 1), dx.shape[0]
     parts, lam_parts = [], []
     for k in range(N + 1):
-        parts.append(z[xs[k]] + dx)
+        parts.append(z[xs[k]] + (e[k] + dx[:, k - 1] if k else 0.0))
         lx = ca.MX.zeros(nx)
         if k:
             rate = lam_a[N * nw + 3 * (k - 1):N * nw + 3 * k] if \
@@ -330,7 +342,6 @@ def _expand(kern, z, xs, us, A, B, d, du, lam_u, lam_a, nw, rate_rows):
             duk = du[k * nu:(k + 1) * nu]
             parts.append(z[us[k]] + duk)
             lam_parts.append(lam_u[k * nu:(k + 1) * nu])
-            dx = kern["xfw"](A[k], B[k], dx, duk, d[k])
     return parts, lam_parts
 
 

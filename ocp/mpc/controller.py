@@ -353,7 +353,7 @@ class AttitudeMPC:
         """Least-squares residuals ``r``, dynamics rows and the cost."""
         model, wh, N, w = self.model, self.wheels, self.horizon, self.weights
         xs, us = self._xs, self._us
-        rk4 = model.rk4_step(1)
+        rk4 = model.rk4_step(1).expand()
         m_max = np.asarray(wh.m_max, dtype=float)
         h_max = np.asarray(wh.h_max, dtype=float)
         nw = wh.n_wheels

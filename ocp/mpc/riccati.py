@@ -26,6 +26,7 @@ from __future__ import annotations
 from typing import Any
 
 import casadi as ca
+import numpy as np
 
 
 def chol_lower(M: ca.SX) -> ca.SX:
@@ -53,6 +54,12 @@ def inv_lower(L: ca.SX) -> ca.SX:
     return X
 
 
+def _lower_nz(M: ca.SX) -> ca.SX:
+    """The lower triangle of a dense symmetric M, column by column."""
+    n = M.shape[0]
+    return ca.vertcat(*[M[i, j] for j in range(n) for i in range(j, n)])
+
+
 def _symmetric(Q, A, PA, M) -> ca.SX:
     """``Q + AᵀPA − MᵀM`` (= Q + AᵀPA + (BᵀPA)ᵀK), lower triangle formed,
     mirrored: the recursion's P stays exactly symmetric at half the
@@ -72,27 +79,37 @@ def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
                     sp_b: ca.Sparsity, mom_gain) -> dict[str, ca.Function]:
     """SX kernels of the recursion and of the forward sweep.
 
-    ``ric(P, Q, A, B, r) -> (P_k, K, Acl[:7], Lit)`` (``r`` the diagonal
-    of R, ``Lit`` = L⁻ᵀ); ``init(B, Lit) -> B Lit`` and ``sweep(K,
-    Acl[:7], S) -> (K S, Acl S)``, each with the momentum and rate rows
-    of its S as extra outputs. ``mom_gain`` (n_w,) is Δt·s: the momentum
+    ``ric(P, Q, A, B, r) -> (P_k, K, Lit)`` (P, P_k: their lower
+    triangles, column by column, `ric_last` of Q_N starts the recursion;
+    ``r`` the diagonal of R, ``Lit`` = L⁻ᵀ); ``acl(A, B, K) -> (A +
+    BK)[:7]``; ``init(B, Lit) -> B Lit`` and ``sweep(K, Acl[:7], S) ->
+    (K S, Acl S)``, each with the momentum and rate rows of its S as
+    extra outputs. ``mom_gain`` (n_w,) is Δt·s: the momentum
     rows of the closed loop are ``H_{k+1} = H_k + Δt s (K S)``, which the
     sweep uses instead of the full product.
     """
     nx, nu = sp_b.size1(), sp_b.size2()
-    P = ca.SX.sym("P", nx, nx)
+    # P is symmetric: its lower triangle crosses the boundary
+    low = ca.Sparsity.lower(nx)
+    pl = ca.SX.sym("P", low.nnz())
+    P = ca.tril2symm(ca.SX(low, pl))
     Q = ca.SX.sym("Q", sp_q)
     A = ca.SX.sym("A", sp_a)
     B = ca.SX.sym("B", sp_b)
     r = ca.SX.sym("r", nu)
-    PA = ca.mtimes(P, A)
-    BPA = ca.mtimes(B.T, PA)
-    Re = ca.diag(r) + ca.mtimes([B.T, P, B])
+    # the momentum rows are exact constants ((0 I) and Δt·s, checked by
+    # `ocp.mpc.condensed`): written as such, their products vanish
+    nw = nx - 7
+    Ac = ca.vertcat(A[:7, :], ca.horzcat(ca.SX.zeros(nw, 7), ca.SX.eye(nw)))
+    Bc = ca.vertcat(B[:7, :], ca.SX(ca.DM(np.diag(mom_gain))))
+    PA = ca.mtimes(P, Ac)
+    PB = ca.mtimes(P, Bc)
+    BPA = ca.mtimes(Bc.T, PA)
+    Re = ca.diag(r) + ca.mtimes(Bc.T, PB)
     Lit = inv_lower(chol_lower(Re)).T
     M = ca.mtimes(Lit.T, BPA)           # L⁻¹BᵀPA: K = -L⁻ᵀM
     K = -ca.mtimes(Lit, M)
-    Pk = _symmetric(Q, A, PA, M)
-    Acl = (A + ca.mtimes(B, K))[:7, :]
+    Pk = _symmetric(Q, Ac, PA, M)
     Ks = ca.SX.sym("K", nu, nx)
     Acls = ca.SX.sym("Acl", 7, nx)
     Lits = ca.SX.sym("Lit", nu, nu)
@@ -109,9 +126,12 @@ def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
     du = ca.mtimes(Lits, yk) + ca.mtimes(Ks, dx)
     gt = gk + ca.mtimes(B.T, mu)
     return {
-        "ric": ca.Function("ric_step", [P, Q, A, B, r],
-                           [ca.densify(Pk), ca.densify(K), ca.densify(Acl),
-                            ca.densify(Lit)]),
+        "ric": ca.Function("ric_step", [pl, Q, A, B, r],
+                           [_lower_nz(Pk), ca.densify(K), ca.densify(Lit)]),
+        "tril": ca.Function("ric_last", [Q], [_lower_nz(ca.densify(Q))]),
+        # the closed loop's first 7 rows (the sweeps of W⁻¹ only)
+        "acl": ca.Function("ric_acl", [A, B, Ks],
+                           [ca.densify((A + ca.mtimes(B, Ks))[:7, :])]),
         # outputs: S, then its momentum and rate rows (no slicing nodes)
         "init": ca.Function("ric_init", [B, Lits],
                             [S0, S0[7:, :], S0[4:7, :]]),
@@ -126,23 +146,22 @@ def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
 
 
 def factors(kern: dict, A: list, B: list, Q: list, r_diag: ca.DM
-            ) -> tuple[list, list, list]:
-    """``(K, Acl, Lit)`` per stage (k = 0…N−1): the recursion (module doc).
+            ) -> tuple[list, list]:
+    """``(K, Lit)`` per stage (k = 0…N−1): the recursion (module doc).
 
     ``A``, ``B`` (k = 0…N−1) and ``Q`` (k = 1…N; ``Q[0]`` unused) are the
-    stage matrices (MX); ``Acl`` holds the closed loop's first 7 rows.
+    stage matrices (MX).
     """
     N = len(A)
-    P = ca.densify(Q[N])
+    P = kern["tril"](Q[N])
     # MX blocks, filled backwards
     K: list[Any] = [None] * N
-    Acl: list[Any] = [None] * N
     Lit: list[Any] = [None] * N
     zero_q = ca.DM(Q[N].sparsity(), 0.0)
     for k in range(N - 1, -1, -1):
-        P, K[k], Acl[k], Lit[k] = kern["ric"](P, Q[k] if k else zero_q,
-                                              A[k], B[k], r_diag)
-    return K, Acl, Lit
+        P, K[k], Lit[k] = kern["ric"](P, Q[k] if k else zero_q, A[k], B[k],
+                                      r_diag)
+    return K, Lit
 
 
 def closed_loop(kern: dict, A: list, B: list, K: list, Lit: list, y
@@ -180,7 +199,7 @@ def adjoint(kern: dict, A: list, B: list, K: list, Lit: list, g,
     return ca.vertcat(*out)
 
 
-def factor_rows(kern: dict, B: list, K: list, Acl: list, Lit: list,
+def factor_rows(kern: dict, A: list, B: list, K: list, Lit: list,
                 rate_rows: bool) -> tuple[ca.MX, ca.MX]:
     """``(W⁻¹, rows)`` of the condensed QP in ``y``, from `factors`.
 
@@ -191,6 +210,7 @@ def factor_rows(kern: dict, B: list, K: list, Acl: list, Lit: list,
     """
     N = len(B)
     nx, nu = B[0].shape
+    Acl = [kern["acl"](A[k], B[k], K[k]) for k in range(N)]
     # structural zeros above the diagonal: W⁻¹ and the rows are lower
     # block triangular
     winv = [[ca.MX(nu, nu)] * N for _ in range(N)]

@@ -22,7 +22,8 @@ from ocp.models.rigid import SpacecraftModel
 from ocp.spacecraft.definition import Spacecraft
 from .condensed import ANDERSON_MEMORY, STEP_TOL, sqp_step_functions
 from .controller import AttitudeMPC
-from .plan import nan_unless_finite, plan_bounds, shift_function
+from .plan import (bound_violation, nan_unless_finite, plan_bounds,
+                   shift_function)
 from .robust_qp import (param_rk4, per_stage, plan_stages,
                         robust_iteration, scenario_parameters,
                         stage_selections)
@@ -164,17 +165,11 @@ def _robust_check(mpc: RobustMPC, cost: ca.Function) -> ca.Function:
     wts = np.array([s.weight for s in mpc.scenarios], float)
     c = ca.mtimes(cost.map(S)(ca.reshape(z, nz0, S), p),
                   ca.DM(wts / wts.sum()))
-    viol = ca.mmax(ca.vertcat(
-        ca.fmax(ca.DM(mpc.lbz) - z, 0) / ca.DM(scale),
-        ca.fmax(z - ca.DM(mpc.ubz), 0) / ca.DM(scale), 0.0))
+    viol = bound_violation(z, mpc.lbz, mpc.ubz, scale)
     idx = np.arange(nz0)
     one = np.r_[idx[mpc._us[0]], idx[mpc._xs[1]]]
     first = np.concatenate([one + s * nz0 for s in range(S)])
-    viol1 = ca.mmax(ca.vertcat(
-        ca.fmax(ca.DM(mpc.lbz[first]) - z[first], 0)
-        / ca.DM(scale[first]),
-        ca.fmax(z[first] - ca.DM(mpc.ubz[first]), 0)
-        / ca.DM(scale[first]), 0.0))
+    viol1 = bound_violation(z, mpc.lbz, mpc.ubz, scale, first)
     sel0, sel1, sel_first = stage_selections(N, S, first=True)
     Xall, _, X, U, X1 = plan_stages(mpc, z, (sel0, sel1))
     tau = ca.repmat(p[nx + 4:], 1, S) + ca.DM(

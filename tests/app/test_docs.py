@@ -151,6 +151,13 @@ def test_docs_build_without_warnings(tmp_path):
          "-q", str(DOCS), str(tmp_path / "html")],
         capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr[-3000:]
+    # a quiet log: no kernel's transport warning, no warning at all
+    assert "WARNING" not in run.stderr, run.stderr[-3000:]
+    # the executed notebooks land beside the output folder: with the
+    # README's command that is docs/_build/, not the tracked tree
+    assert (tmp_path / "jupyter_execute").is_dir()
+    readme = (DOCS.parent / "README.md").read_text()
+    assert "python -m sphinx docs\n  docs/_build/html`" in readme
     api = (tmp_path / "html" / "api.html").read_text()
     for name in ("QPAllocator", "DutyCycleAllocator", "AttitudeMPC",
                  "export_c", "run_bench"):
