@@ -111,3 +111,35 @@ def test_default_driver_has_one_loop_and_bad_starts_raise(tmp_path):
     none = export_c(tmp_path / "b", "demo", mpc_variants=(), repeats=10)
     with pytest.raises(InvalidValueError, match="no MPC step"):
         write_loop_starts(none, _starts(1))
+
+
+def test_target_table_pools_every_step():
+    """`benchmarks.mpc_worst_case.pool_loops` pools the loops' steps:
+    median and worst after each cold step over all of them, the worst
+    cold step apart; `format_target` tables them and names the draws of
+    the worst steps."""
+    from benchmarks.mpc_worst_case import (_loop_figures, format_target,
+                                           pool_loops)
+
+    steps = [np.array([9e6, 1e6, 2e6, 1e6]), np.array([5e6, 1e6, 3e6, 1e6])]
+    fig = [_loop_figures(s) for s in steps]
+    assert fig[0] == {"median": 1e6, "p99": pytest.approx(1.98e6),
+                      "worst": 2e6, "cold": 9e6}
+    loops = [{"angle_deg": 90.0, "rate": 0.02, "target": f,
+              "host": {"median": 50.0, "worst": 90.0, "cold": 300.0},
+              "final_error_deg": 1e-5, "violation": 1e-13, "ok": True,
+              "host_final_error_deg": 1e-5, "python_final_error_deg": 1e-5,
+              "python_violation": 1e-13, "state_diff": 0.0} for f in fig]
+    out = {"target": "cortex-m7", "name": NAME, "draws": 2, "steps": 4,
+           "seed": 0, "loops": loops, "ok": True,
+           "seconds": {"build": 1.0, "emulation": 1.0},
+           "all": pool_loops(steps),
+           "host_all": {"median": 50.0, "p99": 90.0, "worst": 90.0,
+                        "worst_cold": 300.0}}
+    assert out["all"] == {"median": 1e6, "p99": pytest.approx(2.95e6),
+                          "worst": 3e6, "worst_cold": 9e6}
+    text = format_target(out)
+    assert "| all 2 | | **1,000,000** | 2,950,000 | **3,000,000** | " \
+           "**9,000,000** |" in text
+    assert "Worst step after the cold one: draw 1; worst cold step: " \
+           "draw 0; loops failing the driver's check: none" in text
