@@ -35,8 +35,10 @@ the host driver's.
 from __future__ import annotations
 
 import argparse
+import json
 import tempfile
 import time
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -184,7 +186,8 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
         ``host`` `_loop_figures` [instructions, µs], ``final_error_deg``
         and ``violation`` on the target, ``host_final_error_deg``,
         ``python_final_error_deg``, ``state_diff`` max |x_target −
-        x_host| of the final states); ``all``: `_loop_figures` of every
+        x_host| of the final states, ``target_steps`` and
+        ``host_steps_us`` every step's figure in step order); ``all``: `_loop_figures` of every
         target step pooled (``worst_cold``: the worst cold step),
         ``host_all`` the same in µs; ``seconds``: build and emulation
         wall times [s]; ``ok``: every loop passed the driver's check.
@@ -219,6 +222,8 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
             "rate": float(np.linalg.norm(x0[4:7])),
             "target": _loop_figures(np.array(t["steps"])),
             "host": _loop_figures(np.array(h["steps_us"])),
+            "target_steps": list(t["steps"]),
+            "host_steps_us": np.asarray(h["steps_us"]).tolist(),
             "final_error_deg": t["loop_final_error_deg"],
             "violation": t["loop_worst_violation"],
             "ok": bool(t["loop_ok"]) and bool(h["loop_ok"]),
@@ -296,6 +301,8 @@ def main(argv=None) -> None:
                     choices=("host", "cortex-m7", "cortex-m4f"))
     ap.add_argument("--draws-on-target", type=int, default=20,
                     help="first draws flown on the target (--target)")
+    ap.add_argument("--json", default=None,
+                    help="write --target's figures, every step's, here")
     args = ap.parse_args(argv)
     if args.target == "host":
         print(format_rows(run(args.loops, args.steps, args.max_iter,
@@ -305,8 +312,11 @@ def main(argv=None) -> None:
 
     if (reason := toolchain_missing()) is not None:
         raise SystemExit(f"benchmarks.mpc_worst_case: {reason}")
-    print(format_target(run_target_draws(
-        args.draws_on_target, args.steps, args.seed, args.target)))
+    out = run_target_draws(args.draws_on_target, args.steps, args.seed,
+                           args.target)
+    print(format_target(out))
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=1))
 
 
 if __name__ == "__main__":
