@@ -4,6 +4,8 @@ Run from the repository root::
 
     python -m benchmarks.mpc_worst_case [--loops 200] [--steps 120]
                                         [--max-iter 8] [--seed 0]
+    python -m benchmarks.mpc_worst_case --target cortex-m7
+                                        [--draws-on-target 20]
 
 Exports the condensed MPC steps (`mpc_cond_rti_step`, and
 `mpc_cond_step` with at most ``--max-iter`` SQP iterations) for the demo
@@ -16,13 +18,27 @@ few µs of Python are in it) and its certificate ``qp_kkt`` kept. Prints
 per variant: loops, steps, the median, the 99th percentile and the worst
 step after the first of each loop, the worst first (cold) step, the
 largest ``qp_kkt``, SQP iterations (largest), and the final errors.
+
+``--target cortex-m7`` (or ``cortex-m4f``) flies the first
+``--draws-on-target`` of those draws (same seed, so the same states) with
+`mpc_cond_rti_step` on the emulated core instead
+(`ocp.codegen.loop_starts`: the bare-metal driver flies one closed loop
+per start, the generated RK4 as plant, counting instructions per step on
+qemu ``-icount``), and the same starts with the host's C driver and the
+host benchmark's Python loop: per loop, the median, 99th percentile and
+worst step after the cold one, the cold step, the final error, the
+largest applied-step violation (scaled: torque over m_max, momentum over
+h_max), and the largest difference between the target's final state and
+the host driver's.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import tempfile
 import time
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -56,6 +72,7 @@ def fly(f: ca.Function, model, x0: np.ndarray, steps: int,
     call = BoundCall(f, ins, outs)
     names = [f.name_out(i) for i in range(f.n_out())]
     kkt_i, it_i = names.index("qp_kkt"), names.index("iterations")
+    v_i = names.index("first_violation")
     rk4 = model.rk4_step(1)
     x = x0.copy()
     qf = np.array([1.0, 0.0, 0.0, 0.0])
@@ -64,7 +81,7 @@ def fly(f: ca.Function, model, x0: np.ndarray, steps: int,
     for k in range(21):
         z[k * (nx + nu):k * (nx + nu) + nx] = x
     lx, lg = np.zeros(f.nnz_in(4)), np.zeros(f.nnz_in(5))
-    times, kkts, iters = [], [], []
+    times, kkts, iters, viols = [], [], [], []
     for _ in range(steps):
         ins[0][:], ins[1][:], ins[2][:] = x, qf, 0.0
         ins[3][:], ins[4][:], ins[5][:] = z, lx, lg
@@ -73,10 +90,11 @@ def fly(f: ca.Function, model, x0: np.ndarray, steps: int,
         times.append(time.perf_counter() - t0)
         kkts.append(float(outs[kkt_i][0]))
         iters.append(float(outs[it_i][0]))
+        viols.append(float(outs[v_i][0]))
         z, lx, lg = outs[1].copy(), outs[2].copy(), outs[3].copy()
         x = np.asarray(rk4(x, outs[0], np.zeros(3), dt)).ravel()
     return {"times": np.array(times), "kkt": np.array(kkts),
-            "iters": np.array(iters),
+            "iters": np.array(iters), "violation": max(viols),
             "final_error": float(quat_error_angle(x[:4], qf))}
 
 
@@ -128,16 +146,177 @@ def format_rows(rows) -> str:
     return "\n".join(out)
 
 
+def _loop_figures(steps: np.ndarray) -> dict:
+    """Median, p99, worst after the cold step and cold step of one loop's
+    per-step figures (any unit)."""
+    warm = steps[1:]
+    return {"median": float(np.median(warm)),
+            "p99": float(np.percentile(warm, 99)),
+            "worst": float(warm.max()), "cold": float(steps[0])}
+
+
+def pool_loops(loops: list) -> dict:
+    """Figures of every loop's steps pooled: ``median``, ``p99`` and
+    ``worst`` of the steps after each loop's cold first one,
+    ``worst_cold`` the worst of the first steps (any unit)."""
+    fig = _loop_figures(np.concatenate(
+        [[max(r[0] for r in loops)]] + [np.asarray(r[1:]) for r in loops]))
+    fig["worst_cold"] = fig.pop("cold")
+    return fig
+
+
+def run_target_draws(draws: int, steps: int, seed: int = 0,
+                     target: str = "cortex-m7",
+                     name: str = "mpc_cond_rti_step") -> dict:
+    """The first ``draws`` states of `run`'s Monte Carlo flown by ``name``
+    on the emulated ``target`` and on the host.
+
+    One export of the demo craft (horizon 20, dt 0.5 s) for ``target``,
+    its drivers rewritten to fly a loop per start to the identity
+    (`ocp.codegen.loop_starts.write_loop_starts`); the ELF run on qemu
+    (instructions per step), the host driver built from the same folder
+    (µs per step, ``clock_gettime``) and its shared library flown by
+    `fly` (the host benchmark's Python loop).
+
+    Returns
+    -------
+    dict
+        ``loops``: one dict per start (``angle_deg`` of the start from the
+        target, ``rate`` [rad/s] norm of its body rate, ``target`` and
+        ``host`` `_loop_figures` [instructions, µs], ``final_error_deg``
+        and ``violation`` on the target, ``host_final_error_deg``,
+        ``python_final_error_deg``, ``state_diff`` max |x_target −
+        x_host| of the final states, ``target_steps`` and
+        ``host_steps_us`` every step's figure in step order); ``all``: `_loop_figures` of every
+        target step pooled (``worst_cold``: the worst cold step),
+        ``host_all`` the same in µs; ``seconds``: build and emulation
+        wall times [s]; ``ok``: every loop passed the driver's check.
+    """
+    from ocp.codegen.build import build_exported, run_driver
+    from ocp.codegen.loop_starts import loop_key, write_loop_starts
+    from ocp.codegen.target import build_target, run_target
+
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    starts = np.array(random_states(model, draws,
+                                    np.random.default_rng(seed)))
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        res = export_c(tmp, sc, horizon=20, dt=0.5, mpc_variants=(name,),
+                       target=target, repeats=10)
+        res = write_loop_starts(res, starts, steps=steps)
+        elf = build_target(res)
+        t1 = time.perf_counter()
+        emu = run_target(elf, timeout=3600, check=False)
+        t2 = time.perf_counter()
+        host_res = build_exported(res)
+        host = run_driver(host_res, timeout=600, check=False)
+        f = ca.external(name, str(host_res.shared_library))
+        py = [fly(f, model, x0, steps, 0.5) for x0 in starts]
+    loops = []
+    for k, x0 in enumerate(starts):
+        t, h = emu[loop_key(name, k)], host[loop_key(name, k)]
+        loops.append({
+            "angle_deg": float(np.rad2deg(quat_error_angle(
+                x0[:4], np.array([1.0, 0.0, 0.0, 0.0])))),
+            "rate": float(np.linalg.norm(x0[4:7])),
+            "target": _loop_figures(np.array(t["steps"])),
+            "host": _loop_figures(np.array(h["steps_us"])),
+            "target_steps": list(t["steps"]),
+            "host_steps_us": np.asarray(h["steps_us"]).tolist(),
+            "final_error_deg": t["loop_final_error_deg"],
+            "violation": t["loop_worst_violation"],
+            "ok": bool(t["loop_ok"]) and bool(h["loop_ok"]),
+            "host_final_error_deg": h["loop_final_error_deg"],
+            "python_final_error_deg": float(np.rad2deg(
+                py[k]["final_error"])),
+            "python_violation": py[k]["violation"],
+            "state_diff": float(np.abs(np.array(t["state"])
+                                       - h["state"]).max())})
+    pooled = {key: pool_loops([src[loop_key(name, k)][unit]
+                               for k in range(draws)])
+              for key, src, unit in (("all", emu, "steps"),
+                                     ("host_all", host, "steps_us"))}
+    return {"target": target, "name": name, "draws": draws,
+            "steps": steps, "seed": seed, "loops": loops, **pooled,
+            "ok": all(r["ok"] for r in loops),
+            "seconds": {"build": t1 - t0, "emulation": t2 - t1}}
+
+
+def format_target(out: dict, rows_max: int = 20) -> str:
+    """`run_target_draws`'s figures as a Markdown table: one row per loop
+    (the first ``rows_max``), then every step of every loop pooled
+    (instructions on the target, µs on the host) and the draws of the
+    worst steps."""
+    rows = [f"`{out['name']}` on the emulated {out['target']} "
+            f"(instructions per step, qemu -icount) and on the host (C "
+            f"driver, µs): draws 0–{out['draws'] - 1} of seed "
+            f"{out['seed']}, {out['steps']} steps of 0.5 s each; build "
+            f"{out['seconds']['build']:.0f} s, emulation "
+            f"{out['seconds']['emulation']:.0f} s",
+            "",
+            r"| draw | start: angle, \|ω\| | median | p99 | worst after "
+            "the cold step | cold step | final error | largest violation "
+            "| host median / worst / cold [µs] | host final error (C / "
+            r"Python) | max \|Δx\| target − host |",
+            "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for k, r in enumerate(out["loops"][:rows_max]):
+        t, h = r["target"], r["host"]
+        rows.append(
+            f"| {k} | {r['angle_deg']:.0f}°, {r['rate']:.3f} rad/s | "
+            f"{t['median']:,.0f} | {t['p99']:,.0f} | {t['worst']:,.0f} | "
+            f"{t['cold']:,.0f} | {r['final_error_deg']:.1e}°"
+            f"{'' if r['ok'] else ' (check failed)'} | "
+            f"{r['violation']:.1e} | {h['median']:.0f} / {h['worst']:.0f}"
+            f" / {h['cold']:.0f} | {r['host_final_error_deg']:.1e}° / "
+            f"{r['python_final_error_deg']:.1e}° | {r['state_diff']:.1e} |")
+    a, h = out["all"], out["host_all"]
+    errs = [r["final_error_deg"] for r in out["loops"]]
+    rows.append(
+        f"| all {out['draws']} | | **{a['median']:,.0f}** | "
+        f"{a['p99']:,.0f} | **{a['worst']:,.0f}** | "
+        f"**{a['worst_cold']:,.0f}** | ≤ {max(errs):.1e}° | "
+        f"≤ {max(r['violation'] for r in out['loops']):.1e} | "
+        f"{h['median']:.0f} / {h['worst']:.0f} / {h['worst_cold']:.0f} | "
+        f"| ≤ {max(r['state_diff'] for r in out['loops']):.1e} |")
+    worst = max(range(out["draws"]),
+                key=lambda k: out["loops"][k]["target"]["worst"])
+    cold = max(range(out["draws"]),
+               key=lambda k: out["loops"][k]["target"]["cold"])
+    failed = [k for k, r in enumerate(out["loops"]) if not r["ok"]]
+    rows += ["", f"Worst step after the cold one: draw {worst}; worst "
+             f"cold step: draw {cold}; loops failing the driver's check: "
+             f"{failed or 'none'}; p99: interpolated (numpy's default)."]
+    return "\n".join(rows)
+
+
 def main(argv=None) -> None:
-    """Print the Monte Carlo table."""
+    """Print the Monte Carlo table (``--target``: the target's)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--loops", type=int, default=200)
     ap.add_argument("--steps", type=int, default=120)
     ap.add_argument("--max-iter", type=int, default=8)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--target", default="host",
+                    choices=("host", "cortex-m7", "cortex-m4f"))
+    ap.add_argument("--draws-on-target", type=int, default=20,
+                    help="first draws flown on the target (--target)")
+    ap.add_argument("--json", default=None,
+                    help="write --target's figures, every step's, here")
     args = ap.parse_args(argv)
-    print(format_rows(run(args.loops, args.steps, args.max_iter,
-                          args.seed)))
+    if args.target == "host":
+        print(format_rows(run(args.loops, args.steps, args.max_iter,
+                              args.seed)))
+        return
+    from ocp.codegen.target import toolchain_missing
+
+    if (reason := toolchain_missing()) is not None:
+        raise SystemExit(f"benchmarks.mpc_worst_case: {reason}")
+    out = run_target_draws(args.draws_on_target, args.steps, args.seed,
+                           args.target)
+    print(format_target(out))
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=1))
 
 
 if __name__ == "__main__":

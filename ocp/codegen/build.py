@@ -98,7 +98,8 @@ def run_driver(res: ExportResult, timeout: float = 300.0,
         ``loop_steps``, ``loop_dt`` and ``loop_seconds`` [s] (its length),
         ``loop_final_error_deg``, ``loop_tolerance_deg``,
         ``loop_worst_violation``, ``loop_violation_tolerance``,
-        ``loop_finite``, ``loop_flag`` and ``loop_ok`` (1: passed).
+        ``loop_finite``, ``loop_flag`` and ``loop_ok`` (1: passed), and
+        ``state``, the loop's final state.
 
     Raises
     ------
@@ -136,6 +137,11 @@ def _parse_driver(text: str) -> dict[str, dict[str, float]]:
         if line.startswith("STEPS "):
             name, vals = line[6:].rsplit(":", 1)
             out.setdefault(name, {})["steps_us"] = [
+                float(v) for v in vals.split()]  # type: ignore[assignment]
+            continue
+        if line.startswith("STATE "):
+            name, vals = line[6:].rsplit(":", 1)
+            out.setdefault(name, {})["state"] = [
                 float(v) for v in vals.split()]  # type: ignore[assignment]
             continue
         m = pat.match(line)

@@ -9,6 +9,7 @@ import casadi as ca
 import numpy as np
 from ocp.models.rigid import SpacecraftModel
 from .checks import loop_plan
+from .loop_starts import loop_start_source
 from .precision import README_SINGLE
 from .result import OPT_FLAGS, SOURCE
 
@@ -55,15 +56,20 @@ def _driver_sizes(fns: dict[str, ca.Function], repeats: int,
 
 def _driver_source(fns: dict[str, ca.Function],
                    samples: dict[str, list[np.ndarray]], repeats: int,
-                   model: SpacecraftModel, dt: float,
+                   model: SpacecraftModel | None, dt: float,
                    precision: str = "double",
                    head: str | None = None,
-                   loop: dict | None = None) -> str:
+                   loop: dict | None = None,
+                   starts: tuple[np.ndarray, np.ndarray] | None = None
+                   ) -> str:
     """Text of a driver: ``head`` (the host's by default, or a target's
     from `ocp.codegen.target`), the shared body with its static arrays,
     the calls, the loops (length and check: ``loop``, default
-    `ocp.codegen.checks.loop_plan`); sample inputs as float literals in
-    single ``precision``."""
+    `ocp.codegen.checks.loop_plan` of ``model``, which may be None when
+    ``loop`` is given); sample inputs as float literals in single
+    ``precision``. ``starts``: ``(x0s (K, n_x), qf (4,))``, one loop per
+    start of every MPC step (`ocp.codegen.loop_starts`) instead of the
+    sample's one."""
     if loop is None:
         loop = loop_plan(model, samples, dt, precision=precision)
     steps = loop["steps"]
@@ -97,14 +103,18 @@ def _driver_source(fns: dict[str, ca.Function],
                 f"{f.n_out()}, {name}_nnz_out, {reps}, {f.nnz_out(0)}); }}")
     body = "\n".join(lines)
     loops = []
-    for name in fns:
+    if starts is not None:
+        decl, call = loop_start_source(fns, *starts, loop, precision)
+        body += "\n" + decl
+        loops.append(call)
+    for name in fns if starts is None else ():
         if name.startswith("mpc"):
             f = fns[name]
             loops.append(
                 f"  bad |= closed_loop(\"{name}\", {name}, {name}_work, "
                 f"{name}_checkout, {name}_release, {name}_in0, {name}_in1,"
                 f" {f.nnz_in(0)}, {f.nnz_in(3)}, {f.nnz_in(5)}, "
-                f"{model.nu}, {loop['dt']!r}, {steps}, "
+                f"{f.nnz_out(0)}, {loop['dt']!r}, {steps}, "
                 f"{math.degrees(loop['final_error_tol'])!r}, "
                 f"{float(loop['violation_tol'])!r});")
     main = ("int main(void) {\n  int bad = 0;\n  driver_init();\n"
