@@ -75,16 +75,45 @@ class BoxLayout:
             eu[j, i] = 1.0 / wu[j]
         for j, i in enumerate(self.bx):
             ex[self.nbu + j, i] = 1.0 / wx[j]
-        self.Eu, self.Ex = ca.DM(eu).sparse(), ca.DM(ex).sparse()
         self.Eu = ca.DM(ca.sparsify(ca.DM(eu)))
         self.Ex = ca.DM(ca.sparsify(ca.DM(ex)))
         inv2 = np.r_[1.0 / wu ** 2, 1.0 / wx ** 2]
         self.sigma_scale = ca.DM(ca.sparsify(ca.DM(np.diag(inv2))))
         self.width = np.r_[wu, wx]
+        # one stage's selections as SX kernels, mapped over the columns:
+        # a loop in C with no cleared products (the same operations as
+        # the selection matrices: each row or column holds one entry)
+        du, dx, b = ca.SX.sym("du", nu), ca.SX.sym("dx", nx), \
+            ca.SX.sym("b", self.nb)
+        m = ca.SX.sym("m", self.nb)
+        gx, gu = ca.SX.sym("gx", nx), ca.SX.sym("gu", nu)
+        self._kernels = {
+            "values": ca.Function("sw_values", [du, dx],
+                                  [ca.mtimes(self.Eu, du)
+                                   + ca.mtimes(self.Ex, dx)]),
+            "lift": ca.Function("sw_lift", [gx, gu, b],
+                                [gx + ca.mtimes(self.Ex.T, b),
+                                 gu + ca.mtimes(self.Eu.T, b)]),
+            "sigma": ca.Function("sw_sigma", [m],
+                                 [ca.mtimes(self.sigma_scale, m)])}
+        self._mapped: dict[tuple[str, int], ca.Function] = {}
+
+    def _map(self, name: str, C: int) -> ca.Function:
+        if (name, C) not in self._mapped:
+            self._mapped[name, C] = self._kernels[name].map(C)
+        return self._mapped[name, C]
 
     def values(self, dU, dX):
-        """The scaled boxed components (nb × N) of controls and states."""
-        return ca.mtimes(self.Eu, dU) + ca.mtimes(self.Ex, dX)
+        """The scaled boxed components (nb × C) of controls and states."""
+        return self._map("values", dU.shape[1])(dU, dX)
+
+    def lift(self, gx, gu, beta) -> tuple:
+        """``(gx + Exᵀβ, gu + Euᵀβ)``: a box term added to the gradients."""
+        return self._map("lift", beta.shape[1])(gx, gu, beta)
+
+    def sigma(self, M):
+        """The barrier diagonals in unscaled units: M (nb × C) / width²."""
+        return self._map("sigma", M.shape[1])(M)
 
 
 def _smax(a, b):
@@ -236,13 +265,12 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     V = lay.values(dU, dX)
     rpl, rpu = V - lo - Sl, hi - V - Su
     mu = (ca.sum1(ca.sum2(Sl * Ll)) + ca.sum1(ca.sum2(Su * Lu))) / m
-    sig = ca.mtimes(lay.sigma_scale, Ll / Sl + Lu / Su)
+    sig = lay.sigma(Ll / Sl + Lu / Su)
     gx = kern["qmul"].map(C)(Q, dX) + q
     gu = r * dU + g
 
     def sweep_in(beta, gx=gx, gu=gu):
-        qt = gx + ca.mtimes(lay.Ex.T, beta)
-        rt = gu + ca.mtimes(lay.Eu.T, beta)
+        qt, rt = lay.lift(gx, gu, beta)
         return reverse_columns(qt), reverse_columns(rt)
 
     def box_steps(dU_, dX_):
@@ -299,8 +327,7 @@ def kkt_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
     A, B, Q, q, g, r, lo, hi, Ar, Br, Qr, _ = data
     V = lay.values(dU, dX)
     lam = Lu - Ll
-    gx = kern["qmul"].map(tree.C)(Q, dX) + q + ca.mtimes(lay.Ex.T, lam)
-    gu = r * dU + g + ca.mtimes(lay.Eu.T, lam)
+    gx, gu = lay.lift(kern["qmul"].map(tree.C)(Q, dX) + q, r * dU + g, lam)
     _, racc, rho = _sweeps(kern, tree)["costate"](
         ca.DM.zeros(nx), ca.DM.zeros(nu), Ar, Br, reverse_columns(gx),
         reverse_columns(gu), flags_r)

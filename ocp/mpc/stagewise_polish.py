@@ -52,13 +52,12 @@ def polish(kern: dict, lay, tree, dims: tuple, flags: np.ndarray,
     act = act_l + act_u
     target = act_l * lo + act_u * hi
     lam = act * (Lu - Ll)
-    sig = ca.mtimes(lay.sigma_scale, POLISH_RHO * act)
+    sig = lay.sigma(POLISH_RHO * act)
     qmul = kern["qmul"].map(C)
 
     def gradient(dU, dX, lam):
         beta = lam + POLISH_RHO * act * (lay.values(dU, dX) - target)
-        gx = qmul(Q, dX) + q + ca.mtimes(lay.Ex.T, beta)
-        gu = r * dU + g + ca.mtimes(lay.Eu.T, beta)
+        gx, gu = lay.lift(qmul(Q, dX) + q, r * dU + g, beta)
         return reverse_columns(gx), reverse_columns(gu)
 
     lq = FactoredLQ(sweeps, lay, tree, (nx, nu), flags, data, sig,
