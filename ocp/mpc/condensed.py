@@ -447,7 +447,8 @@ def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
     hist = [ca.MX.sym("G_hist", nz, m + 1), ca.MX.sym("F_hist", nz, m + 1),
             ca.MX.sym("valid", m + 1)] if m else []
     args = [zs, ls, n, kk, ps, *hist]
-    done = ca.Function("cond_done", args, [zs, ls, n, kk])
+    sx = [ca.SX.sym(a.name(), a.sparsity()) for a in args]
+    done = ca.Function("cond_done", sx, sx[:4])  # SX: reads z, λ, n, kkt
     inner = None
     for k in range(mpc.fallback_max_iter - 1, -1, -1):
         zn, ln, sn, kn = it(zs, ls, ps)

@@ -371,7 +371,10 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     state, data = ins[:8], ins[8:]
     n, kk = ca.MX.sym("n"), ca.MX.sym("kkt")
     args = [*state, n, kk, *data]
-    done = ca.Function("sw_done", args, [*state, n, kk])
+    # SX: a skipped chunk reads its state alone (an MX Function would
+    # copy every argument, the data included, into its work vector)
+    sx = [ca.SX.sym(a.name(), a.sparsity()) for a in args]
+    done = ca.Function("sw_done", sx, sx[:10])
     # chunks of nested iterations (a converged iterate skips the rest of
     # its chunk), called one after another, each skipped once converged:
     # every nesting level reserves its callee's arguments in the work
