@@ -56,7 +56,7 @@ def bound_violation(z: ca.MX, lb: np.ndarray, ub: np.ndarray,
     idx = np.arange(len(lb)) if idx is None else np.asarray(idx)
     lo = idx[np.isfinite(lb[idx])]
     hi = idx[np.isfinite(ub[idx])]
-    terms = [ca.DM(0.0)]
+    terms: list[Any] = [ca.DM(0.0)]
     if len(lo):
         terms.append((ca.DM(lb[lo]) - z[lo]) * ca.DM(1.0 / scale[lo]))
     if len(hi):
