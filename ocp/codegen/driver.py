@@ -222,6 +222,11 @@ are all it needs (no include path, no prebuilt library).
   `ADCS_SOURCES` with its flags.
 * CMake: `add_subdirectory()` this folder and link the target
   `adcs_codegen` (options `ADCS_WARNINGS`, `ADCS_DRIVER`).
+* `casadi_int` is `long long` in a host export (what `casadi.external`
+  expects) and `int` in a Cortex-M export (`--target`: its sparsity
+  patterns take half the flash). Do not load a Cortex-M export's `make
+  shared` library with `casadi.external`: it assumes `long long` and
+  crashes. For Python, export for the host.
 * By hand: `{build_cmd} && ./adcs_driver`.
 
 ## Memory

@@ -332,18 +332,20 @@ def _write_build_files(out, solver_sources, cflags=()) -> None:
 
 
 def _write_source(fns: dict, out: Path, reuse_factorization: bool,
-                  precision: str = "double"
+                  precision: str = "double", int_type: str = "long long"
                   ) -> tuple[int, bool, dict[str, tuple[int, int]],
                              list[Path]]:
     """Generate ``adcs_codegen.c`` and edit it for flight.
 
+    ``int_type`` is ``casadi_int``'s C type (a Cortex-M export: ``int``).
     Returns ``(daqp_patched, qrqp_patched, daqp_conics, solver_sources)``:
     the DAQP failure patch's edit count, the qrqp reuse patch applied, each
     DAQP conic's static workspace and the DAQP C sources copied beside
     the source (none without a DAQP conic).
     """
     cg = ca.CodeGenerator(f"{SOURCE}.c", {"with_header": True, **(
-        {"casadi_real": "float"} if precision == "single" else {})})
+        {"casadi_real": "float"} if precision == "single" else {}), **(
+        {"casadi_int": int_type} if int_type != "long long" else {})})
     for f in fns.values():
         cg.add(f)
     cg.generate(f"{out}/")
@@ -454,7 +456,9 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         precision: double in software) on qemu: a bare-metal driver,
         startup code and linker script are written too, built with
         ``arm-none-eabi-gcc`` (``-Wall -Wextra -Werror``) and a memory
-        report is written. Without DAQP's C sources in the folder
+        report is written. A target export's ``casadi_int`` is ``int``
+        (half the flash of its sparsity patterns; `casadi.external`
+        needs a host export). Without DAQP's C sources in the folder
         (`ocp.codegen.target.daqp_c_sources`) every QP of a target export
         is solved by qrqp (``"daqp"`` asked for is an error).
     precision : {"double", "single"}
@@ -530,8 +534,11 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
         rate_max=rate_max, condensed_qp_plugin=condensed,
         precision=precision)
+    # a Cortex-M export's casadi_int is int: its sparsity patterns and
+    # index arrays (flash) halve; casadi.external needs a host export
+    int_type = "int" if cortex_m else "long long"
     daqp_patched, patched, daqp_conics, solver_sources = _write_source(
-        fns, out, qrqp_reuse_factorization, precision)
+        fns, out, qrqp_reuse_factorization, precision, int_type)
     loop = loop_plan(model, samples, dt, rate_max=rate_max,
                      horizon=horizon, steps=loop_steps, precision=precision)
     driver = out / "main.c"
@@ -563,6 +570,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
                                "daqp_static": daqp_conics,
                                "daqp_static_bytes": static_bytes,
                                "precision": precision,
+                               "casadi_int_bytes": 4 if cortex_m else 8,
                                "closed_loop": loop,
                                "cflags": cflags, "ldflags": ["-lm"]})
     if cortex_m:

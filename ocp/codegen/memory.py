@@ -15,8 +15,8 @@ Per exported function (`memory_report`, written as
   by several functions count in each; ``"all"`` is every function linked
   together.
 * ``work_bytes``: the caller's work arrays (``sz_arg``, ``sz_res``
-  pointers of 4 bytes, ``sz_iw`` casadi_int of 8 bytes and ``sz_w``
-  casadi_real of 8 bytes (4 in a single-precision export); the sizes
+  pointers of 4 bytes, ``sz_iw`` casadi_int of 4 bytes (a Cortex-M
+  export's is int) and ``sz_w`` casadi_real of 8 bytes (4 in a single-precision export); the sizes
   the generated ``*_work`` functions return, which can be smaller than
   the casadi Function's ``sz_w``).
 * ``stack``: the worst stack depth of the generated code from gcc's
@@ -41,7 +41,8 @@ from typing import Any, Callable
 
 from .result import SOURCE, ExportResult
 
-#: Sizes on a 32-bit Cortex-M: pointer, casadi_int (long long), double.
+#: Sizes on a 32-bit Cortex-M: pointer, casadi_int (long long; a
+#: Cortex-M export's is int: ``extras["casadi_int_bytes"]``), double.
 POINTER_BYTES, INT_BYTES, REAL_BYTES = 4, 8, 8
 
 #: Fields of one function's entry in the memory report.
@@ -199,7 +200,8 @@ def memory_report(res: ExportResult, core, objs: list[Path],
                 frames, edges)
             rec.update(sz_arg=sz[0], sz_res=sz[1], sz_iw=sz[2], sz_w=sz[3],
                        work_bytes=POINTER_BYTES * (sz[0] + sz[1])
-                       + INT_BYTES * sz[2] + real * sz[3],
+                       + res.extras.get("casadi_int_bytes", INT_BYTES)
+                       * sz[2] + real * sz[3],
                        stack=stack, stack_bounded=bounded,
                        library_calls=lib,
                        heap=bool({"malloc", "calloc", "realloc", "free"}

@@ -124,6 +124,11 @@ def test_memory_report_has_its_fields(m7):
         # the work sizes are those the generated *_work returns
         assert tuple(rec[k] for k in ("sz_arg", "sz_res", "sz_iw",
                                       "sz_w")) == times[name]["work"]
+        # a target export's casadi_int is int (4 bytes on the core, as
+        # the driver's sizeof says), and the work bytes count it so
+        assert times[name]["work_sizeof"][0] == 4
+        assert rec["work_bytes"] == (4 * (rec["sz_arg"] + rec["sz_res"])
+                                     + 4 * rec["sz_iw"] + 8 * rec["sz_w"])
         # the call-graph bound covers the painted stack (+ the clock's
         # read, at most a few words)
         assert rec["stack"] + 16 >= times[name]["stack_measured"] > 0
