@@ -17,9 +17,14 @@ formed: a Riccati recursion (`ocp.mpc.riccati`; :math:`Q_k = 2 C_k^T C_k
 active-set method (qrqp where the casadi wheel ships no DAQP library),
 then factors nothing: the bounds on δu are the rows of ``W⁻¹``, and the
 momentum rows (and, with a rate bound, the rate rows) come from the same
-closed-loop sweep, as lower block-triangular rows in y. The QP is
-solved with the bounds alone first when the last plan had no row
-active, and with the rows when its point breaks one (`ocp.mpc.condensed_qp`).
+closed-loop sweep, as lower block-triangular rows in y. With the
+Hessian I the unconstrained optimum is −W⁻ᵀg: formed in O(N) by the
+closed loop's adjoint and checked by its rollout
+(`ocp.mpc.riccati.adjoint`, `closed_loop`), it is the answer whenever it
+keeps every bound and row, and then W⁻¹ is not formed and no conic
+runs. Otherwise the QP is solved with the bounds alone first when the
+last plan had no row active, and with the rows when its point breaks
+one (`ocp.mpc.condensed_qp`).
 One SQP iteration takes a full step; ``rti=True`` makes one per sample,
 otherwise the iterations repeat until the step ``max |δu / m_max|`` is below
 ``step_tol`` (default `STEP_TOL`; at most ``max_iter``). Gauss–Newton
