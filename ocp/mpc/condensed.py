@@ -180,7 +180,11 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
         "cond_qp_first", _free_qp(qp_in, N),
         _constrained_qp(rk, qp_in, plugin, (N, nu, nw), rate_rows, qp_tols))
     du, dx, lam_u, lam_a, kkt = qp(inside, *qp_in)
-    parts, lam_parts = _expand(z, xs, us, e, du, dx, lam_u, lam_a, nw,
+    # the commanded torques projected onto their box: a float QP point
+    # can sit outside it by its rounding, amplified by W⁻¹ (2.6e-6 N·m
+    # measured on the M4F); the certificate is the QP point's
+    u_new = ca.fmin(ca.fmax(u_bar + du, np.tile(u_lo, N)), np.tile(u_hi, N))
+    parts, lam_parts = _expand(z, xs, us, e, u_new, dx, lam_u, lam_a, nw,
                                rate_rows)
     step = ca.mmax(ca.fabs(du) / ca.DM(np.tile(np.r_[m_max], N)))
     return ca.Function("cond_iter", [z, lx0, p],
@@ -325,14 +329,15 @@ def qp_factor_function(mpc: Any) -> ca.Function:
                        ["z", "p"], ["Winv", "rows", "g"])
 
 
-def _expand(z, xs, us, e, du, dx, lam_u, lam_a, nw, rate_rows):
-    """Return the new plan ``z + δz`` and its multipliers (z's layout).
+def _expand(z, xs, us, e, u_new, dx, lam_u, lam_a, nw, rate_rows):
+    """Return the new plan and its multipliers (z's layout).
 
-    δx_k = e_k + dx_k: the defects carried along (``e``, δu = 0) plus
-    the closed loop's response to δu (``dx``, n_x × N: δx_1…δx_N) — the
-    dynamics are linear in (δu, defects).
+    The controls are ``u_new`` (N·n_u,); the states z's plus δx_k = e_k +
+    dx_k: the defects carried along (``e``, δu = 0) plus the closed
+    loop's response to δu (``dx``, n_x × N: δx_1…δx_N) — the dynamics
+    are linear in (δu, defects).
     """
-    N, nu, nx = len(xs) - 1, du.numel() // (len(xs) - 1), dx.shape[0]
+    N, nu, nx = len(xs) - 1, u_new.numel() // (len(xs) - 1), dx.shape[0]
     parts, lam_parts = [], []
     for k in range(N + 1):
         parts.append(z[xs[k]] + (e[k] + dx[:, k - 1] if k else 0.0))
@@ -344,8 +349,7 @@ def _expand(z, xs, us, e, du, dx, lam_u, lam_a, nw, rate_rows):
                             lam_a[(k - 1) * nw:k * nw])
         lam_parts.append(lx)
         if k < N:
-            duk = du[k * nu:(k + 1) * nu]
-            parts.append(z[us[k]] + duk)
+            parts.append(u_new[k * nu:(k + 1) * nu])
             lam_parts.append(lam_u[k * nu:(k + 1) * nu])
     return parts, lam_parts
 
