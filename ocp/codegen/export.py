@@ -337,7 +337,9 @@ def _write_source(fns: dict, out: Path, reuse_factorization: bool,
                              list[Path]]:
     """Generate ``adcs_codegen.c`` and edit it for flight.
 
-    ``int_type`` is ``casadi_int``'s C type (a Cortex-M export: ``int``).
+    ``int_type`` is ``casadi_int``'s C type: a Cortex-M export's is
+    ``int`` (its sparsity patterns and index arrays, in flash, halve;
+    `casadi.external` needs a host export, ``long long``).
     Returns ``(daqp_patched, qrqp_patched, daqp_conics, solver_sources)``:
     the DAQP failure patch's edit count, the qrqp reuse patch applied, each
     DAQP conic's static workspace and the DAQP C sources copied beside
@@ -534,11 +536,9 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
         rate_max=rate_max, condensed_qp_plugin=condensed,
         precision=precision)
-    # a Cortex-M export's casadi_int is int: its sparsity patterns and
-    # index arrays (flash) halve; casadi.external needs a host export
-    int_type = "int" if cortex_m else "long long"
     daqp_patched, patched, daqp_conics, solver_sources = _write_source(
-        fns, out, qrqp_reuse_factorization, precision, int_type)
+        fns, out, qrqp_reuse_factorization, precision,
+        "int" if cortex_m else "long long")
     loop = loop_plan(model, samples, dt, rate_max=rate_max,
                      horizon=horizon, steps=loop_steps, precision=precision)
     driver = out / "main.c"
@@ -559,20 +559,17 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
                        source=out / f"{SOURCE}.c",
                        header=out / f"{SOURCE}.h", driver=driver,
                        makefile=out / "Makefile", readme=readme,
-                       extras={"wheel_qp_plugin": plugin,
-                               "duty_qp_plugin": duty_plugin,
-                               "wheel_qp_method": method,
-                               "qrqp_patched": patched,
-                               "daqp_patched": daqp_patched,
-                               "condensed_qp_plugin": condensed,
-                               "rate_max": rate_max,
-                               "solver_sources": solver_sources,
-                               "daqp_static": daqp_conics,
-                               "daqp_static_bytes": static_bytes,
-                               "precision": precision,
-                               "casadi_int_bytes": 4 if cortex_m else 8,
-                               "closed_loop": loop,
-                               "cflags": cflags, "ldflags": ["-lm"]})
+                       extras={
+                           "wheel_qp_plugin": plugin, "rate_max": rate_max,
+                           "duty_qp_plugin": duty_plugin, "cflags": cflags,
+                           "wheel_qp_method": method, "qrqp_patched": patched,
+                           "daqp_patched": daqp_patched, "closed_loop": loop,
+                           "condensed_qp_plugin": condensed,
+                           "solver_sources": solver_sources,
+                           "daqp_static": daqp_conics, "ldflags": ["-lm"],
+                           "daqp_static_bytes": static_bytes,
+                           "precision": precision,
+                           "casadi_int_bytes": 4 if cortex_m else 8})
     if cortex_m:
         res = write_target_files(res, target, _driver_source(
             fns, samples, max(int(repeats) // 10, 3), model, dt,
