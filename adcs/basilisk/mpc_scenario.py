@@ -69,6 +69,27 @@ class MPCComparison(ResultMixin):
         }
 
 
+def mpc_task(sim: Any, mpc: Any, qf: np.ndarray, Js: float, nav: Any,
+             rw: Any) -> Any:
+    """Fly ``mpc`` in ``sim``: an `AttitudeMPCModule` (target ``qf``,
+    rotor inertia ``Js`` [kg·m²]) on a new ``"fsw"`` task at the MPC's
+    period, reading ``nav``'s attitude and ``rw``'s speeds and commanding
+    ``rw``'s motors; returns the module."""
+    from Basilisk.utilities import macros
+
+    from .modules import AttitudeMPCModule
+
+    proc = sim.CreateNewProcess("fsw", 1)
+    proc.addTask(sim.CreateNewTask("fsw", macros.sec2nano(mpc.dt)))
+    ctl = AttitudeMPCModule(mpc, qf, Js)
+    ctl.ModelTag = "mpc"
+    ctl.attNavInMsg.subscribeTo(nav.attOutMsg)
+    ctl.rwSpeedsInMsg.subscribeTo(rw.rwSpeedOutMsg)
+    rw.rwMotorCmdInMsg.subscribeTo(ctl.rwMotorTorqueOutMsg)
+    sim.AddModelToTask("fsw", ctl)
+    return ctl
+
+
 def mpc_controller(*, spacecraft: Any = None,
                    wheels: WheelArray | None = None, inertia: Any = None,
                    dt: float = 0.5, rti: bool = True) -> tuple[Any, Any]:
@@ -123,8 +144,7 @@ def mpc_slew(*, spacecraft: Any = None, wheels: WheelArray | None = None,
 
     from ocp.mpc import simulate_mpc
 
-    from .modules import AttitudeMPCModule
-    from .scenarios import spacecraft_task
+    from .scenarios import run_recorded, spacecraft_task
 
     q0 = np.array([1.0, 0.0, 0.0, 0.0])
     qf = quat_from_axis_angle(axis, angle)
@@ -135,21 +155,9 @@ def mpc_slew(*, spacecraft: Any = None, wheels: WheelArray | None = None,
     ours = simulate_mpc(mpc, q0, qf, t_final=t_final)
     sim = SimulationBaseClass.SimBaseClass()
     sc, rw, nav = spacecraft_task(sim, J, wheels, Js, dt_dynamics)
-    proc = sim.CreateNewProcess("fsw", 1)
-    proc.addTask(sim.CreateNewTask("fsw", macros.sec2nano(dt)))
-    ctl = AttitudeMPCModule(mpc_controller(**kw)[0], qf, Js)
-    ctl.ModelTag = "mpc"
-    ctl.attNavInMsg.subscribeTo(nav.attOutMsg)
-    ctl.rwSpeedsInMsg.subscribeTo(rw.rwSpeedOutMsg)
-    rw.rwMotorCmdInMsg.subscribeTo(ctl.rwMotorTorqueOutMsg)
-    sim.AddModelToTask("fsw", ctl)
-    period = macros.sec2nano(dt)
-    recs = [nav.attOutMsg.recorder(period), rw.rwSpeedOutMsg.recorder(period)]
-    for r in recs:
-        sim.AddModelToTask("fsw", r)
-    sim.InitializeSimulation()
-    sim.ConfigureStopTime(macros.sec2nano(t_final))
-    sim.ExecuteSimulation()
+    ctl = mpc_task(sim, mpc_controller(**kw)[0], qf, Js, nav, rw)
+    recs = run_recorded(sim, [nav.attOutMsg, rw.rwSpeedOutMsg],
+                        macros.sec2nano(dt), t_final)
     traj = ours.trajectory
     sigma = np.asarray(recs[0].sigma_BN)
     omega = np.asarray(recs[0].omega_BN_B)

@@ -24,7 +24,7 @@ from allocation import WheelArray
 
 from . import require_basilisk
 from .convert import mrp_to_quaternion, rotor_momenta
-from .mpc_scenario import _angle
+from .mpc_scenario import _angle, mpc_task
 
 __all__ = ["BasiliskDraw", "basilisk_robust_mc", "fly_in_basilisk"]
 
@@ -77,27 +77,14 @@ def _basilisk_run(mpc: Any, inertia: np.ndarray, wheels: WheelArray,
     """
     from Basilisk.utilities import SimulationBaseClass, macros
 
-    from .modules import AttitudeMPCModule
-    from .scenarios import spacecraft_task
+    from .scenarios import run_recorded, spacecraft_task
 
     sim = SimulationBaseClass.SimBaseClass()
     _, rw, nav = spacecraft_task(sim, inertia, wheels, Js, dt_dynamics)
-    proc = sim.CreateNewProcess("fsw", 1)
-    proc.addTask(sim.CreateNewTask("fsw", macros.sec2nano(mpc.dt)))
-    ctl = AttitudeMPCModule(mpc, qf, Js)
-    ctl.ModelTag = "mpc"
-    ctl.attNavInMsg.subscribeTo(nav.attOutMsg)
-    ctl.rwSpeedsInMsg.subscribeTo(rw.rwSpeedOutMsg)
-    rw.rwMotorCmdInMsg.subscribeTo(ctl.rwMotorTorqueOutMsg)
-    sim.AddModelToTask("fsw", ctl)
-    period = macros.sec2nano(mpc.dt)
-    recs = [nav.attOutMsg.recorder(period), rw.rwSpeedOutMsg.recorder(period),
-            ctl.rwMotorTorqueOutMsg.recorder(period)]
-    for r in recs:
-        sim.AddModelToTask("fsw", r)
-    sim.InitializeSimulation()
-    sim.ConfigureStopTime(macros.sec2nano(t_final))
-    sim.ExecuteSimulation()
+    ctl = mpc_task(sim, mpc, qf, Js, nav, rw)
+    recs = run_recorded(sim, [nav.attOutMsg, rw.rwSpeedOutMsg,
+                              ctl.rwMotorTorqueOutMsg],
+                        macros.sec2nano(mpc.dt), t_final)
     n = wheels.n_wheels
     k = int(np.ceil(t_final / mpc.dt - 1e-9)) + 1
     sigma = np.asarray(recs[0].sigma_BN)[:k]

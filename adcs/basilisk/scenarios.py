@@ -128,6 +128,22 @@ def spacecraft_task(sim: Any, inertia, wheels: Any, Js: float,
     return sc, rw, nav
 
 
+def run_recorded(sim: Any, messages: list, period: int,
+                 t_final: float) -> list:
+    """Record ``messages`` every ``period`` [ns] on the ``"fsw"`` task,
+    then initialise ``sim`` and run it to ``t_final`` [s]; return the
+    recorders, in the messages' order."""
+    from Basilisk.utilities import macros
+
+    recs = [m.recorder(period) for m in messages]
+    for r in recs:
+        sim.AddModelToTask("fsw", r)
+    sim.InitializeSimulation()
+    sim.ConfigureStopTime(macros.sec2nano(t_final))
+    sim.ExecuteSimulation()
+    return recs
+
+
 def _fsw_task(sim: Any, sc_def: Any, nav: Any, rw: Any, allocator: str,
               sigma_target, gains: tuple[float, float], Js: float,
               dt: float, keep: list):

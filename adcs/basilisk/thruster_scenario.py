@@ -14,6 +14,7 @@ from adcs_common.validation import as_angle, as_finite_scalar
 
 from . import require_basilisk
 from .convert import mrp_angle, quaternion_to_mrp
+from .scenarios import run_recorded
 
 #: The two thruster chains a run compares: Basilisk's thrForceMapping +
 #: thrFiringRemainder, and the toolbox's duty-cycle QP.
@@ -139,15 +140,9 @@ def reorientation(chain: str, *, spacecraft: Any = None,
         gains=gains, dt_dynamics=dt_dynamics)
     err, ctrl, out, sc, unit = (parts[k] for k in (
         "err", "ctrl", "out", "hub", "unit"))
-    period = macros.sec2nano(cycle)
-    recs = [err.attGuidOutMsg.recorder(period),
-            ctrl.cmdTorqueOutMsg.recorder(period), out.recorder(period),
-            sc.scStateOutMsg.recorder(period)]
-    for r in recs:
-        sim.AddModelToTask("fsw", r)
-    sim.InitializeSimulation()
-    sim.ConfigureStopTime(macros.sec2nano(t_final))
-    sim.ExecuteSimulation()
+    recs = run_recorded(sim, [err.attGuidOutMsg, ctrl.cmdTorqueOutMsg, out,
+                              sc.scStateOutMsg], macros.sec2nano(cycle),
+                        t_final)
     v = np.asarray(recs[3].v_BN_N)
     return ThrusterRun(
         chain=chain, t=recs[0].times() * macros.NANO2SEC,
