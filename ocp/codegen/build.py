@@ -6,7 +6,8 @@ import re
 import subprocess
 from adcs_common.codegen import compile_c
 from adcs_common.exceptions import AdcsError, InvalidValueError
-from .checks import DriverCheckError, loop_failures, parse_loop_line
+from .checks import (DriverCheckError, loop_failures, parse_loop_line,
+                     parse_series_line)
 from .result import OPT_FLAGS, SOURCE, ExportResult
 
 
@@ -132,17 +133,8 @@ def _parse_driver(text: str) -> dict[str, dict[str, float]]:
                      r"max_us=(\S+) calls=(\d+)(?: flag=(\d+))?"
                      r"(?: final_error_deg=(\S+))?(?: max_warm_us=(\S+))?")
     for line in text.splitlines():
-        if parse_loop_line(line, out):
-            continue
-        if line.startswith("STEPS "):
-            name, vals = line[6:].rsplit(":", 1)
-            out.setdefault(name, {})["steps_us"] = [
-                float(v) for v in vals.split()]  # type: ignore[assignment]
-            continue
-        if line.startswith("STATE "):
-            name, vals = line[6:].rsplit(":", 1)
-            out.setdefault(name, {})["state"] = [
-                float(v) for v in vals.split()]  # type: ignore[assignment]
+        if parse_loop_line(line, out) or parse_series_line(
+                line, out, "steps_us"):
             continue
         m = pat.match(line)
         if m:

@@ -36,6 +36,7 @@ __all__ = [
     "loop_line",
     "loop_plan",
     "parse_loop_line",
+    "parse_series_line",
 ]
 
 #: Loop length over the eigenaxis slew time of the driver's slew. The
@@ -178,6 +179,23 @@ def parse_loop_line(line: str, out: dict[str, dict]) -> bool:
     for kv in m[2].split():
         key, value = kv.split("=", 1)
         rec[f"loop_{key}"] = float(value)
+    return True
+
+
+def parse_series_line(line: str, out: dict[str, dict], steps_key: str,
+                      scale: float = 1.0) -> bool:
+    """Add a driver's ``STEPS closed_loop:<name>: v…`` line (each step's
+    figure in step order, times ``scale``, under ``steps_key``) or
+    ``STATE closed_loop:<name>: x…`` line (the loop's final state, under
+    ``"state"``) to ``out[name]``; False when ``line`` is neither."""
+    if line.startswith("STEPS "):
+        key, factor = steps_key, scale
+    elif line.startswith("STATE "):
+        key, factor = "state", 1.0
+    else:
+        return False
+    name, vals = line[6:].rsplit(":", 1)
+    out.setdefault(name, {})[key] = [factor * float(v) for v in vals.split()]
     return True
 
 

@@ -37,7 +37,7 @@ from pathlib import Path
 from adcs_common.codegen import CompileError, CompilerNotFound
 from adcs_common.exceptions import AdcsError, InvalidValueError
 from .checks import (DriverCheckError, driver_verdict, loop_failures,
-                     loop_line, parse_loop_line)
+                     loop_line, parse_loop_line, parse_series_line)
 from .driver import _template
 from .result import OPT_FLAGS, SOURCE, ExportResult
 
@@ -280,11 +280,9 @@ def parse_target_output(text: str) -> dict[str, dict]:
             if m[8] is not None:
                 rec["final_error_deg"] = float(m[8])
             out.setdefault(m[1], {}).update(rec)
-        elif line.startswith("STEPS "):
-            name, vals = line[6:].rsplit(":", 1)
-            out.setdefault(name, {})["steps"] = [k * float(v)
-                                                 for v in vals.split()]
-        elif line.startswith(("OUT ", "WORK ", "STACK ", "STATE ")):
+        elif parse_series_line(line, out, "steps", k):
+            continue
+        elif line.startswith(("OUT ", "WORK ", "STACK ")):
             _parse_detail(line, out)
     out["_stdout"] = {"text": text}
     return out
@@ -301,12 +299,9 @@ def _parse_detail(line: str, out: dict[str, dict]) -> None:
         name, *v = rest.split()
         out.setdefault(name, {})["work"] = tuple(int(x) for x in v[:4])
         out[name]["work_sizeof"] = (int(v[4]), int(v[5]))
-    elif kind == "STACK":
+    else:
         name, v = rest.split()
         out.setdefault(name, {})["stack_measured"] = int(v)
-    else:
-        name, vals = rest.rsplit(":", 1)
-        out.setdefault(name, {})["state"] = [float(v) for v in vals.split()]
 
 
 def format_counts(times: dict[str, dict], target: str,
