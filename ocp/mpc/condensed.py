@@ -276,15 +276,8 @@ def _constrained_qp(rk: dict, qp_in: list, plugin: str, dims: tuple,
         gy, winv, rows, *bounds, t["lam_u0"], t["lam_a0"])
     du, dx = closed_loop(rk, A, B, K, Lit, y)
     a = _rows_of(dx, rate_rows)
-    nx = B[0].shape[0]
-    c = []
-    for k in range(N):
-        rate = lam_a[N * nw + 3 * k:N * nw + 3 * (k + 1)] if rate_rows \
-            else ca.MX.zeros(3)
-        c.append(ca.vertcat(ca.MX.zeros(4), rate,
-                            lam_a[k * nw:(k + 1) * nw], ca.MX.zeros(
-                                nx - 7 - nw)))
-    dual = adjoint(rk, A, B, K, Lit, lam_u, c)
+    dual = adjoint(rk, A, B, K, Lit, lam_u,
+                   _row_multipliers(lam_a, N, nw, rate_rows))
     kkt = kkt_residual(y, gy, dual, du, a, lam_u, lam_a, *bounds)
     return ca.Function("cond_qp_full", i,
                        [du, ca.horzcat(*dx), lam_u, lam_a, kkt])
@@ -294,6 +287,18 @@ def _rows_of(dx: list, rate_rows: bool) -> ca.MX:
     """The momentum (then rate) rows' values: of δx_1…δx_N."""
     return ca.vertcat(*[v[7:] for v in dx],
                       *([v[4:7] for v in dx] if rate_rows else []))
+
+
+def _row_multipliers(lam_a, N: int, nw: int, rate_rows: bool) -> list:
+    """The rows' multipliers at their states (`_rows_of`'s transpose):
+    for δx_1…δx_N, n_x = 7 + n_w each (rates at 4:7, momenta at 7:)."""
+    out = []
+    for k in range(N):
+        rate = lam_a[N * nw + 3 * k:N * nw + 3 * (k + 1)] if rate_rows \
+            else ca.MX.zeros(3)
+        out.append(ca.vertcat(ca.MX.zeros(4), rate,
+                              lam_a[k * nw:(k + 1) * nw]))
+    return out
 
 
 def _riccati(mpc: Any, kern: dict, A: list, B: list, Q: list) -> tuple:
@@ -338,16 +343,11 @@ def _expand(z, xs, us, e, u_new, dx, lam_u, lam_a, nw, rate_rows):
     are linear in (δu, defects).
     """
     N, nu, nx = len(xs) - 1, u_new.numel() // (len(xs) - 1), dx.shape[0]
+    lam_x = [ca.MX.zeros(nx), *_row_multipliers(lam_a, N, nw, rate_rows)]
     parts, lam_parts = [], []
     for k in range(N + 1):
         parts.append(z[xs[k]] + (e[k] + dx[:, k - 1] if k else 0.0))
-        lx = ca.MX.zeros(nx)
-        if k:
-            rate = lam_a[N * nw + 3 * (k - 1):N * nw + 3 * k] if \
-                rate_rows else ca.MX.zeros(3)
-            lx = ca.vertcat(ca.MX.zeros(4), rate,
-                            lam_a[(k - 1) * nw:k * nw])
-        lam_parts.append(lx)
+        lam_parts.append(lam_x[k])
         if k < N:
             parts.append(u_new[k * nu:(k + 1) * nu])
             lam_parts.append(lam_u[k * nu:(k + 1) * nu])
