@@ -54,8 +54,16 @@ def inv_lower(L: ca.SX) -> ca.SX:
     return X
 
 
-def _lower_nz(M: ca.SX) -> ca.SX:
-    """The lower triangle of a dense symmetric M, column by column."""
+def lower_symbol(name: str, n: int) -> tuple[ca.SX, ca.SX]:
+    """``(v, P)``: a symbol of a symmetric n × n matrix's lower triangle
+    (column by column, `lower_nz`'s order) and the matrix it fills."""
+    low = ca.Sparsity.lower(n)
+    v = ca.SX.sym(name, low.nnz())
+    return v, ca.tril2symm(ca.SX(low, v))
+
+
+def lower_nz(M: ca.SX) -> ca.SX:
+    """The lower triangle of a symmetric M, column by column."""
     n = M.shape[0]
     return ca.vertcat(*[M[i, j] for j in range(n) for i in range(j, n)])
 
@@ -90,9 +98,7 @@ def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
     """
     nx, nu = sp_b.size1(), sp_b.size2()
     # P is symmetric: its lower triangle crosses the boundary
-    low = ca.Sparsity.lower(nx)
-    pl = ca.SX.sym("P", low.nnz())
-    P = ca.tril2symm(ca.SX(low, pl))
+    pl, P = lower_symbol("P", nx)
     Q = ca.SX.sym("Q", sp_q)
     A = ca.SX.sym("A", sp_a)
     B = ca.SX.sym("B", sp_b)
@@ -127,8 +133,8 @@ def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
     gt = gk + ca.mtimes(B.T, mu)
     return {
         "ric": ca.Function("ric_step", [pl, Q, A, B, r],
-                           [_lower_nz(Pk), ca.densify(K), ca.densify(Lit)]),
-        "tril": ca.Function("ric_last", [Q], [_lower_nz(ca.densify(Q))]),
+                           [lower_nz(Pk), ca.densify(K), ca.densify(Lit)]),
+        "tril": ca.Function("ric_last", [Q], [lower_nz(ca.densify(Q))]),
         # the closed loop's first 7 rows (the sweeps of W⁻¹ only)
         "acl": ca.Function("ric_acl", [A, B, Ks],
                            [ca.densify((A + ca.mtimes(B, Ks))[:7, :])]),

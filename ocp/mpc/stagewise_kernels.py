@@ -32,7 +32,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .riccati import chol_lower, inv_lower
+from .riccati import chol_lower, inv_lower, lower_nz, lower_symbol
 
 
 def from_nz(name: str, sp: ca.Sparsity) -> tuple[ca.SX, ca.SX]:
@@ -91,9 +91,7 @@ def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
     B = ca.mtimes(B0, ca.diag(mask))
     # P is symmetric: its lower triangle crosses the boundary, and only
     # the lower triangle of P_k is computed
-    low = ca.Sparsity.lower(nx)
-    pl = ca.SX.sym("P", low.nnz())
-    P = ca.tril2symm(ca.SX(low, pl))
+    pl, P = lower_symbol("P", nx)
     p = ca.SX.sym("p", nx)
     held = [ca.SX.sym("Pxv", nx, nu), ca.SX.sym("Pvv", nu, nu),
             ca.SX.sym("pv", nu)]
@@ -124,7 +122,7 @@ def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
     keep = 1.0 - flag
     ric = ca.Function(
         "sw_ric", [pl, p, *held, an, bn, qn, sx, su, qt, rt, r, s],
-        [nz_of(ca.project(ca.densify(Pk), low)),
+        [lower_nz(Pk),
          ca.mtimes(A.T, ph) + flag * ca.mtimes(K.T, rhs),
          ca.densify(keep * Mxv), ca.densify(keep * Re),
          ca.densify(keep * rhs),
