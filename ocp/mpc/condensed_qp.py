@@ -30,23 +30,28 @@ def _independent_rows(N: int, nu: int, nw: int, na: int) -> ca.Function:
     Momentum row k of wheel i is the sum of its bounds' rows j < k, so a
     working set holding the row, the previous kept row of that wheel and
     every bound between them is dependent (DAQP's setup then fails). The
-    scan drops such rows; the other rows (rates) start inactive.
+    scan drops such rows; the other rows (rates) start inactive. It runs
+    over the stages as a ``mapaccum`` of one stage's test (the wheels'
+    torques are the first n_w controls of a stage).
     """
-    lx = ca.SX.sym("lam_x0", N * nu)
-    lb, ub = ca.SX.sym("lbx", N * nu), ca.SX.sym("ubx", N * nu)
-    la = ca.SX.sym("lam_a0", na)
-    out = [ca.SX(0)] * na
+    cov = ca.SX.sym("covered", nw)
+    lx, lb, ub = (ca.SX.sym(n, nu) for n in ("lam_x0", "lbx", "ubx"))
+    la = ca.SX.sym("lam_a0", nw)
+    cov_next, out = [], []
     for i in range(nw):
-        covered = ca.SX(1)
-        for k in range(1, N + 1):
-            j = (k - 1) * nu + i
-            covered = covered * ca.logic_or(lx[j] != 0, lb[j] == ub[j])
-            r = (k - 1) * nw + i
-            keep = ca.logic_and(la[r] != 0, ca.logic_not(covered))
-            out[r] = ca.if_else(keep, la[r], 0)
-            covered = ca.if_else(keep, 1, covered)
-    return ca.Function("cond_rows_warm", [lx, lb, ub, la],
-                       [ca.vertcat(*out)])
+        c = cov[i] * ca.logic_or(lx[i] != 0, lb[i] == ub[i])
+        keep = ca.logic_and(la[i] != 0, ca.logic_not(c))
+        out.append(ca.if_else(keep, la[i], 0))
+        cov_next.append(ca.if_else(keep, 1, c))
+    stage = ca.Function("cond_rows_stage", [cov, lx, lb, ub, la],
+                        [ca.vertcat(*cov_next), ca.vertcat(*out)])
+    scan = stage.mapaccum("cond_rows_scan", N, 1)
+    ins = [ca.MX.sym(n, m) for n, m in (("lam_x0", N * nu), ("lbx", N * nu),
+                                         ("ubx", N * nu), ("lam_a0", na))]
+    _, kept = scan(ca.DM.ones(nw), *(ca.reshape(v, nu, N) for v in ins[:3]),
+                   ca.reshape(ins[3][:N * nw], nw, N))
+    return ca.Function("cond_rows_warm", ins,
+                       [ca.vertcat(ca.vec(kept), ca.DM.zeros(na - N * nw))])
 
 
 def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
