@@ -75,6 +75,7 @@ from .patches import (
     patch_daqp_warm_start,
     patch_minmax,
     patch_unused_parameters,
+    patch_zeros,
 )
 from .precision import (DAQP_SINGLE_FLAG, SINGLE_DUTY_QP_PLUGIN,
                         check_precision, check_single,
@@ -355,6 +356,8 @@ def _write_source(fns: dict, out: Path, reuse_factorization: bool,
     patched = False
     text, daqp_patched = patch_daqp_failure(source.read_text())
     text, _ = patch_minmax(text)
+    text, _ = patch_zeros(text, max(f.nnz_in(i) for f in fns.values()
+                                    for i in range(f.n_in())))
     text, _ = patch_daqp_warm_start(text)
     # DAQP's workspace in static storage, its sources beside the source
     text, daqp_conics = patch_daqp_static(text)

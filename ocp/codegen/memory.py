@@ -13,7 +13,10 @@ Per exported function (`memory_report`, written as
   the function is subtracted: what the function adds, the C library
   routines it calls (libm, libgcc's soft-float) included. Helpers shared
   by several functions count in each; ``"all"`` is every function linked
-  together.
+  together, and ``"wheel_qp+duty_qp+<step>"`` the flight set of each
+  exported MPC step (`flight_groups`), with ``ram`` = its static RAM +
+  the largest caller work + the deepest stack of the three (they run
+  one at a time: one work buffer, one stack).
 * ``work_bytes``: the caller's work arrays (``sz_arg``, ``sz_res``
   pointers of 4 bytes, ``sz_iw`` casadi_int of 4 bytes (a Cortex-M
   export's is int) and ``sz_w`` casadi_real of 8 bytes (4 in a single-precision export); the sizes
@@ -156,6 +159,16 @@ def _size_tool(cc_path: str) -> str:
     return tool
 
 
+def flight_groups(names: list[str]) -> dict[str, list[str]]:
+    """The flight computer's sets, linked together: ``wheel_qp`` +
+    ``duty_qp`` + each exported MPC step, keyed ``"wheel_qp+duty_qp+<step>"``
+    (none without both QPs)."""
+    if not {"wheel_qp", "duty_qp"} <= set(names):
+        return {}
+    return {f"wheel_qp+duty_qp+{n}": ["wheel_qp", "duty_qp", n]
+            for n in names if n.startswith("mpc_")}
+
+
 def memory_report(res: ExportResult, core, objs: list[Path],
                   startup: Path, cc: Callable[[list[str]], None]) -> dict:
     """The memory report of a built target export (see the module doc);
@@ -172,10 +185,11 @@ def memory_report(res: ExportResult, core, objs: list[Path],
     text = res.source.read_text()
     size_tool = _size_tool(CROSS_CC)
     names = list(res.functions)
+    groups = flight_groups(names)
     sizes: dict[str, dict[str, int]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for key, refs in [("_base", []), *[(n, [n]) for n in names],
-                          ("all", names)]:
+                          ("all", names), *groups.items()]:
             src = Path(tmp) / f"probe_{key}.c"
             src.write_text(_probe(refs))
             elf = Path(tmp) / f"probe_{key}.elf"
@@ -207,6 +221,13 @@ def memory_report(res: ExportResult, core, objs: list[Path],
                        heap=bool({"malloc", "calloc", "realloc", "free"}
                                  & set(lib)))
         report["functions"][key] = rec
+    for key, refs in groups.items():
+        rec = report["functions"][key]
+        members = [report["functions"][n] for n in refs]
+        rec.update(work_bytes=max(m["work_bytes"] for m in members),
+                   stack=max(m["stack"] for m in members),
+                   stack_bounded=all(m["stack_bounded"] for m in members))
+        rec["ram"] = rec["static_ram"] + rec["work_bytes"] + rec["stack"]
     (out / f"memory_{target}.json").write_text(
         json.dumps(report, indent=2) + "\n")
     return report
@@ -215,17 +236,19 @@ def memory_report(res: ExportResult, core, objs: list[Path],
 def format_memory(report: dict, measured: dict | None = None) -> str:
     """The memory report as a table (bytes); ``measured``: `run_target`'s
     figures, for the painted-stack column."""
+    width = max([22, *map(len, report["functions"])])
     rows = [f"memory on {report['target']} [bytes] (flash = text + rodata "
             "+ data; each function linked alone; stack: call graph, "
             "library calls excluded)",
-            f"{'function':22s} {'flash':>8s} {'static RAM':>10s} "
+            f"{'function':{width}s} {'flash':>8s} {'static RAM':>10s} "
             f"{'work':>8s} {'stack':>7s} {'measured':>9s}  library calls"]
     for name, r in report["functions"].items():
         meas = (measured or {}).get(name, {}).get("stack_measured")
+        note = (f"RAM = static + work + stack: {r['ram']}" if "ram" in r
+                else ", ".join(r.get("library_calls", [])))
         rows.append(
-            f"{name:22s} {r['flash']:8d} {r['static_ram']:10d} "
+            f"{name:{width}s} {r['flash']:8d} {r['static_ram']:10d} "
             f"{r.get('work_bytes', ''):>8} "
             f"{str(r.get('stack', '')) + ('' if r.get('stack_bounded', True) else '+'):>7s} "
-            f"{'' if meas is None else meas:>9}  "
-            f"{', '.join(r.get('library_calls', []))}")
+            f"{'' if meas is None else meas:>9}  {note}")
     return "\n".join(rows)

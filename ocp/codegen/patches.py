@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
+
 #: CasADi's generated DAQP conic aborts the whole Function on a failed
 #: solve (its ``error_on_fail`` option is not generated), before the
 #: caller's certificate can read the point.
@@ -183,3 +185,67 @@ def patch_daqp_warm_start(source: str) -> tuple[str, int]:
         count += source.count(old)
         source = source.replace(old, new)
     return source, count
+
+
+_ZEROS = re.compile(r"static const casadi_real casadi_zeros\[(\d+)\] = \n"
+                    r"  \{0\.\};")
+_SIGNATURE = re.compile(r"^/\* \w+:\((.*)\)->.*\*/\n"
+                        r"static int casadi_f(\d+)\(", re.M)
+_NULL_ARG = re.compile(r"^\s*arg\d*\[(\d+)\]=0;$", re.M)
+_CALL = re.compile(r"casadi_f(\d+)\(arg\d*,")
+
+
+def _input_nnz(signature: str) -> list[int]:
+    """Nonzeros of each input of a generated signature comment, e.g.
+    ``x[11],A[11x11,69nz],q[],t`` -> [11, 69, 0, 1]."""
+    out = []
+    for entry in re.findall(r"\w+(?:\[[^\]]*\])?", signature):
+        dims = re.search(r"\[([^\]]*)\]", entry)
+        if dims is None:
+            out.append(1)
+        elif not dims.group(1):
+            out.append(0)
+        elif dims.group(1).endswith("nz"):
+            out.append(int(dims.group(1).split(",")[1][:-2]))
+        else:
+            out.append(int(np.prod([int(v) for v in
+                                    dims.group(1).split("x")])))
+    return out
+
+
+def patch_zeros(source: str, public_nnz: int) -> tuple[str, int]:
+    """Size ``casadi_zeros`` for the NULL arguments that can occur.
+
+    A generated function reads a NULL argument from ``casadi_zeros``,
+    which CasADi sizes for the largest input of any function in the file
+    (the condensed MPC's stacked QP rows: 6,720 reals, 53 kB of flash).
+    NULL reaches a function only from its caller: the user, for a public
+    function's input (``public_nnz``, the largest), or a generated call
+    that passes ``arg[k]=0`` (CasADi does for absent conic inputs, all
+    empty). The array keeps the largest of those sizes; a call whose
+    callee's signature cannot be read leaves the file unchanged.
+
+    Returns
+    -------
+    text : str
+        The edited text.
+    size : int
+        The new size (0: unchanged).
+    """
+    m = _ZEROS.search(source)
+    if m is None:
+        return source, 0
+    nnz = {int(f): _input_nnz(sig) for sig, f in _SIGNATURE.findall(source)}
+    need = int(public_nnz)
+    for null in _NULL_ARG.finditer(source):
+        call = _CALL.search(source, null.end())
+        callee = nnz.get(int(call.group(1))) if call else None
+        k = int(null.group(1))
+        if callee is None or k >= len(callee):
+            return source, 0
+        need = max(need, callee[k])
+    need = max(need, 1)
+    if need >= int(m.group(1)):
+        return source, 0
+    return (source[:m.start()] + f"static const casadi_real casadi_zeros"
+            f"[{need}] = \n  {{0.}};" + source[m.end():], need)

@@ -53,8 +53,8 @@ from .acceleration import anderson_function
 from .condensed_qp import ROW_TOL, kkt_residual, routed_qp
 from .plan import nan_unless_finite
 from .problem import momentum_residual, pointing_residuals
-from .riccati import (adjoint, closed_loop, factor_rows, factors,
-                      riccati_kernels)
+from .condensed_sweeps import linearise, sweep_kernels
+from .riccati import adjoint, closed_loop, factor_rows
 
 
 #: Default step ``max |δu / m_max|`` [1] at which the condensed SQP stops.
@@ -110,21 +110,7 @@ def _kernels(mpc: Any) -> dict[str, ca.Function]:
                         [Q, 2.0 * ca.mtimes(C.T, r), ca.sumsqr(r)],
                         ["x", "qf", "a", "c"], ["Q", "q", "cost"],
                         {"cse": True})
-    Qs = ca.SX.sym("Q", Q.sparsity())
-    As = ca.SX.sym("A", A.sparsity())
-    Bs = ca.SX.sym("B", B.sparsity())
-    e = ca.SX.sym("e", nx)
-    d = ca.SX.sym("d", nx)
-    lam = ca.SX.sym("lam", nx)
-    q = ca.SX.sym("q", nx)
-    return {
-        "lin": lin, "stage": stage,
-        # defects forward: e_{k+1} = A e + d ; gradient backward
-        "efw": ca.Function("cond_efw", [As, e, d], [ca.mtimes(As, e) + d]),
-        "gbw": ca.Function("cond_gbw", [Qs, e, q, As, lam],
-                           [ca.mtimes(Qs, e) + q + ca.mtimes(As.T, lam)]),
-        "bt": ca.Function("cond_bt", [Bs, lam], [ca.mtimes(Bs.T, lam)]),
-    }
+    return {"lin": lin, "stage": stage}
 
 
 def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
@@ -139,31 +125,33 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     kern = _kernels(mpc)
     model, wh, N = mpc.model, mpc.wheels, mpc.horizon
     nx, nu, nw = model.nx, model.nu, wh.n_wheels
-    xs, us = mpc._xs, mpc._us
     z = ca.MX.sym("z", mpc.nz)
     lx0 = ca.MX.sym("lam_x", mpc.nz)
     p = ca.MX.sym("p", nx + 7)
     qf, tau = p[nx:nx + 4], p[nx + 4:]
     m_max = np.asarray(wh.m_max, dtype=float)
-    A, B, d, Q, e, g = _stages(mpc, kern, z, qf, tau)
+    sk = sweep_kernels(mpc, kern)
+    rk = sk["rk"]
+    A, B, e, K, Lit, gy, _ = linearise(mpc, sk, kern, z, qf, tau)
     rate_rows = mpc.rate_max is not None
-    rk, K, Lit = _riccati(mpc, kern, A, B, Q)
     h_max = np.asarray(wh.h_max, dtype=float)
-    h_now = ca.vertcat(*[z[xs[k]][7:] + e[k][7:] for k in range(1, N + 1)])
+    # stage-major vectors of the states 1…N: the plan's plus the defects
+    # carried along (each pick one strided copy in C)
+    at = _Layout(mpc)
+    Xe = z[at.states()] + ca.vertcat(*e[1:])
+    h_now = Xe[at.rows(7, nx)]
     lba, uba = [-np.tile(h_max, N) - h_now], [np.tile(h_max, N) - h_now]
     if rate_rows:
-        w_now = ca.vertcat(*[z[xs[k]][4:7] + e[k][4:7]
-                             for k in range(1, N + 1)])
+        w_now = Xe[at.rows(4, 7)]
         lba.append(-mpc.rate_max - w_now)
         uba.append(mpc.rate_max - w_now)
     u_lo, u_hi = model.control_bounds()
-    u_bar = ca.vertcat(*[z[us[k]] for k in range(N)])
-    lam_a0 = [lx0[xs[k]][7:] for k in range(1, N + 1)] + (
-        [lx0[xs[k]][4:7] for k in range(1, N + 1)] if rate_rows else [])
+    u_bar = z[at.controls()]
+    lam_a0 = ca.vertcat(lx0[at.states(7, nx)], *(
+        [lx0[at.states(4, 7)]] if rate_rows else []))
     # the QP in y has the Hessian I: its unconstrained optimum is -W⁻ᵀg,
     # and the answer (zero multipliers) when it keeps every bound and
     # row; W⁻¹ (O(N²) sweeps) and the conic only otherwise
-    gy = adjoint(rk, A, B, K, Lit, g)
     du0, dx0 = closed_loop(rk, A, B, K, Lit, -gy)
     rows0 = _rows_of(dx0, rate_rows)
     lbu, ubu = np.tile(u_lo, N) - u_bar, np.tile(u_hi, N) - u_bar
@@ -174,8 +162,7 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     # the stages' matrices enter one by one (no copies into one matrix
     # on the unconstrained path; `_QP_TAIL` names the rest)
     qp_in = [*A, *B, *K, *Lit, *dx0, gy, du0, rows0, lbu, ubu, lba_, uba_,
-             ca.vertcat(*[lx0[us[k]] for k in range(N)]), ca.vertcat(*lam_a0),
-             excess]
+             lx0[at.controls()], lam_a0, excess]
     qp = ca.Function.if_else(
         "cond_qp_first", _free_qp(qp_in, N),
         _constrained_qp(rk, qp_in, plugin, (N, nu, nw), rate_rows, qp_tols))
@@ -184,51 +171,45 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     # can sit outside it by its rounding, amplified by W⁻¹ (2.6e-6 N·m
     # measured on the M4F); the certificate is the QP point's
     u_new = ca.fmin(ca.fmax(u_bar + du, np.tile(u_lo, N)), np.tile(u_hi, N))
-    parts, lam_parts = _expand(z, xs, us, e, u_new, dx, lam_u, lam_a, nw,
-                               rate_rows)
+    # the new plan: the states z's plus δx_k = e_k + dx_k (the defects
+    # carried along plus the closed loop's response to δu: the dynamics
+    # are linear in both), the torques u_new; the multipliers at theirs
+    z_new = ca.MX(z)
+    z_new[at.states()] = Xe + ca.vec(dx)
+    z_new[at.controls()] = u_new
+    lam_new = ca.MX(ca.DM.zeros(mpc.nz))
+    lam_new[at.states(7, nx)] = lam_a[:N * nw]
+    if rate_rows:
+        lam_new[at.states(4, 7)] = lam_a[N * nw:]
+    lam_new[at.controls()] = lam_u
     step = ca.mmax(ca.fabs(du) / ca.DM(np.tile(np.r_[m_max], N)))
     return ca.Function("cond_iter", [z, lx0, p],
-                       [ca.vertcat(*parts), ca.vertcat(*lam_parts), step,
-                        kkt],
+                       [z_new, lam_new, step, kkt],
                        ["z", "lam_x0", "p"],
                        ["z_new", "lam_x", "step", "qp_kkt"])
 
 
-def _stages(mpc: Any, kern: dict, z, qf, tau) -> tuple:
-    """Linearise the plan: ``(A, B, d, Q, e, g)`` of the condensed QP.
+class _Layout:
+    """Indices into a plan z (layout x_0, u_0, …, x_N) of its stages' parts,
+    stage-major: strided picks, one loop each in generated C."""
 
-    ``A, B, d`` (k = 0…N−1): RK4 Jacobians and defects; ``Q`` (k = 1…N):
-    the stages' Gauss–Newton Hessians plus ρI; ``e``: the defects carried
-    along (δx for δu = 0); ``g``: the gradient in δu.
-    """
-    model, w, N = mpc.model, mpc.weights, mpc.horizon
-    nx = model.nx
-    xs, us = mpc._xs, mpc._us
-    m_max = np.asarray(mpc.wheels.m_max, dtype=float)
-    A, B, d = [], [], []
-    for k in range(N):
-        F, Ak, Bk = kern["lin"](z[xs[k]], z[us[k]], tau)
-        A.append(Ak)
-        B.append(Bk)
-        d.append(F - z[xs[k + 1]])
-    Q, q = [None], [None]
-    for k in range(1, N + 1):
-        c = w.terminal if k == N else 1.0
-        Qk, qk, _ = kern["stage"](z[xs[k]], qf, 1.0 if k < N else 0.0, c)
-        Q.append(Qk)
-        q.append(qk)
-    e = [ca.MX.zeros(nx)]
-    for k in range(N):
-        e.append(kern["efw"](A[k], e[k], d[k]) if k else d[0])
-    # gradient: λ_N = Q_N e_N + q_N, λ_k = Q_k e_k + q_k + A_k' λ_{k+1}
-    lam = ca.mtimes(Q[N], e[N]) + q[N]
-    grad: list[Any] = [None] * N      # MX, filled backwards
-    for k in range(N - 1, -1, -1):
-        grad[k] = (2.0 * w.torque * z[us[k]] / ca.DM(m_max ** 2)
-                   + kern["bt"](B[k], lam))
-        if k:
-            lam = kern["gbw"](Q[k], e[k], q[k], A[k], lam)
-    return A, B, d, Q, e, ca.vertcat(*grad)
+    def __init__(self, mpc: Any) -> None:
+        self.xs, self.us, self.nx = mpc._xs, mpc._us, mpc.model.nx
+
+    def states(self, lo: int = 0, hi: int | None = None) -> list[int]:
+        """Components lo…hi−1 of the states x_1…x_N."""
+        hi = self.nx if hi is None else hi
+        return [s.start + i for s in self.xs[1:] for i in range(lo, hi)]
+
+    def rows(self, lo: int, hi: int) -> list[int]:
+        """Components lo…hi−1 of each state in a stage-major vector of
+        the states x_1…x_N (as `states` picks them)."""
+        n = len(self.xs) - 1
+        return [k * self.nx + i for k in range(n) for i in range(lo, hi)]
+
+    def controls(self) -> list[int]:
+        """The controls u_0…u_{N−1}."""
+        return [i for s in self.us for i in range(s.start, s.stop)]
 
 
 #: The QP branches' inputs after the 5N stage inputs (A, B, K, Lit, δx₀
@@ -270,10 +251,10 @@ def _constrained_qp(rk: dict, qp_in: list, plugin: str, dims: tuple,
     i, (A, B, K, Lit, _), t = _qp_symbols(qp_in, ca.MX, N)
     gy = t["gy"]
     bounds = [t[n] for n in ("lbu", "ubu", "lba", "uba")]
-    winv, rows = factor_rows(rk, A, B, K, Lit, rate_rows)
+    winv, G = factor_rows(rk, A, B, K, Lit, rate_rows)
     y, lam_u, lam_a = routed_qp(plugin, N, nu, nw, winv.sparsity(),
-                                rows.sparsity(), **qp_tols)(
-        gy, winv, rows, *bounds, t["lam_u0"], t["lam_a0"])
+                                G.sparsity(), **qp_tols)(
+        gy, winv, G, *bounds, t["lam_u0"], t["lam_a0"])
     du, dx = closed_loop(rk, A, B, K, Lit, y)
     a = _rows_of(dx, rate_rows)
     dual = adjoint(rk, A, B, K, Lit, lam_u,
@@ -301,20 +282,6 @@ def _row_multipliers(lam_a, N: int, nw: int, rate_rows: bool) -> list:
     return out
 
 
-def _riccati(mpc: Any, kern: dict, A: list, B: list, Q: list) -> tuple:
-    """``(kernels, K, Lit)``: the Riccati factors of the QP in y
-    (`ocp.mpc.riccati.factors`) and the kernels that use them."""
-    wh = mpc.wheels
-    m_max = np.asarray(wh.m_max, dtype=float)
-    r_diag = ca.DM(2.0 * mpc.weights.torque / m_max ** 2
-                   + mpc.regularization)
-    rk = riccati_kernels(kern["stage"].sparsity_out(0),
-                         kern["lin"].sparsity_out(1),
-                         kern["lin"].sparsity_out(2),
-                         mpc.dt * np.asarray(wh.scale * wh.active, float))
-    return (rk, *factors(rk, A, B, Q, r_diag))
-
-
 def qp_factor_function(mpc: Any) -> ca.Function:
     """``cond_factor(z, p) -> (Winv, rows, g)`` of one condensed QP.
 
@@ -327,31 +294,13 @@ def qp_factor_function(mpc: Any) -> ca.Function:
     nx = mpc.model.nx
     z = ca.MX.sym("z", mpc.nz)
     p = ca.MX.sym("p", nx + 7)
-    A, B, _, Q, _, g = _stages(mpc, kern, z, p[nx:nx + 4], p[nx + 4:])
-    rk, K, Lit = _riccati(mpc, kern, A, B, Q)
-    winv, rows = factor_rows(rk, A, B, K, Lit, mpc.rate_max is not None)
+    sk = sweep_kernels(mpc, kern)
+    A, B, _, K, Lit, _, g = linearise(mpc, sk, kern, z, p[nx:nx + 4],
+                                      p[nx + 4:])
+    winv, G = factor_rows(sk["rk"], A, B, K, Lit, mpc.rate_max is not None)
+    rows = G[winv.shape[0]:, :]
     return ca.Function("cond_factor", [z, p], [winv, rows, g],
                        ["z", "p"], ["Winv", "rows", "g"])
-
-
-def _expand(z, xs, us, e, u_new, dx, lam_u, lam_a, nw, rate_rows):
-    """Return the new plan and its multipliers (z's layout).
-
-    The controls are ``u_new`` (N·n_u,); the states z's plus δx_k = e_k +
-    dx_k: the defects carried along (``e``, δu = 0) plus the closed
-    loop's response to δu (``dx``, n_x × N: δx_1…δx_N) — the dynamics
-    are linear in (δu, defects).
-    """
-    N, nu, nx = len(xs) - 1, u_new.numel() // (len(xs) - 1), dx.shape[0]
-    lam_x = [ca.MX.zeros(nx), *_row_multipliers(lam_a, N, nw, rate_rows)]
-    parts, lam_parts = [], []
-    for k in range(N + 1):
-        parts.append(z[xs[k]] + (e[k] + dx[:, k - 1] if k else 0.0))
-        lam_parts.append(lam_x[k])
-        if k < N:
-            parts.append(u_new[k * nu:(k + 1) * nu])
-            lam_parts.append(lam_u[k * nu:(k + 1) * nu])
-    return parts, lam_parts
 
 
 #: Names of the step Functions' inputs and outputs (`AttitudeMPC`'s, plus

@@ -10,7 +10,6 @@ are added only when that point breaks one.
 from __future__ import annotations
 
 import casadi as ca
-import numpy as np
 
 
 #: Largest excess of a momentum or rate row [N·m·s, rad/s] at which the
@@ -55,13 +54,14 @@ def _independent_rows(N: int, nu: int, nw: int, na: int) -> ca.Function:
 
 
 def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
-               sp_r: ca.Sparsity, row_tol: float = ROW_TOL,
-               qp_tol: float | None = None) -> ca.Function:
+              sp_g: ca.Sparsity, row_tol: float = ROW_TOL,
+              qp_tol: float | None = None) -> ca.Function:
     """Build the QP in ``y`` (`ocp.mpc.riccati`): Hessian I, bounds as rows.
 
-    ``qp(g, W⁻¹, rows, lbu, ubu, lba, uba, lam_u0, lam_a0) -> (y, lam_u,
+    ``qp(g, W⁻¹, G, lbu, ubu, lba, uba, lam_u0, lam_a0) -> (y, lam_u,
     lam_a)``: minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
-    ubu`` (the bounds on δu) and ``lba ≤ rows·y ≤ uba`` (momentum, rate).
+    ubu`` (the bounds on δu) and ``lba ≤ rows·y ≤ uba`` (momentum, rate),
+    ``G`` the stacked W⁻¹ and rows (`ocp.mpc.riccati.factor_rows`).
     When the warm start holds no active row (holds, small slews): the QP
     with the bounds alone first; its point is the answer when it meets
     every row within `ROW_TOL` (the rows can only cut that QP's feasible
@@ -74,10 +74,10 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     ``constr_viol_tol`` / ``dual_inf_tol`` (float exports,
     `ocp.codegen.precision.TOLERANCES`).
     """
-    n, na = N * nu, sp_r.size1()
+    n, na = N * nu, sp_g.size1() - N * nu
     g = ca.MX.sym("g", n)
     W = ca.MX.sym("Winv", sp_w)
-    R = ca.MX.sym("rows", sp_r)
+    R = ca.MX.sym("G", sp_g)
     lbu, ubu = ca.MX.sym("lbu", n), ca.MX.sym("ubu", n)
     lba, uba = ca.MX.sym("lba", na), ca.MX.sym("uba", na)
     lu0, la0 = ca.MX.sym("lam_u0", n), ca.MX.sym("lam_a0", na)
@@ -89,11 +89,11 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     box = ca.conic("cond_qp_box", plugin, {"h": eye.sparsity(),
                                            "a": sp_w}, opts)
     full = ca.conic("cond_qp", plugin, {"h": eye.sparsity(),
-                                        "a": _stacked(W, R).sparsity()}, opts)
+                                        "a": sp_g}, opts)
 
     def with_rows(lam_u, lam_a):
         # evaluated in the branches with the rows
-        s = full(h=eye, g=g, a=_stacked(W, R), lba=ca.vertcat(lbu, lba),
+        s = full(h=eye, g=g, a=R, lba=ca.vertcat(lbu, lba),
                  uba=ca.vertcat(ubu, uba), lam_a0=ca.vertcat(lam_u, lam_a))
         return [s["x"], s["lam_a"][:n], s["lam_a"][n:]]
 
@@ -101,14 +101,15 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     # the bounds first; the rows only when the bounds' point breaks one
     y1, l1 = ca.MX.sym("y1", n), ca.MX.sym("l1", n)
     args = [g, W, R, lbu, ubu, lba, uba, l1, y1]
+    ry = _rows(R, y1, n)
     pick = ca.Function.if_else(
         "cond_qp_pick",
         ca.Function("cond_qp_rows", args, with_rows(l1, rows_warm(
-            l1, lbu, ubu, ca.if_else(ca.mtimes(R, y1) > uba, 1, 0)
-            - ca.if_else(ca.mtimes(R, y1) < lba, 1, 0)))),
+            l1, lbu, ubu, ca.if_else(ry > uba, 1, 0)
+            - ca.if_else(ry < lba, 1, 0)))),
         ca.Function("cond_qp_keep", args, [y1, l1, ca.MX.zeros(na)]))
     s1 = box(h=eye, g=g, a=W, lba=lbu, uba=ubu, lam_a0=lu0)
-    ay = ca.mtimes(R, s1["x"])
+    ay = _rows(R, s1["x"], n)
     excess = ca.mmax(ca.vertcat(ay - uba, lba - ay, 0.0))
     # casadi's stubs: a call with several outputs returns a tuple
     staged = ca.Function(  # type: ignore[call-overload]
@@ -121,15 +122,9 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     return ca.Function("cond_qp_routed", ins, [y, lam_u, lam_a])
 
 
-def _stacked(W: ca.MX, R: ca.MX) -> ca.MX:
-    """``vertcat(W, R)`` as one permutation of their nonzeros (MX
-    concatenation of sparse matrices goes through transposes in C)."""
-    tag = ca.vertcat(ca.DM(W.sparsity(), np.arange(W.nnz(), dtype=float)),
-                     ca.DM(R.sparsity(), np.arange(W.nnz(), W.nnz()
-                                                   + R.nnz(), dtype=float)))
-    perm = [int(v) for v in tag.nonzeros()]
-    nz = ca.vertcat(W.nz[:], R.nz[:])
-    return ca.MX(tag.sparsity(), nz[perm])
+def _rows(G: ca.MX, y: ca.MX, n: int) -> ca.MX:
+    """The rows' values at y: G·y below its first n rows (W⁻¹)."""
+    return ca.mtimes(G, y)[n:]
 
 
 def kkt_residual(y, g, dual, v, a, lam_u, lam_a, lbu, ubu, lba, uba):

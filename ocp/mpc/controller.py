@@ -72,7 +72,8 @@ from .condensed import (check_condensed_options, condensed_qp_plugin,
 from .stagewise import (block_lengths, check_stagewise_options,
                         stagewise_step_functions)
 from .nlp_step import build_nlp_step
-from .plan import check_function, plan_bounds, shift_function
+from .plan import (check_function, plan_bounds, residual_function,
+                   shift_function)
 from .problem import (
     BOUND_TOL,
     DEFECT_TOL,
@@ -319,7 +320,7 @@ class AttitudeMPC:
         r, gv, f = self._objective(z, x_par, qf, tau)
         self.lbz, self.ubz, self._bound_scale = plan_bounds(self)
         self.qp_kkt_function = qp_kkt_function(self, z, p, r, gv, f)
-        self._residuals = ca.Function("mpc_residuals", [z, p], [f, gv])
+        self._residuals = residual_function(self)
         self.shift_function = shift_function(nx, nu, nz, self._ng)
         self.check_function = check_function(self, p)
         self.nlpsol: ca.Function | None = None

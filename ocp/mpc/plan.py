@@ -7,6 +7,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from .problem import momentum_residual, pointing_residuals
+
 
 def shift_function(nx: int, nu: int, nz: int, ng: int) -> ca.Function:
     """``shift(x, z_prev, lam_x_prev, lam_g_prev) -> (z0, lam_x0, lam_g0)``.
@@ -62,6 +64,44 @@ def bound_violation(z: ca.MX, lb: np.ndarray, ub: np.ndarray,
     if len(hi):
         terms.append((z[hi] - ca.DM(ub[hi])) * ca.DM(1.0 / scale[hi]))
     return ca.mmax(ca.vertcat(*terms))
+
+
+def residual_function(mpc: Any) -> ca.Function:
+    """``mpc_residuals(z, p) -> (cost, g)``: the plan's cost and dynamics
+    rows (`AttitudeMPC`'s objective and constraints, ``p = (x, q_f, τ)``).
+
+    One stage's RK4 defect and least-squares terms, ``map``-ped over the
+    horizon: a loop in generated C (the check runs in every step).
+    """
+    model, wh, w, N = mpc.model, mpc.wheels, mpc.weights, mpc.horizon
+    nx, nu, nw = model.nx, model.nu, wh.n_wheels
+    m_max = np.asarray(wh.m_max, dtype=float)
+    h_max = np.asarray(wh.h_max, dtype=float)
+    prop = mpc._propellant_weights()
+    x, x1 = ca.SX.sym("x", nx), ca.SX.sym("x1", nx)
+    u, qf, tau = ca.SX.sym("u", nu), ca.SX.sym("qf", 4), ca.SX.sym("tau", 3)
+    c = ca.SX.sym("c")
+    # the sign of the rows as `AttitudeMPC._objective` writes them
+    sign = 1.0 if mpc.solver == "fatrop" else -1.0
+    defect = sign * (x1 - model.rk4_step(1).expand()(x, u, tau, mpc.dt))
+    r = ca.vertcat(np.sqrt(w.torque) * u[:nw] / ca.DM(m_max),
+                   momentum_residual(x, w, h_max),
+                   pointing_residuals(x1, qf, w, c))
+    cost = ca.sumsqr(r)
+    if prop.size:
+        cost = cost + w.propellant * ca.dot(ca.DM(prop), u[nw:])
+    stage = ca.Function("mpc_residual_stage", [x, u, x1, qf, tau, c],
+                        [cost, defect])
+    z = ca.MX.sym("z", mpc.nz)
+    p = ca.MX.sym("p", nx + 7)
+    Z = ca.reshape(z[:N * (nx + nu)], nx + nu, N)
+    X1 = ca.horzcat(Z[:nx, 1:], z[N * (nx + nu):])
+    costs, D = stage.map(N)(Z[:nx, :], Z[nx:, :], X1, p[nx:nx + 4],
+                            p[nx + 4:],
+                            ca.DM([[1.0] * (N - 1) + [w.terminal]]))
+    return ca.Function("mpc_residuals", [z, p],
+                       [ca.sum2(costs), ca.vertcat(z[:nx] - p[:nx],
+                                                   ca.vec(D))])
 
 
 def check_function(mpc: Any, p: ca.MX) -> ca.Function:

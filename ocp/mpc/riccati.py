@@ -151,25 +151,6 @@ def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
     }
 
 
-def factors(kern: dict, A: list, B: list, Q: list, r_diag: ca.DM
-            ) -> tuple[list, list]:
-    """``(K, Lit)`` per stage (k = 0…N−1): the recursion (module doc).
-
-    ``A``, ``B`` (k = 0…N−1) and ``Q`` (k = 1…N; ``Q[0]`` unused) are the
-    stage matrices (MX).
-    """
-    N = len(A)
-    P = kern["tril"](Q[N])
-    # MX blocks, filled backwards
-    K: list[Any] = [None] * N
-    Lit: list[Any] = [None] * N
-    zero_q = ca.DM(Q[N].sparsity(), 0.0)
-    for k in range(N - 1, -1, -1):
-        P, K[k], Lit[k] = kern["ric"](P, Q[k] if k else zero_q, A[k], B[k],
-                                      r_diag)
-    return K, Lit
-
-
 def closed_loop(kern: dict, A: list, B: list, K: list, Lit: list, y
                 ) -> tuple[ca.MX, list]:
     """``(δu, δx)``: ``δu = W⁻¹ y`` (N·n_u,) and the states δx_1…δx_N
@@ -207,12 +188,14 @@ def adjoint(kern: dict, A: list, B: list, K: list, Lit: list, g,
 
 def factor_rows(kern: dict, A: list, B: list, K: list, Lit: list,
                 rate_rows: bool) -> tuple[ca.MX, ca.MX]:
-    """``(W⁻¹, rows)`` of the condensed QP in ``y``, from `factors`.
+    """``(W⁻¹, G)`` of the condensed QP in ``y``, from the factors (`ocp.mpc.condensed_sweeps.linearise`).
 
-    δu = W⁻¹ y; ``rows`` stacks the momentum deviations of the states
-    k = 1…N (N·n_w rows), then, with ``rate_rows``, their rate
-    deviations (3N rows), as functions of y. All lower block triangular,
-    with N·n_u columns.
+    δu = W⁻¹ y; ``G`` stacks W⁻¹ (N·n_u rows, the bounds on δu), the
+    momentum deviations of the states k = 1…N (N·n_w rows), then, with
+    ``rate_rows``, their rate deviations (3N rows), as functions of y:
+    the QP's constraint rows. All lower block triangular, with N·n_u
+    columns. The blocks are written into G, and W⁻¹ is G's top rows,
+    copied column by column (no index arrays in C).
     """
     N = len(B)
     nx, nu = B[0].shape
@@ -229,8 +212,24 @@ def factor_rows(kern: dict, A: list, B: list, K: list, Lit: list,
         for k in range(j + 1, N):
             winv[k][j], S, mom[k][j], rate[k][j] = kern["sweep"](
                 K[k], Acl[k], S)
-    rows = [(mom, nx - 7)] + ([(rate, 3)] if rate_rows else [])
-    return _lower_blocks([(winv, nu)], nu), _lower_blocks(rows, nu)
+    grids = [(winv, nu), (mom, nx - 7)] + ([(rate, 3)] if rate_rows else [])
+    G = _lower_blocks(grids, nu)
+    return _top_rows(G, N * nu), G
+
+
+def _top_rows(M: ca.MX, n: int) -> ca.MX:
+    """The first ``n`` rows of a sparse ``M``: one contiguous run of
+    nonzeros per column (a slice copy each in C)."""
+    sp = M.sparsity()
+    top = ca.DM(sp, 1.0)[:n, :].sparsity()
+    colind, row = sp.colind(), sp.row()
+    out = ca.MX(top)
+    for c in range(sp.size2()):
+        a, b = top.colind()[c], top.colind()[c + 1]
+        if b > a:
+            assert all(r < n for r in row[colind[c]:colind[c] + b - a])
+            out.nz[a:b] = M.nz[colind[c]:colind[c] + b - a]
+    return out
 
 
 def _lower_blocks(grids: list, w: int) -> ca.MX:
