@@ -36,6 +36,16 @@ def exported(tmp_path_factory):
                     build=True, repeats=200)
 
 
+def test_zeros_are_sized_for_the_public_inputs(exported):
+    """`patch_zeros`: the NULL-argument zeros hold the largest public
+    input, not the condensed QP's stacked rows (6,720 nonzeros) CasADi
+    sized them for."""
+    text = exported.source.read_text()
+    size = int(text.split("casadi_zeros[")[1].split("]")[0])
+    assert size == max(f.nnz_in(i) for f in exported.functions.values()
+                       for i in range(f.n_in()))
+
+
 def test_files_written(exported):
     r = exported
     for p in (r.source, r.header, r.driver, r.makefile, r.readme,

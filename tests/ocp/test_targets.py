@@ -191,8 +191,18 @@ def test_m7_condensed_closed_loop_equals_the_host(tmp_path):
     np.testing.assert_allclose(loop["state"], x_host, rtol=0, atol=1e-9)
     assert loop["final_error_deg"] < 1e-3
     assert times["mpc_cond_rti_step"]["flag"] == 0
-    rec = target.extras["memory"]["functions"]["mpc_cond_rti_step"]
+    mem = target.extras["memory"]["functions"]
+    rec = mem["mpc_cond_rti_step"]
     assert rec["heap"] is False
+    # the flight set: the three linked together, one work buffer and one
+    # stack for the three (they run one at a time)
+    trio = mem["wheel_qp+duty_qp+mpc_cond_rti_step"]
+    parts = [mem[n] for n in ("wheel_qp", "duty_qp", "mpc_cond_rti_step")]
+    assert max(p["flash"] for p in parts) <= trio["flash"] \
+        <= mem["all"]["flash"]
+    assert trio["work_bytes"] == max(p["work_bytes"] for p in parts)
+    assert trio["ram"] == (trio["static_ram"] + trio["work_bytes"]
+                           + max(p["stack"] for p in parts))
 
 
 #: The single-precision condensed RTI closed loop on the emulated M4F
