@@ -50,11 +50,11 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_finite_scalar, check_positive
 from .acceleration import anderson_function
-from .condensed_qp import ROW_TOL, kkt_residual, routed_qp
+from .condensed_qp import ROW_TOL, RowLayout, kkt_residual, routed_qp
 from .plan import nan_unless_finite
 from .problem import momentum_residual, pointing_residuals
 from .condensed_sweeps import linearise, sweep_kernels
-from .riccati import adjoint, closed_loop, factor_rows
+from .riccati import closed_loop, factor_rows, row_adjoint
 
 
 #: Default step ``max |δu / m_max|`` [1] at which the condensed SQP stops.
@@ -252,13 +252,12 @@ def _constrained_qp(rk: dict, qp_in: list, plugin: str, dims: tuple,
     gy = t["gy"]
     bounds = [t[n] for n in ("lbu", "ubu", "lba", "uba")]
     winv, G = factor_rows(rk, A, B, K, Lit, rate_rows)
-    y, lam_u, lam_a = routed_qp(plugin, N, nu, nw, winv.sparsity(),
-                                G.sparsity(), **qp_tols)(
+    y, lam_u, lam_a, lam = routed_qp(plugin, N, nu, nw, winv.sparsity(),
+                                     G.sparsity(), **qp_tols)(
         gy, winv, G, *bounds, t["lam_u0"], t["lam_a0"])
     du, dx = closed_loop(rk, A, B, K, Lit, y)
     a = _rows_of(dx, rate_rows)
-    dual = adjoint(rk, A, B, K, Lit, lam_u,
-                   _row_multipliers(lam_a, N, nw, rate_rows))
+    dual = row_adjoint(rk, A, B, K, Lit, lam)
     kkt = kkt_residual(y, gy, dual, du, a, lam_u, lam_a, *bounds)
     return ca.Function("cond_qp_full", i,
                        [du, ca.horzcat(*dx), lam_u, lam_a, kkt])
@@ -268,18 +267,6 @@ def _rows_of(dx: list, rate_rows: bool) -> ca.MX:
     """The momentum (then rate) rows' values: of δx_1…δx_N."""
     return ca.vertcat(*[v[7:] for v in dx],
                       *([v[4:7] for v in dx] if rate_rows else []))
-
-
-def _row_multipliers(lam_a, N: int, nw: int, rate_rows: bool) -> list:
-    """The rows' multipliers at their states (`_rows_of`'s transpose):
-    for δx_1…δx_N, n_x = 7 + n_w each (rates at 4:7, momenta at 7:)."""
-    out = []
-    for k in range(N):
-        rate = lam_a[N * nw + 3 * k:N * nw + 3 * (k + 1)] if rate_rows \
-            else ca.MX.zeros(3)
-        out.append(ca.vertcat(ca.MX.zeros(4), rate,
-                              lam_a[k * nw:(k + 1) * nw]))
-    return out
 
 
 def qp_factor_function(mpc: Any) -> ca.Function:
@@ -298,7 +285,9 @@ def qp_factor_function(mpc: Any) -> ca.Function:
     A, B, _, K, Lit, _, g = linearise(mpc, sk, kern, z, p[nx:nx + 4],
                                       p[nx + 4:])
     winv, G = factor_rows(sk["rk"], A, B, K, Lit, mpc.rate_max is not None)
-    rows = G[winv.shape[0]:, :]
+    N, nu, nw = mpc.horizon, mpc.model.nu, mpc.wheels.n_wheels
+    at = RowLayout(N, nu, nw, G.shape[0] // N)
+    rows = G[[i for idx in at.parts for i in idx], :]
     return ca.Function("cond_factor", [z, p], [winv, rows, g],
                        ["z", "p"], ["Winv", "rows", "g"])
 

@@ -53,15 +53,48 @@ def _independent_rows(N: int, nu: int, nw: int, na: int) -> ca.Function:
                        [ca.vertcat(ca.vec(kept), ca.DM.zeros(na - N * nw))])
 
 
+class RowLayout:
+    """Where the QP's rows sit in G (`ocp.mpc.riccati.factor_rows`):
+    stage by stage, h = n_u + n_w (+ 3 with rate rows) each: the bounds
+    on δu_k, the momenta of δx_{k+1}, its rates. ``spread`` places the
+    bound values (n_u N,) and the rows' values (momenta then rates, as
+    `lba` orders them) in that order; ``bounds`` and ``rows`` pick them
+    back (strided copies in C)."""
+
+    def __init__(self, N: int, nu: int, nw: int, h: int) -> None:
+        def pick(lo: int, hi: int) -> list[int]:
+            return [k * h + i for k in range(N) for i in range(lo, hi)]
+        self.n = N * h
+        self.u = pick(0, nu)
+        self.parts = [pick(nu, nu + nw)] + (
+            [pick(nu + nw, h)] if h > nu + nw else [])
+
+    def spread(self, bounds, rows) -> ca.MX:
+        v = ca.MX(ca.DM.zeros(self.n))
+        v[self.u] = bounds
+        top = 0
+        for idx in self.parts:
+            v[idx] = rows[top:top + len(idx)]
+            top += len(idx)
+        return v
+
+    def bounds(self, v) -> ca.MX:
+        return v[self.u]
+
+    def rows(self, v) -> ca.MX:
+        return ca.vertcat(*[v[idx] for idx in self.parts])
+
+
 def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
               sp_g: ca.Sparsity, row_tol: float = ROW_TOL,
               qp_tol: float | None = None) -> ca.Function:
     """Build the QP in ``y`` (`ocp.mpc.riccati`): Hessian I, bounds as rows.
 
     ``qp(g, W⁻¹, G, lbu, ubu, lba, uba, lam_u0, lam_a0) -> (y, lam_u,
-    lam_a)``: minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
+    lam_a, lam)`` (``lam``: the multipliers in G's order): minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
     ubu`` (the bounds on δu) and ``lba ≤ rows·y ≤ uba`` (momentum, rate),
-    ``G`` the stacked W⁻¹ and rows (`ocp.mpc.riccati.factor_rows`).
+    ``G`` W⁻¹ and the rows stage by stage (`ocp.mpc.riccati.factor_rows`,
+    `RowLayout`).
     When the warm start holds no active row (holds, small slews): the QP
     with the bounds alone first; its point is the answer when it meets
     every row within `ROW_TOL` (the rows can only cut that QP's feasible
@@ -75,6 +108,7 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     `ocp.codegen.precision.TOLERANCES`).
     """
     n, na = N * nu, sp_g.size1() - N * nu
+    at = RowLayout(N, nu, nw, sp_g.size1() // N)
     g = ca.MX.sym("g", n)
     W = ca.MX.sym("Winv", sp_w)
     R = ca.MX.sym("G", sp_g)
@@ -93,23 +127,25 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
 
     def with_rows(lam_u, lam_a):
         # evaluated in the branches with the rows
-        s = full(h=eye, g=g, a=R, lba=ca.vertcat(lbu, lba),
-                 uba=ca.vertcat(ubu, uba), lam_a0=ca.vertcat(lam_u, lam_a))
-        return [s["x"], s["lam_a"][:n], s["lam_a"][n:]]
+        s = full(h=eye, g=g, a=R, lba=at.spread(lbu, lba),
+                 uba=at.spread(ubu, uba), lam_a0=at.spread(lam_u, lam_a))
+        return [s["x"], at.bounds(s["lam_a"]), at.rows(s["lam_a"]),
+                s["lam_a"]]
 
     rows_warm = _independent_rows(N, nu, nw, na)
     # the bounds first; the rows only when the bounds' point breaks one
     y1, l1 = ca.MX.sym("y1", n), ca.MX.sym("l1", n)
     args = [g, W, R, lbu, ubu, lba, uba, l1, y1]
-    ry = _rows(R, y1, n)
+    ry = at.rows(ca.mtimes(R, y1))
     pick = ca.Function.if_else(
         "cond_qp_pick",
         ca.Function("cond_qp_rows", args, with_rows(l1, rows_warm(
             l1, lbu, ubu, ca.if_else(ry > uba, 1, 0)
             - ca.if_else(ry < lba, 1, 0)))),
-        ca.Function("cond_qp_keep", args, [y1, l1, ca.MX.zeros(na)]))
+        ca.Function("cond_qp_keep", args, [y1, l1, ca.MX.zeros(na),
+                                           at.spread(l1, ca.MX.zeros(na))]))
     s1 = box(h=eye, g=g, a=W, lba=lbu, uba=ubu, lam_a0=lu0)
-    ay = _rows(R, s1["x"], n)
+    ay = at.rows(ca.mtimes(R, s1["x"]))
     excess = ca.mmax(ca.vertcat(ay - uba, lba - ay, 0.0))
     # casadi's stubs: a call with several outputs returns a tuple
     staged = ca.Function(  # type: ignore[call-overload]
@@ -118,13 +154,8 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     warm = rows_warm(lu0, lbu, ubu, la0)
     direct = ca.Function("cond_qp_direct", ins, with_rows(lu0, warm))
     route = ca.Function.if_else("cond_qp_route", direct, staged)
-    y, lam_u, lam_a = route(ca.mmax(ca.fabs(la0)) > 0, *ins)
-    return ca.Function("cond_qp_routed", ins, [y, lam_u, lam_a])
-
-
-def _rows(G: ca.MX, y: ca.MX, n: int) -> ca.MX:
-    """The rows' values at y: G·y below its first n rows (W⁻¹)."""
-    return ca.mtimes(G, y)[n:]
+    y, lam_u, lam_a, lam = route(ca.mmax(ca.fabs(la0)) > 0, *ins)
+    return ca.Function("cond_qp_routed", ins, [y, lam_u, lam_a, lam])
 
 
 def kkt_residual(y, g, dual, v, a, lam_u, lam_a, lbu, ubu, lba, uba):

@@ -25,9 +25,10 @@ def sweep_kernels(mpc: Any, kern: dict) -> dict[str, Any]:
 
     ``fwd(x, u, τ, x₊, e) -> (A, B, e₊)``: the stage's Jacobians and
     ``e₊ = A e + (F(x, u, τ) − x₊)``;
-    ``bwd(P, λ, μ, x, q_f, e, A, B, u, r) -> (P_k, K, Lit, (W⁻ᵀg)_k, μ_k,
+    ``bwd(P, λ, μ, x, q_f, e, A, B, u) -> (P_k, K, Lit, (W⁻ᵀg)_k, μ_k,
     λ_k, g_k)``: the stage's cost Hessian and gradient at x, its gradient
-    in δu ``g_k = 2 w_m u / m_max² + Bᵀλ``, the Riccati step, the adjoint
+    in δu ``g_k = 2 w_m u / m_max² + Bᵀλ``, the Riccati step (R's
+    diagonal ``2 w_m / m_max² + ρ``, a constant), the adjoint
     step and the costate ``λ_k = Q e + q + Aᵀλ``.
     """
     model, wh, w = mpc.model, mpc.wheels, mpc.weights
@@ -35,7 +36,8 @@ def sweep_kernels(mpc: Any, kern: dict) -> dict[str, Any]:
     lin, stage = kern["lin"], kern["stage"]
     rk = riccati_kernels(stage.sparsity_out(0), lin.sparsity_out(1),
                          lin.sparsity_out(2),
-                         mpc.dt * np.asarray(wh.scale * wh.active, float))
+                         mpc.dt * np.asarray(wh.scale * wh.active, float),
+                         mpc.rate_max is not None)
     x, x1, e = (ca.SX.sym(n, nx) for n in ("x", "x1", "e"))
     u, tau, qf = ca.SX.sym("u", nu), ca.SX.sym("tau", 3), ca.SX.sym("qf", 4)
     F, A, B = lin(x, u, tau)
@@ -45,14 +47,14 @@ def sweep_kernels(mpc: Any, kern: dict) -> dict[str, Any]:
     lam, mu = ca.SX.sym("lam", nx), ca.SX.sym("mu", nx)
     As = ca.SX.sym("A", lin.sparsity_out(1))
     Bs = ca.SX.sym("B", lin.sparsity_out(2))
-    r = ca.SX.sym("r", nu)
     m2 = ca.DM(np.asarray(wh.m_max, dtype=float) ** 2)
+    r = ca.DM(2.0 * w.torque / m2 + mpc.regularization)
     g = 2.0 * w.torque * u / m2 + ca.mtimes(Bs.T, lam)
     Q, q, _ = stage(x, qf, 1.0, 1.0)
     Pk, K, Lit = rk["ric"](pl, Q, As, Bs, r)
     gy, mu_k = rk["adj"](As, Bs, K, Lit, g, mu)
     lam_k = ca.mtimes(Q, e) + q + ca.mtimes(As.T, lam)
-    bwd = ca.Function("cond_bwd", [pl, lam, mu, x, qf, e, As, Bs, u, r],
+    bwd = ca.Function("cond_bwd", [pl, lam, mu, x, qf, e, As, Bs, u],
                       [Pk, K, Lit, gy, mu_k, lam_k, g])
     return {"fwd": fwd, "bwd": bwd, "rk": rk}
 
@@ -64,7 +66,7 @@ def linearise(mpc: Any, sk: dict, kern: dict, z, qf, tau) -> tuple:
     (k = 0…N) the defects carried along (δx for δu = 0, e_0 = 0), ``W⁻ᵀg``
     and the gradient ``g`` in δu (N·n_u,) vectors.
     """
-    wh, w, N = mpc.wheels, mpc.weights, mpc.horizon
+    w, N = mpc.weights, mpc.horizon
     nx = mpc.model.nx
     xs, us = mpc._xs, mpc._us
     A, B, e = [], [], [ca.MX.zeros(nx)]
@@ -73,8 +75,6 @@ def linearise(mpc: Any, sk: dict, kern: dict, z, qf, tau) -> tuple:
         A.append(Ak)
         B.append(Bk)
         e.append(ek)
-    m_max = np.asarray(wh.m_max, dtype=float)
-    r = ca.DM(2.0 * w.torque / m_max ** 2 + mpc.regularization)
     QN, qN, _ = kern["stage"](z[xs[N]], qf, 0.0, w.terminal)
     P = sk["rk"]["tril"](QN)
     lam = ca.mtimes(QN, e[N]) + qN
@@ -87,5 +87,5 @@ def linearise(mpc: Any, sk: dict, kern: dict, z, qf, tau) -> tuple:
     # are not used, and K_0, Lit_0, (W⁻ᵀg)_0 do not depend on it
     for k in range(N - 1, -1, -1):
         P, K[k], Lit[k], gy[k], mu, lam, g[k] = sk["bwd"](
-            P, lam, mu, z[xs[k]], qf, e[k], A[k], B[k], z[us[k]], r)
+            P, lam, mu, z[xs[k]], qf, e[k], A[k], B[k], z[us[k]])
     return A, B, e, K, Lit, ca.vertcat(*gy), ca.vertcat(*g)

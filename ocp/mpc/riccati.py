@@ -84,17 +84,24 @@ def _symmetric(Q, A, PA, M) -> ca.SX:
 
 
 def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
-                    sp_b: ca.Sparsity, mom_gain) -> dict[str, ca.Function]:
+                    sp_b: ca.Sparsity, mom_gain, rate_rows: bool = False
+                    ) -> dict[str, ca.Function]:
     """SX kernels of the recursion and of the forward sweep.
 
     ``ric(P, Q, A, B, r) -> (P_k, K, Lit)`` (P, P_k: their lower
     triangles, column by column, `ric_last` of Q_N starts the recursion;
-    ``r`` the diagonal of R, ``Lit`` = L⁻ᵀ); ``acl(A, B, K) -> (A +
-    BK)[:7]``; ``init(B, Lit) -> B Lit`` and ``sweep(K, Acl[:7], S) ->
-    (K S, Acl S)``, each with the momentum and rate rows of its S as
-    extra outputs. ``mom_gain`` (n_w,) is Δt·s: the momentum
-    rows of the closed loop are ``H_{k+1} = H_k + Δt s (K S)``, which the
-    sweep uses instead of the full product.
+    ``r`` the diagonal of R, ``Lit`` = L⁻ᵀ); ``init(A, B, K, Lit) -> (S,
+    blk, Acl)`` the response S = B Lit of δx_{k+1} to y_k, the diagonal
+    block of the QP's rows and the closed loop's first 7 rows (A +
+    BK)[:7]; ``sweep(K, Acl[:7], S) -> (Acl S, blk)`` one stage on.
+    A block ``blk`` holds a stage's rows of the QP (`factor_rows`): δu_k
+    (K S, or Lit on the diagonal), then the momentum and (with
+    ``rate_rows``) rate rows of δx_{k+1}; ``adj(A, B, K, Lit, g, μ) ->
+    ((W⁻ᵀg)_k, μ_k)`` a step of the closed loop's adjoint and
+    ``adj_rows(A, B, K, Lit, L_k, μ)`` the same for a stage's row
+    multipliers (`row_adjoint`). ``mom_gain`` (n_w,) is Δt·s:
+    the momentum rows of the closed loop are ``H_{k+1} = H_k + Δt s (K
+    S)``, which the sweep uses instead of the full product.
     """
     nx, nu = sp_b.size1(), sp_b.size2()
     # P is symmetric: its lower triangle crosses the boundary
@@ -125,29 +132,42 @@ def riccati_kernels(sp_q: ca.Sparsity, sp_a: ca.Sparsity,
     S1 = ca.vertcat(ca.mtimes(Acls, S),
                     S[7:, :] + ca.mtimes(ca.diag(ca.DM(mom_gain)),
                                          KS[:nx - 7, :]))
+
+    def block(top, Sn):
+        return ca.densify(ca.vertcat(top, Sn[7:, :],
+                                     *([Sn[4:7, :]] if rate_rows else [])))
+
     # W⁻¹ y and W⁻ᵀ g without W⁻¹: the closed loop forward, its adjoint
     # backward (one stage each)
     yk, dx = ca.SX.sym("y", nu), ca.SX.sym("dx", nx)
     gk, mu = ca.SX.sym("g", nu), ca.SX.sym("mu", nx)
     du = ca.mtimes(Lits, yk) + ca.mtimes(Ks, dx)
-    gt = gk + ca.mtimes(B.T, mu)
+
+    def adj(g, m):
+        gt = g + ca.mtimes(B.T, m)
+        return [ca.mtimes(Lits.T, gt),
+                ca.mtimes(Ks.T, gt) + ca.mtimes(A.T, m)]
+
+    # a stage's multipliers of the QP's rows (`factor_rows`' order): the
+    # bounds' enter as g, the momentum and rate rows' at δx_{k+1}
+    h = nu + nw + (3 if rate_rows else 0)
+    Lk = ca.SX.sym("L", h)
+    c = ca.vertcat(ca.SX.zeros(4), Lk[nu + nw:] if rate_rows
+                   else ca.SX.zeros(3), Lk[nu:nu + nw])
     return {
         "ric": ca.Function("ric_step", [pl, Q, A, B, r],
                            [lower_nz(Pk), ca.densify(K), ca.densify(Lit)]),
         "tril": ca.Function("ric_last", [Q], [lower_nz(ca.densify(Q))]),
-        # the closed loop's first 7 rows (the sweeps of W⁻¹ only)
-        "acl": ca.Function("ric_acl", [A, B, Ks],
-                           [ca.densify((A + ca.mtimes(B, Ks))[:7, :])]),
-        # outputs: S, then its momentum and rate rows (no slicing nodes)
-        "init": ca.Function("ric_init", [B, Lits],
-                            [S0, S0[7:, :], S0[4:7, :]]),
+        "init": ca.Function("ric_init", [A, B, Ks, Lits],
+                            [S0, block(Lits, S0), ca.densify(
+                                (A + ca.mtimes(B, Ks))[:7, :])]),
         "sweep": ca.Function("ric_sweep", [Ks, Acls, S],
-                             [KS, S1, S1[7:, :], S1[4:7, :]]),
+                             [S1, block(KS, S1)]),
         "roll": ca.Function("ric_roll", [A, B, Ks, Lits, yk, dx],
                             [du, ca.mtimes(A, dx) + ca.mtimes(B, du)]),
-        "adj": ca.Function("ric_adj", [A, B, Ks, Lits, gk, mu],
-                           [ca.mtimes(Lits.T, gt),
-                            ca.mtimes(Ks.T, gt) + ca.mtimes(A.T, mu)]),
+        "adj": ca.Function("ric_adj", [A, B, Ks, Lits, gk, mu], adj(gk, mu)),
+        "adj_rows": ca.Function("ric_adj_rows", [A, B, Ks, Lits, Lk, mu],
+                                adj(Lk[:nu], mu + c)),
     }
 
 
@@ -166,70 +186,64 @@ def closed_loop(kern: dict, A: list, B: list, K: list, Lit: list, y
     return ca.vertcat(*du), xs
 
 
-def adjoint(kern: dict, A: list, B: list, K: list, Lit: list, g,
-            c: list | None = None) -> ca.MX:
-    """``W⁻ᵀ g`` (N·n_u,) by the closed loop's adjoint, in O(N).
-
-    With ``c`` (n_x each, k = 1…N): the gradient in y of ``gᵀδu +
-    Σ c_kᵀδx_k`` along the closed loop (`closed_loop`): a row's
-    multipliers injected at its state.
+def row_adjoint(kern: dict, A: list, B: list, K: list, Lit: list, L
+                ) -> ca.MX:
+    """``Gᵀλ`` (N·n_u,): the gradient in y of the QP's rows weighted by
+    their multipliers ``L`` (`factor_rows`' order, a stage's h rows
+    each), by the closed loop's adjoint in O(N): the bounds' multipliers
+    enter as the gradient in δu, the momentum and rate rows' at their
+    state δx_{k+1}.
     """
-    nx, nu = B[0].shape
+    nx = B[0].shape[0]
     N = len(A)
+    h = L.numel() // N
     mu = ca.MX.zeros(nx)
     out: list[Any] = [None] * N
     for k in range(N - 1, -1, -1):
-        if c is not None:
-            mu = mu + c[k]
-        out[k], mu = kern["adj"](A[k], B[k], K[k], Lit[k],
-                                 g[k * nu:(k + 1) * nu], mu)
+        out[k], mu = kern["adj_rows"](A[k], B[k], K[k], Lit[k],
+                                      L[k * h:(k + 1) * h], mu)
     return ca.vertcat(*out)
 
 
 def factor_rows(kern: dict, A: list, B: list, K: list, Lit: list,
                 rate_rows: bool) -> tuple[ca.MX, ca.MX]:
-    """``(W⁻¹, G)`` of the condensed QP in ``y``, from the factors (`ocp.mpc.condensed_sweeps.linearise`).
+    """``(W⁻¹, G)`` of the condensed QP in ``y``, from the factors
+    (`ocp.mpc.condensed_sweeps.linearise`).
 
-    δu = W⁻¹ y; ``G`` stacks W⁻¹ (N·n_u rows, the bounds on δu), the
-    momentum deviations of the states k = 1…N (N·n_w rows), then, with
-    ``rate_rows``, their rate deviations (3N rows), as functions of y:
-    the QP's constraint rows. All lower block triangular, with N·n_u
-    columns. The blocks are written into G, and W⁻¹ is G's top rows,
-    copied column by column (no index arrays in C).
+    δu = W⁻¹ y; ``G`` holds the QP's rows as functions of y, stage by
+    stage: for k = 0…N−1, the bounds' rows of δu_k (those of W⁻¹), the
+    momentum deviations of δx_{k+1} and, with ``rate_rows``, its rate
+    deviations (`condensed_qp.RowLayout`). Both lower block triangular,
+    with N·n_u columns; a stage's rows against a column block are one
+    block, written at once, and W⁻¹ is copied from G column by column
+    (strided copies in C, no index arrays).
     """
     N = len(B)
     nx, nu = B[0].shape
-    Acl = [kern["acl"](A[k], B[k], K[k]) for k in range(N)]
-    # structural zeros above the diagonal: W⁻¹ and the rows are lower
-    # block triangular
-    winv = [[ca.MX(nu, nu)] * N for _ in range(N)]
-    mom = [[ca.MX(nx - 7, nu)] * N for _ in range(N)]
-    rate = [[ca.MX(3, nu)] * N for _ in range(N)]
+    h = nu + nx - 7 + (3 if rate_rows else 0)
+    blocks = [[ca.MX(h, nu)] * N for _ in range(N)]
+    first = [kern["init"](A[j], B[j], K[j], Lit[j]) for j in range(N)]
     for j in range(N):
-        winv[j][j] = Lit[j]
         # δx_{j+1} per unit y_j, then along the closed loop
-        S, mom[j][j], rate[j][j] = kern["init"](B[j], Lit[j])
+        S, blocks[j][j], _ = first[j]
         for k in range(j + 1, N):
-            winv[k][j], S, mom[k][j], rate[k][j] = kern["sweep"](
-                K[k], Acl[k], S)
-    grids = [(winv, nu), (mom, nx - 7)] + ([(rate, 3)] if rate_rows else [])
-    G = _lower_blocks(grids, nu)
-    return _top_rows(G, N * nu), G
+            S, blocks[k][j] = kern["sweep"](K[k], first[k][2], S)
+    G = _lower_blocks([(blocks, h)], nu)
+    return _bound_rows(G, N, h, nu), G
 
 
-def _top_rows(M: ca.MX, n: int) -> ca.MX:
-    """The first ``n`` rows of a sparse ``M``: one contiguous run of
-    nonzeros per column (a slice copy each in C)."""
-    sp = M.sparsity()
-    top = ca.DM(sp, 1.0)[:n, :].sparsity()
-    colind, row = sp.colind(), sp.row()
-    out = ca.MX(top)
-    for c in range(sp.size2()):
-        a, b = top.colind()[c], top.colind()[c + 1]
-        if b > a:
-            assert all(r < n for r in row[colind[c]:colind[c] + b - a])
-            out.nz[a:b] = M.nz[colind[c]:colind[c] + b - a]
-    return out
+def _bound_rows(G: ca.MX, N: int, h: int, nu: int) -> ca.MX:
+    """W⁻¹ from G (`factor_rows`): the first n_u of each stage's h rows,
+    one strided copy per column."""
+    colind = G.sparsity().colind()
+    sp = ca.kron(ca.DM(ca.Sparsity.lower(N), 1.0),
+                 ca.DM.ones(nu, nu)).sparsity()
+    W = ca.MX(sp)
+    for c in range(N * nu):
+        src = [colind[c] + k * h + i for k in range(N - c // nu)
+               for i in range(nu)]
+        W.nz[sp.colind()[c]:sp.colind()[c + 1]] = G.nz[src]
+    return W
 
 
 def _lower_blocks(grids: list, w: int) -> ca.MX:
