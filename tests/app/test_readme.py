@@ -10,6 +10,6 @@ def test_ci_runs_the_readme_test_command():
     ci = (ROOT / ".ci" / "run").read_text()
     test_cmd = ('pip install -e '
                 '".[test,solvers,notebooks,sweep,basilisk,docs]"'
-                ' && python -m pytest -q')
+                ' && python -m pytest -q -n auto --dist loadfile')
     assert test_cmd in readme
     assert test_cmd in ci
