@@ -359,7 +359,10 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     point ``(dU0, dX0)``; ``lam`` (nb × C) are the boxes' multipliers
     ``λ_u − λ_l`` in scaled units, ``n`` the iterations made, ``kkt`` the
     residual at the point returned (above ``tol`` when ``max_iter``
-    iterations did not reach it). ``flags`` (C,): 1 where a stage chooses
+    iterations did not reach it). The unconstrained optimum comes first
+    (one factor, no barrier): when it keeps every box it is returned, with
+    zero multipliers, ``n`` = 0 and its residual, and the interior point
+    does not run. ``flags`` (C,): 1 where a stage chooses
     its control, 0 where it holds the one before (move blocking, a tree's
     root stages; default: every stage chooses); the start must hold them.
     """
@@ -399,29 +402,73 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     C = tree.C
     dU0, dX0 = sym("dU0", nu, C), sym("dX0", nx, C)
     A, B, Q, q, g, r, lo, hi = (data[i] for i in range(8))
+    rev = [reverse_columns(M) for M in (A, B, Q, r)]
+    data = [A, B, Q, q, g, r, lo, hi, *rev]
+    sr = ca.DM(flags[::-1]).T
+    sweeps = _sweeps(kern, tree)
+    dims = (nx, nu)
+    # the unconstrained optimum first: one factor without barrier, one
+    # step from the start (the QP is quadratic); when it keeps every box
+    # it is the solution, with zero multipliers, and the interior point
+    # is not run (the hold steps of a closed loop)
+    zero = ca.DM.zeros(lay.nb, C)
+    gx0 = kern["qmul"].map(C)(Q, dX0) + q
+    lq = FactoredLQ(sweeps, lay, tree, dims, flags, data, zero,
+                    reverse_columns(gx0), reverse_columns(r * dU0 + g))
+    ddU, ddX = lq.first()
+    dUf, dXf = dU0 + ddU, dX0 + ddX
+    Vf = lay.values(dUf, dXf)
+    inside = ca.mmax(ca.vertcat(ca.vec(lo - Vf), ca.vec(Vf - hi))) <= 0
+    kkt_f = _residual(kern, lay, tree, dims,
+                      [dUf, dXf, Vf - lo, hi - Vf, zero, zero], data, sr)
+    # the branches: fresh symbols of (dU0, dX0, data…, dUf, dXf, kkt_f)
+    bi = [sym(f"i{k}", v.sparsity()) for k, v in
+          enumerate([dU0, dX0, *data, dUf, dXf, kkt_f])]
+    interior = ca.Function("sw_ipm_interior", bi, _interior(
+        loop, kern, lay, tree, dims, flags, sweeps, sr, bi[0], bi[1],
+        bi[2:14]))
+    # SX: reads the free point alone (an MX Function reads its inputs
+    # through a copy of each)
+    sx = [ca.SX.sym(a.name(), a.sparsity()) for a in bi]
+    free = ca.Function("sw_ipm_free", sx, [sx[14], sx[15],
+                                           ca.SX.zeros(lay.nb, C),
+                                           ca.SX(0.0), sx[16]])
+    branch = ca.Function.if_else("sw_ipm_first", free, interior)
+    dU, dX, lam, count, kkt = branch(inside, dU0, dX0, *data, dUf, dXf,
+                                     kkt_f)
+    names = ["dU0", "dX0", "A", "B", "Q", "q", "g", "r", "lo", "hi"]
+    return ca.Function("sw_ipm", [dU0, dX0, *data[:8]],
+                       [dU, dX, lam, count, kkt], names,
+                       ["dU", "dX", "lam", "iterations", "kkt"])
+
+
+def _interior(loop: ca.Function, kern: dict, lay: BoxLayout, tree: Tree,
+              dims: tuple, flags: np.ndarray, sweeps: dict, sr, dU0, dX0,
+              data: list) -> list:
+    """``[dU, dX, lam, n, kkt]`` of the interior point from (dU0, dX0)
+    and its polish on the active set, the one with the smaller residual
+    (`ipm_solve`)."""
+    nx, nu = dims
+    A, B, Q, q, g, r, lo, hi = data[:8]
     V0 = lay.values(dU0, dX0)
     Sl = ca.fmax(V0 - lo, IPM_SLACK0)
     Su = ca.fmax(hi - V0, IPM_SLACK0)
-    rev = [reverse_columns(M) for M in (A, B, Q, r)]
-    data = [A, B, Q, q, g, r, lo, hi, *rev]
     start = [dU0, dX0, Sl, Su, IPM_MU0 / Sl, IPM_MU0 / Su]
-    sr = ca.DM(flags[::-1]).T
-    rd0, rp0, _ = kkt_residual(kern, lay, tree, (nx, nu), start, data, sr)
+    rd0, rp0, _ = kkt_residual(kern, lay, tree, dims, start, data, sr)
     out = loop(*start, rd0, rp0, 0.0, 1.0, *data)
     ipm_point = list(out[:6])
     count = out[8]
     # the certificate: the residual recomputed at the point returned, the
     # interior point's or its polish on the active set, the smaller
-    kkt = _residual(kern, lay, tree, (nx, nu), ipm_point, data, sr)
-    sweeps = _sweeps(kern, tree)
-    pol = list(polish(kern, lay, tree, (nx, nu), flags, ipm_point, data,
+    kkt = _residual(kern, lay, tree, dims, ipm_point, data, sr)
+    pol = list(polish(kern, lay, tree, dims, flags, ipm_point, data,
                       sweeps))
-    kkt_p = _residual(kern, lay, tree, (nx, nu), pol, data, sr)
+    kkt_p = _residual(kern, lay, tree, dims, pol, data, sr)
     # a second polish without the rows whose multiplier came out with the
     # wrong sign (dependent boxes), from the first polish's point
-    pol2 = list(polish(kern, lay, tree, (nx, nu), flags, pol, data,
+    pol2 = list(polish(kern, lay, tree, dims, flags, pol, data,
                        sweeps, reduced_active(pol)))
-    kkt_2 = _residual(kern, lay, tree, (nx, nu), pol2, data, sr)
+    kkt_2 = _residual(kern, lay, tree, dims, pol2, data, sr)
     second = kkt_2 < kkt_p
     pol = [ca.if_else(second, a, b) for a, b in zip(pol2, pol)]
     kkt_p = ca.fmin(kkt_p, kkt_2)
@@ -430,8 +477,4 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     better = kkt_p <= ca.fmax(kkt, POLISH_ACCEPT)
     dU, dX, _, _, Ll, Lu = (ca.if_else(better, a, b)
                             for a, b in zip(pol, ipm_point))
-    kkt = ca.fmin(kkt, kkt_p)
-    names = ["dU0", "dX0", "A", "B", "Q", "q", "g", "r", "lo", "hi"]
-    return ca.Function("sw_ipm", [dU0, dX0, *data[:8]],
-                       [dU, dX, Lu - Ll, count, kkt], names,
-                       ["dU", "dX", "lam", "iterations", "kkt"])
+    return [dU, dX, Lu - Ll, count, ca.fmin(kkt, kkt_p)]
