@@ -15,8 +15,8 @@ from adcs_common.exceptions import InvalidValueError
 from allocation import WheelArray
 from ocp import quat_from_axis_angle, rigid_spacecraft
 from ocp.mpc import AttitudeMPC, simulate_mpc
-from ocp.mpc.stagewise import stagewise_qp_function
-from ocp.mpc.stagewise_ipm import IPM_TOL
+from ocp.mpc.stagewise import _Parts, stagewise_qp_function
+from ocp.mpc.stagewise_ipm import IPM_MAX_ITER, IPM_TOL
 from ocp.spacecraft import load_spacecraft
 from thrusters import six_thruster_unit
 
@@ -259,3 +259,30 @@ def test_a_rate_bounded_closed_loop_keeps_its_certificate():
     assert np.max(np.abs(r.trajectory.w)) <= 0.04 * (1 + 1e-6)
     assert AttitudeMPC(MODEL, horizon=60, rti=True,
                        rate_max=0.06).solver == "condensed"
+
+
+def test_a_hold_is_the_unconstrained_optimum_without_the_interior_point():
+    """At the target the QP's unconstrained optimum keeps every box: one
+    factor answers it (0 interior-point iterations, zero multipliers),
+    exact, and equal to the condensed step's; a saturated slew runs the
+    interior point."""
+    mpc = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="stagewise",
+                      rti=True)
+    ipm = _Parts(mpc, IPM_TOL, IPM_MAX_ITER).ipm
+    qp = stagewise_qp_function(mpc)
+    hold = MODEL.state(QF, [1e-4, -2e-4, 1e-4], [0.01, 0.0, -0.01, 0.0])
+    slew = MODEL.state([1.0, 0.0, 0.0, 0.0])
+    for x, free in ((hold, True), (slew, False)):
+        z0 = mpc.initial_guess(x)
+        p = np.r_[x, QF, np.zeros(3)]
+        dU, dX, lam, n, kkt = ipm(*qp(z0, p))
+        assert (float(n) == 0) is free
+        if free:
+            assert np.all(np.array(lam) == 0.0) and float(kkt) <= 1e-12
+    cond = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="condensed",
+                       rti=True)
+    args = (hold, QF, np.zeros(3), mpc.initial_guess(hold),
+            np.zeros(mpc.nz), np.zeros(mpc.ng))
+    a, b = mpc.rti_function(*args), cond.rti_function(*args)
+    np.testing.assert_allclose(np.asarray(a[1]), np.asarray(b[1]), rtol=0,
+                               atol=1e-12)
