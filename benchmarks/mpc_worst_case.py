@@ -167,7 +167,8 @@ def pool_loops(loops: list) -> dict:
 
 def run_target_draws(draws: int, steps: int, seed: int = 0,
                      target: str = "cortex-m7",
-                     name: str = "mpc_cond_rti_step") -> dict:
+                     name: str = "mpc_cond_rti_step",
+                     precision: str = "double") -> dict:
     """The first ``draws`` states of `run`'s Monte Carlo flown by ``name``
     on the emulated ``target`` and on the host.
 
@@ -191,6 +192,8 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
         target step pooled (``worst_cold``: the worst cold step),
         ``host_all`` the same in µs; ``seconds``: build and emulation
         wall times [s]; ``ok``: every loop passed the driver's check.
+    ``precision`` "single" exports the target's (and its host driver's)
+    C in float (`--precision single`); the Python loop stays double.
     """
     from ocp.codegen.build import build_exported, run_driver
     from ocp.codegen.loop_starts import loop_key, write_loop_starts
@@ -203,7 +206,7 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         res = export_c(tmp, sc, horizon=20, dt=0.5, mpc_variants=(name,),
-                       target=target, repeats=10)
+                       target=target, repeats=10, precision=precision)
         res = write_loop_starts(res, starts, steps=steps)
         elf = build_target(res)
         t1 = time.perf_counter()
@@ -242,6 +245,7 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
               for key, src, unit in (("all", emu, "steps"),
                                      ("host_all", host, "steps_us"))}
     return {"target": target, "name": name, "draws": draws,
+            "precision": precision,
             "steps": steps, "seed": seed, "loops": loops, **pooled,
             "ok": all(r["ok"] for r in loops),
             "seconds": {"build": t1 - t0, "emulation": t2 - t1}}
@@ -253,6 +257,7 @@ def format_target(out: dict, rows_max: int = 20) -> str:
     (instructions on the target, µs on the host) and the draws of the
     worst steps."""
     rows = [f"`{out['name']}` on the emulated {out['target']} "
+            f"in {out.get('precision', 'double')} precision "
             f"(instructions per step, qemu -icount) and on the host (C "
             f"driver, µs): draws 0–{out['draws'] - 1} of seed "
             f"{out['seed']}, {out['steps']} steps of 0.5 s each; build "
@@ -305,6 +310,10 @@ def main(argv=None) -> None:
                     choices=("host", "cortex-m7", "cortex-m4f"))
     ap.add_argument("--draws-on-target", type=int, default=20,
                     help="first draws flown on the target (--target)")
+    ap.add_argument("--precision", default="double",
+                    choices=("double", "single"),
+                    help="the target export's arithmetic (single: float, "
+                    "on the cortex-m4f); the Python loop stays double")
     ap.add_argument("--json", default=None,
                     help="write --target's figures, every step's, here")
     args = ap.parse_args(argv)
@@ -317,7 +326,7 @@ def main(argv=None) -> None:
     if (reason := toolchain_missing()) is not None:
         raise SystemExit(f"benchmarks.mpc_worst_case: {reason}")
     out = run_target_draws(args.draws_on_target, args.steps, args.seed,
-                           args.target)
+                           args.target, precision=args.precision)
     print(format_target(out))
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))
