@@ -351,7 +351,7 @@ def condensed_options(precision: str = "double") -> dict:
     if precision == "double":
         return {}
     return {"step_tol": tol["step_tol"], "row_tol": tol["row_tol"],
-            "qp_tol": tol["qrqp_tol"]}
+            "qp_tol": tol["qrqp_tol"], "kkt_tol": tol["qp_kkt_tol"]}
 
 
 #: MPC variants a single-precision export writes: the condensed RTI step

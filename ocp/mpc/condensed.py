@@ -52,7 +52,7 @@ from adcs_common.validation import as_finite_scalar, check_positive
 from .acceleration import anderson_function
 from .condensed_qp import ROW_TOL, RowLayout, kkt_residual, routed_qp
 from .plan import nan_unless_finite
-from .problem import momentum_residual, pointing_residuals
+from .problem import QP_KKT_TOL, momentum_residual, pointing_residuals
 from .condensed_sweeps import linearise, sweep_kernels
 from .riccati import closed_loop, factor_rows, row_adjoint
 
@@ -301,18 +301,21 @@ STEP_NAMES = (["x", "qf", "tau", "z_prev", "lam_x_prev", "lam_g_prev"],
 
 def check_condensed_options(options: dict) -> None:
     """Refuse ``solver_options`` the condensed SQP does not take."""
-    extra = set(options) - {"step_tol", "anderson", "row_tol", "qp_tol"}
+    extra = set(options) - {"step_tol", "anderson", "row_tol", "qp_tol",
+                            "kkt_tol"}
     if extra:
         raise InvalidValueError(
             "solver='condensed' takes solver_options 'step_tol' and "
-            f"'anderson' only (+ row_tol, qp_tol): {sorted(extra)}")
+            f"'anderson' only (+ row_tol, qp_tol, kkt_tol): "
+            f"{sorted(extra)}")
 
 
 def condensed_step_functions(mpc: Any, plugin: str | None = None,
                              step_tol: float = STEP_TOL,
                              anderson: int = ANDERSON_MEMORY,
                              row_tol: float = ROW_TOL,
-                             qp_tol: float | None = None
+                             qp_tol: float | None = None,
+                             kkt_tol: float = QP_KKT_TOL
                              ) -> tuple[ca.Function, ca.Function]:
     """``(rti_function, step_function)`` of the condensed SQP.
 
@@ -338,6 +341,10 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
     row_tol, qp_tol : float
         `condensed_qp.routed_qp`'s row test and qrqp tolerance (float
         exports raise them: `ocp.codegen.precision.TOLERANCES`).
+    kkt_tol : float
+        Certificate [1] above which a step returns its warm start
+        (`sqp_step_functions`; default `QP_KKT_TOL`, float exports
+        `TOLERANCES`' ``qp_kkt_tol``).
     """
     if mpc.model.thrusters is not None:
         raise InvalidValueError(
@@ -345,18 +352,27 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
             "use solver='sqpmethod'")
     plugin = plugin or condensed_qp_plugin()
     it = _iteration(mpc, plugin, row_tol=row_tol, qp_tol=qp_tol)
-    return sqp_step_functions(mpc, it, "mpc_cond", step_tol, anderson)
+    kkt_tol = as_finite_scalar(kkt_tol, "kkt_tol")
+    check_positive(kkt_tol, "kkt_tol")
+    return sqp_step_functions(mpc, it, "mpc_cond", step_tol, anderson,
+                              kkt_tol)
 
 
 def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
-                       step_tol: float, anderson: int
+                       step_tol: float, anderson: int,
+                       kkt_tol: float = QP_KKT_TOL
                        ) -> tuple[ca.Function, ca.Function]:
     """``(rti, step)`` Functions around one SQP iteration ``it``.
 
     ``it(z, lam_x0, p) -> (z_new, lam_x, step, qp_kkt)`` (`_iteration`,
     or the stage-wise one of `ocp.mpc.stagewise`); the Functions are
     named ``prefix + "_rti"`` and ``prefix + "_step"`` and have
-    `STEP_NAMES`' inputs and outputs.
+    `STEP_NAMES`' inputs and outputs. A step whose last QP fails its
+    certificate (``qp_kkt`` above ``kkt_tol``, or NaN) returns the warm
+    start, the last plan shifted, as its plan and command (planned within
+    every bound one sample ago), and its ``qp_kkt`` still says it failed:
+    generated C cannot raise, and a flight loop must not apply a failed
+    QP's point. `AttitudeMPC.step` refuses such a step in Python.
     """
     step_tol = as_finite_scalar(step_tol, "step_tol")
     check_positive(step_tol, "step_tol")
@@ -377,6 +393,8 @@ def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
     us0 = mpc._us[0]
 
     def outputs(z, lx, n, kkt):
+        ok = kkt <= kkt_tol                 # False for a NaN certificate
+        z, lx = ca.if_else(ok, z, z0), ca.if_else(ok, lx, lx0)
         # a NaN plan's certificate is NaN (its check's figures are too)
         return [z[us0], z, lx, ca.MX.zeros(ng),
                 *mpc.check_function(z, p), n, *nan_unless_finite(z, kkt)]

@@ -301,3 +301,29 @@ def test_condensed_refuses_qrqp_which_fails_its_qp():
     showed it, and the condensed SQP now takes daqp only."""
     with pytest.raises(SolverNotFound, match="condensed:qrqp"):
         AttitudeMPC(MODEL, solver="condensed", qp_solver="qrqp")
+
+
+def test_a_step_whose_certificate_fails_returns_its_warm_start():
+    """Generated C cannot raise: a step whose QP fails its certificate
+    returns the last plan shifted (its command planned within every bound)
+    and still reports the failed certificate. Forced here with a
+    certificate tolerance no QP meets."""
+    strict = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="condensed",
+                         rti=True, solver_options={"kkt_tol": 1e-300})
+    mpc = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="condensed",
+                      rti=True)
+    x = MODEL.state([1.0, 0.0, 0.0, 0.0])
+    z_prev = mpc.initial_guess(x)
+    args = (x, QF, np.zeros(3), z_prev, np.zeros(mpc.nz), np.zeros(mpc.ng))
+    ok, failed = mpc.rti_function(*args), strict.rti_function(*args)
+    kkt = float(ok[-1])
+    assert 0.0 < kkt <= 1e-12 and float(failed[-1]) == kkt
+    z0 = np.asarray(mpc.shift_function(x, z_prev, np.zeros(mpc.nz),
+                                       np.zeros(mpc.ng))[0]).ravel()
+    np.testing.assert_array_equal(np.asarray(failed[1]).ravel(), z0)
+    np.testing.assert_array_equal(np.asarray(failed[0]).ravel(),
+                                  z0[mpc._us[0]])
+    assert np.abs(np.asarray(ok[1]).ravel() - z0).max() > 1e-3
+    with pytest.raises(InvalidValueError, match="kkt_tol"):
+        AttitudeMPC(MODEL, solver="condensed",
+                    solver_options={"kkt_tol": -1.0})
