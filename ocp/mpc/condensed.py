@@ -20,7 +20,8 @@ momentum rows (and, with a rate bound, the rate rows) come from the same
 closed-loop sweep, as lower block-triangular rows in y. With the
 Hessian I the unconstrained optimum is −W⁻ᵀg: formed in O(N) by the
 closed loop's adjoint and checked by its rollout
-(`ocp.mpc.riccati.adjoint`, `closed_loop`), it is the answer whenever it
+(`ocp.mpc.condensed_sweeps`, `ocp.mpc.riccati.closed_loop`), it is the
+answer whenever it
 keeps every bound and row, and then W⁻¹ is not formed and no conic
 runs. Otherwise the QP is solved with the bounds alone first when the
 last plan had no row active, and with the rows when its point breaks

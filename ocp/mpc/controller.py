@@ -86,8 +86,10 @@ from .problem import (
     QP_KKT_TOL,
     available_mpc_solvers,
     check_reachable,
+    dynamics_sign,
     momentum_residual,
     pointing_residuals,
+    torque_residual,
 )
 
 
@@ -362,14 +364,11 @@ class AttitudeMPC:
         lin = 0
         g = [z[xs[0]] - x_par]
         res = []
-        # fatrop's structure detection needs x_{k+1} - F(x_k, u_k); qrqp
-        # was measured to fail more often on that sign (its active-set
-        # steps on this QP depend on the row signs), so it gets F - x_{k+1}
-        sign = 1.0 if self.solver == "fatrop" else -1.0
+        sign = dynamics_sign(self.solver)
         for k in range(N):
             g.append(sign * (z[xs[k + 1]]
                              - rk4(z[xs[k]], z[us[k]], tau, self.dt)))
-            res.append(np.sqrt(w.torque) * z[us[k]][:nw] / ca.DM(m_max))
+            res.append(torque_residual(z[us[k]], w, m_max))
             if prop.size:
                 lin = lin + w.propellant * ca.dot(ca.DM(prop),
                                                   z[us[k]][nw:])

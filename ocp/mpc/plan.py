@@ -7,7 +7,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from .problem import momentum_residual, pointing_residuals
+from .problem import (dynamics_sign, momentum_residual,
+                      pointing_residuals, torque_residual)
 
 
 def shift_function(nx: int, nu: int, nz: int, ng: int) -> ca.Function:
@@ -81,10 +82,9 @@ def residual_function(mpc: Any) -> ca.Function:
     x, x1 = ca.SX.sym("x", nx), ca.SX.sym("x1", nx)
     u, qf, tau = ca.SX.sym("u", nu), ca.SX.sym("qf", 4), ca.SX.sym("tau", 3)
     c = ca.SX.sym("c")
-    # the sign of the rows as `AttitudeMPC._objective` writes them
-    sign = 1.0 if mpc.solver == "fatrop" else -1.0
-    defect = sign * (x1 - model.rk4_step(1).expand()(x, u, tau, mpc.dt))
-    r = ca.vertcat(np.sqrt(w.torque) * u[:nw] / ca.DM(m_max),
+    defect = dynamics_sign(mpc.solver) * (
+        x1 - model.rk4_step(1).expand()(x, u, tau, mpc.dt))
+    r = ca.vertcat(torque_residual(u, w, m_max),
                    momentum_residual(x, w, h_max),
                    pointing_residuals(x1, qf, w, c))
     cost = ca.sumsqr(r)

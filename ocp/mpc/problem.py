@@ -153,6 +153,25 @@ class MPCStep(ResultMixin):
     qp_kkt: float = float("nan")
 
 
+def torque_residual(u, weights: MPCWeights, m_max: np.ndarray):
+    """Least-squares residual of a stage's wheel torques (n_w,).
+
+    ``√w_m · m / m_max`` for the first n_w = len(m_max) controls of ``u``
+    (SX, MX or numpy; the thrusters' duties follow them).
+    """
+    return np.sqrt(weights.torque) * u[:len(m_max)] / ca.DM(m_max)
+
+
+def dynamics_sign(solver: str) -> float:
+    """Sign of the MPC's dynamics rows ``sign · (x_{k+1} − F(x_k, u_k))``.
+
+    fatrop's structure detection needs x_{k+1} − F; qrqp was measured to
+    fail more often on that sign (its active-set steps on this QP depend
+    on the row signs), so every other solver gets F − x_{k+1}.
+    """
+    return 1.0 if solver == "fatrop" else -1.0
+
+
 def momentum_residual(x, weights: MPCWeights, h_max: np.ndarray,
                       factor=1.0):
     """Least-squares residual of a state's wheel momenta (n_w,).
