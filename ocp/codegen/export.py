@@ -77,7 +77,7 @@ from .patches import (
     patch_unused_parameters,
     patch_zeros,
 )
-from .precision import (DAQP_SINGLE_FLAG, SINGLE_DUTY_QP_PLUGIN,
+from .precision import (DAQP_SINGLE_FLAG,
                         check_precision, check_single,
                         duty_qp_options, patch_qrqp_failure, to_single,
                         wheel_qp_options)
@@ -471,7 +471,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         float math (`ocp.codegen.precision.to_single`), the QP and SQP
         tolerances of `ocp.codegen.precision.TOLERANCES`, DAQP in its
         float build (``-DDAQP_SINGLE_PRECISION``) where double uses it
-        but for ``duty_qp`` (qrqp: `SINGLE_DUTY_QP_PLUGIN`);
+        (``duty_qp``'s with its proximal iterations, which float needs:
+        `ocp.codegen.precision.TOLERANCES` ``duty_daqp_eps_prox``);
         MPC step: the condensed RTI one only (`SINGLE_MPC_VARIANTS`).
     build : bool
         Compile the driver and a shared library with ``cc`` (a target:
@@ -509,9 +510,6 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     check_loop_steps(loop_steps)
     mpc_variants = _check_variants(mpc_variants)
     cortex_m = check_target(target) != "host"
-    if precision == "single":     # DAQP's float point fails duty's check
-        check_single(precision, {"duty_qp_plugin": duty_qp_plugin}, ())
-        duty_qp_plugin = duty_qp_plugin or SINGLE_DUTY_QP_PLUGIN
     wheel_qp_plugin, duty_qp_plugin, condensed = _target_plugins(
         target, out, wheel_qp_plugin, duty_qp_plugin)
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)

@@ -48,7 +48,6 @@ __all__ = [
     "FLOAT_MIN_LITERAL",
     "MATH_FUNCTIONS",
     "PRECISIONS",
-    "SINGLE_DUTY_QP_PLUGIN",
     "SINGLE_MPC_VARIANTS",
     "TOLERANCES",
     "c_real",
@@ -105,6 +104,7 @@ TOLERANCES: dict[str, dict[str, float]] = {
         "duty_kkt_tol": 1e-9,      # duty_function kkt_tol
         "duty_slack_tol": 1e-7,    # certified_duty_function slack_tol
         "duty_attain_tol": 1e-9,   # thrusters.qp.certified._ATTAIN_TOL
+        "duty_daqp_eps_prox": 0.0,  # DAQP's proximal weight on duty_qp
     },
     "single": {
         # momentum rows [N·m·s] (h_max ~ 0.01-0.1) summed over up to 20
@@ -149,6 +149,15 @@ TOLERANCES: dict[str, dict[str, float]] = {
         # facet products (~ 10 eps); a demand this close to the boundary
         # goes to the solver, whose certificate then decides
         "duty_attain_tol": 1e-6,
+        # the reduced duty QP is nearly an LP (Hessian 1e-4 I): DAQP's
+        # dual form x = -R⁻¹(M'λ + v) with R⁻¹ = 100 I cancels terms
+        # ~ 1e4 larger than x, and in float its point landed ~ 1e-3 off
+        # its active rows (every certificate failed, 300 of 300 cycles;
+        # its active set was wrong on 12). DAQP's proximal iterations
+        # solve with the Hessian + eps_prox I, which ends the
+        # cancellation: 3,000 of 3,000 cycles certified, duties 7e-8
+        # from the double QP's (about 1,500 more instructions a call)
+        "duty_daqp_eps_prox": 1.0,
     },
 }
 
@@ -339,6 +348,8 @@ def duty_qp_options(precision: str = "double", plugin: str = "qrqp"
     if precision == "double":
         return {}
     opts = _conic_options(tol, plugin)
+    if plugin == "daqp":
+        opts["daqp"]["eps_prox"] = tol["duty_daqp_eps_prox"]
     return {"viol_tol": tol["duty_viol_tol"],
             "slack_tol": tol["duty_slack_tol"],
             "kkt_tol": tol["duty_kkt_tol"],
@@ -361,13 +372,6 @@ def condensed_options(precision: str = "double") -> dict:
 #: nor ``mpc_cond_step``: its float closed loop (host driver) turns NaN.
 SINGLE_MPC_VARIANTS: tuple[str, ...] = ("mpc_cond_rti_step",)
 
-#: ``duty_qp``'s conic in single precision: qrqp (primal active set). The
-#: reduced duty QP is nearly an LP (Hessian 1e-4 I): DAQP's dual form
-#: ``x = -R⁻¹(M'λ + v)`` with ``R⁻¹ = 100 I`` cancels terms ~ 1e4 larger
-#: than x, so its float point is ~ 1e-3 off (fval 0.2119 for 0.2133 on
-#: the driver's sample) and fails the certificate (status 4).
-SINGLE_DUTY_QP_PLUGIN = "qrqp"
-
 #: The define that makes DAQP's ``c_float`` a float (``daqp/types.h``):
 #: every object of a single-precision export that calls DAQP is compiled
 #: with it (the export's Makefile, CMakeLists.txt, host and target builds;
@@ -378,21 +382,12 @@ DAQP_SINGLE_FLAG = "-DDAQP_SINGLE_PRECISION"
 def check_single(precision: str, plugins: dict, variants) -> None:
     """Refuse what a single-precision export does not support.
 
-    DAQP runs in its float build for ``wheel_qp`` and the condensed MPC
-    QP, not for ``duty_qp`` (`SINGLE_DUTY_QP_PLUGIN`). MPC steps: only
-    `SINGLE_MPC_VARIANTS` (sqpmethod's tolerances are not reachable in
-    float), whose condensed QP needs DAQP (qrqp fails its certificate, in
-    double already).
+    MPC steps: only `SINGLE_MPC_VARIANTS` (sqpmethod's tolerances are
+    not reachable in float), whose condensed QP needs DAQP (qrqp fails
+    its certificate, in double already).
     """
     if check_precision(precision) == "double":
         return
-    if plugins.get("duty_qp_plugin") == "daqp":
-        raise InvalidValueError(
-            "precision='single' solves duty_qp with qrqp: DAQP's float "
-            "build loses the reduced duty QP's point (its Hessian is "
-            "1e-4 I, and DAQP's dual form recovers x = -R^-1 (M'lam + v) "
-            "by a cancellation of ~1e4 eps), which then fails its "
-            "certificate")
     bad = [v for v in variants if v not in SINGLE_MPC_VARIANTS]
     if bad:
         raise InvalidValueError(
@@ -415,9 +410,8 @@ double constants beyond float's range are mapped to `FLT_MAX` or
 `fminf`, …; `nm -u adcs_codegen.o` lists no double math symbol), so a
 single-precision FPU (Cortex-M4F) runs it without software double
 routines. The QPs use tolerances chosen for float
-(`ocp.codegen.precision.TOLERANCES`). `duty_qp` uses qrqp (DAQP's
-float build loses the nearly-LP duty QP's point). DAQP (in `daqp/`,
-for `wheel_qp` and the MPC step) is its single-precision build:
+(`ocp.codegen.precision.TOLERANCES`). DAQP (in `daqp/`, for
+`wheel_qp`, `duty_qp` and the MPC step) is its single-precision build:
 `daqp/types.h` here defines `DAQP_SINGLE_PRECISION` (`c_float` is
 `float`) and the Makefile and CMakeLists.txt pass
 `-DDAQP_SINGLE_PRECISION` too; a build of your own must not undefine

@@ -239,8 +239,11 @@ def duty_function(qp: DutyCycleQP, plugin: str = FAST_PLUGIN,
     if not apart:
         Tm[n, nz] = 1.0
     Hr = Tm.T @ qp.P @ Tm
+    # Z's columns are orthonormal: ZᵀZ's off-diagonal rounding (~1e-20)
+    # would give the conic a dense Hessian (DAQP then factors it)
+    Hr[np.abs(Hr) <= 1e-12 * np.abs(Hr).max()] = 0.0
     Ar = Tm[:n] if apart else np.vstack([A_in @ Tm, Tm[:n]])
-    Hd, Ad = ca.DM(Hr), ca.DM(Ar)
+    Hd, Ad = ca.sparsify(ca.DM(Hr)), ca.DM(Ar)
     solver = ca.conic("duty_fast_conic", plugin,
                       {"h": Hd.sparsity(), "a": Ad.sparsity()}, opts)
     lby = np.full(ny, -np.inf)
