@@ -9,6 +9,9 @@ are added only when that point breaks one.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import casadi as ca
 
 
@@ -87,11 +90,12 @@ class RowLayout:
 
 def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
               sp_g: ca.Sparsity, row_tol: float = ROW_TOL,
-              qp_tol: float | None = None) -> ca.Function:
+              qp_tol: float | None = None) -> Callable[..., list]:
     """Build the QP in ``y`` (`ocp.mpc.riccati`): Hessian I, bounds as rows.
 
-    ``qp(g, W⁻¹, G, lbu, ubu, lba, uba, lam_u0, lam_a0) -> (y, lam_u,
-    lam_a, lam)`` (``lam``: the multipliers in G's order): minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
+    ``qp(g, W⁻¹, G, lbu, ubu, lba, uba, lam_u0, lam_a0) -> [y, lam_u,
+    lam_a, lam]`` (``lam``: the multipliers in G's order; a Python
+    callable of MX that calls the route in the caller's graph): minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
     ubu`` (the bounds on δu) and ``lba ≤ rows·y ≤ uba`` (momentum, rate),
     ``G`` W⁻¹ and the rows stage by stage (`ocp.mpc.riccati.factor_rows`,
     `RowLayout`).
@@ -114,8 +118,7 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     R = ca.MX.sym("G", sp_g)
     lbu, ubu = ca.MX.sym("lbu", n), ca.MX.sym("ubu", n)
     lba, uba = ca.MX.sym("lba", na), ca.MX.sym("uba", na)
-    lu0, la0 = ca.MX.sym("lam_u0", n), ca.MX.sym("lam_a0", na)
-    ins = [g, W, R, lbu, ubu, lba, uba, lu0, la0]
+    lu0 = ca.MX.sym("lam_u0", n)
     opts = _qp_options(plugin)
     if qp_tol is not None and plugin == "qrqp":
         opts.update(constr_viol_tol=qp_tol, dual_inf_tol=qp_tol)
@@ -133,29 +136,46 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
                 s["lam_a"]]
 
     rows_warm = _independent_rows(N, nu, nw, na)
-    # the bounds first; the rows only when the bounds' point breaks one
-    y1, l1 = ca.MX.sym("y1", n), ca.MX.sym("l1", n)
-    args = [g, W, R, lbu, ubu, lba, uba, l1, y1]
-    ry = at.rows(ca.mtimes(R, y1))
-    pick = ca.Function.if_else(
-        "cond_qp_pick",
-        ca.Function("cond_qp_rows", args, with_rows(l1, rows_warm(
-            l1, lbu, ubu, ca.if_else(ry > uba, 1, 0)
-            - ca.if_else(ry < lba, 1, 0)))),
-        ca.Function("cond_qp_keep", args, [y1, l1, ca.MX.zeros(na),
-                                           at.spread(l1, ca.MX.zeros(na))]))
+    # the bounds first (unless the warm start holds a row): their point,
+    # multipliers, whether it breaks a row, and the rows it breaks
+    bi = [g, W, R, lbu, ubu, lba, uba, lu0]
     s1 = box(h=eye, g=g, a=W, lba=lbu, uba=ubu, lam_a0=lu0)
     ay = at.rows(ca.mtimes(R, s1["x"]))
+    broken = ca.if_else(ay > uba, 1, 0) - ca.if_else(ay < lba, 1, 0)
     excess = ca.mmax(ca.vertcat(ay - uba, lba - ay, 0.0))
-    # casadi's stubs: a call with several outputs returns a tuple
-    staged = ca.Function(  # type: ignore[call-overload]
-        "cond_qp_staged", ins, pick(excess > row_tol, g, W, R, lbu, ubu,
-                                    lba, uba, s1["lam_a"], s1["x"]))
-    warm = rows_warm(lu0, lbu, ubu, la0)
-    direct = ca.Function("cond_qp_direct", ins, with_rows(lu0, warm))
-    route = ca.Function.if_else("cond_qp_route", direct, staged)
-    y, lam_u, lam_a, lam = route(ca.mmax(ca.fabs(la0)) > 0, *ins)
-    return ca.Function("cond_qp_routed", ins, [y, lam_u, lam_a, lam])
+    # (the branches that skip a QP are MX: an SX Function writes its
+    # outputs element by element, kilobytes of flash; their work stays
+    # below the QP branch's)
+    first = ca.Function.if_else(
+        "cond_qp_first_bounds",
+        ca.Function("cond_qp_warm_rows", bi, [ca.MX.zeros(n), ca.MX.zeros(n),
+                                              1, ca.MX.zeros(na)]),
+        ca.Function("cond_qp_bounds", bi, [s1["x"], s1["lam_a"],
+                                           excess > row_tol, broken]))
+    # then the rows, when the warm start held one or the bounds' point
+    # breaks one, started from the bounds and those rows (independent)
+    lw, aw, y1 = ca.MX.sym("lam_w", n), ca.MX.sym("rows_w", na), \
+        ca.MX.sym("y1", n)
+    ri = [g, R, lbu, ubu, lba, uba, lw, aw, y1]
+    keep = ca.Function("cond_qp_keep", ri, [y1, lw, ca.MX.zeros(na),
+                                            at.spread(lw, ca.MX.zeros(na))])
+    with_rows_fn = ca.Function("cond_qp_rows", ri,
+                               with_rows(lw, rows_warm(lw, lbu, ubu, aw)))
+    rows = ca.Function.if_else("cond_qp_with_rows", with_rows_fn, keep)
+
+    def routed(*a: Any) -> list:
+        # called in the caller's own graph, each QP in one Function
+        # below it: every level of Functions reserves its arguments (here
+        # W⁻¹ and G, 10k reals) in the work vector
+        g_, W_, R_, lbu_, ubu_, lba_, uba_, lu0_, la0_ = a
+        warm = ca.mmax(ca.fabs(la0_)) > 0
+        y1_, l1_, need, broken_ = first(warm, g_, W_, R_, lbu_, ubu_, lba_,
+                                        uba_, lu0_)
+        return rows(need, g_, R_, lbu_, ubu_, lba_, uba_,
+                    ca.if_else(warm, lu0_, l1_), ca.if_else(warm, la0_,
+                                                            broken_), y1_)
+
+    return routed
 
 
 def kkt_residual(y, g, dual, v, a, lam_u, lam_a, lbu, ubu, lba, uba):

@@ -31,6 +31,7 @@ full at the point returned.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import casadi as ca
@@ -234,14 +235,16 @@ def _sweeps(kern: dict, tree: Tree) -> dict:
 
 def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
                   flags: np.ndarray) -> ca.Function:
-    """``sw_ipm_iter(state…, data…) -> (state…, kkt)``: one Mehrotra step.
+    """``sw_ipm_iter(state…, n, kkt, data…) -> (state…, n + 1, kkt)``:
+    one Mehrotra step.
 
     The state is ``(dU (n_u × C), dX (n_x × C), Sl, Su, Ll, Lu (nb × C),
     rd, rp)`` (C = S·N columns, `Tree`; rd, rp the carried dual and
-    primal residuals); the data ``(A, B, Q (nonzeros × C), q (n_x × C),
+    primal residuals), ``n`` the iterations made so far and ``kkt`` the
+    last residual (`ipm_solve`'s loop carries both); the data ``(A, B, Q (nonzeros × C), q (n_x × C),
     g, r (n_u × C), lo, hi (nb × C), Ar, Br, Qr, rr)`` (``r`` the diagonal
     of the control Hessian per stage; the last four reversed in time).
-    ``kkt`` is the new point's KKT residual (module doc). ``flags`` (C,)
+    The ``kkt`` returned is the new point's KKT residual (module doc). ``flags`` (C,)
     are 1 where a stage chooses its control and 0 where it holds the one
     before it (move blocking; a tree's root stages).
     """
@@ -258,6 +261,7 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     lo, hi = sym("lo", nb, C), sym("hi", nb, C)
     rd, rp = sym("rd"), sym("rp")
     state = [dU, dX, Sl, Su, Ll, Lu, rd, rp]
+    count = [sym("n"), sym("kkt")]
     data = [A, B, Q, q, g, r, lo, hi, Ar, Br, Qr, rr_]
     sw = _sweeps(kern, tree)
     m = 2.0 * nb * C
@@ -310,7 +314,8 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     ok = ca.logic_and(total == total, ca.fabs(total) < 1e300)
     new = [ca.if_else(ok, v, v0) for v, v0 in zip(new, state)]
     kkt = ca.if_else(ok, kkt, 0.0)
-    return ca.Function("sw_ipm_iter", state + data, new + [kkt])
+    return ca.Function("sw_ipm_iter", state + count + data,
+                       new + [count[0] + 1, kkt])
 
 
 def kkt_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
@@ -369,35 +374,34 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     flags = np.ones(tree.C) if flags is None else np.asarray(flags, float)
     it = ipm_iteration(kern, lay, tree, nx, nu, flags)
     # fresh symbols: a call on the Function's own inputs would inline it
-    ins = [ca.MX.sym(it.name_in(i), it.sparsity_in(i))
-           for i in range(it.n_in())]
-    state, data = ins[:8], ins[8:]
-    n, kk = ca.MX.sym("n"), ca.MX.sym("kkt")
-    args = [*state, n, kk, *data]
+    args = [ca.MX.sym(it.name_in(i), it.sparsity_in(i))
+            for i in range(it.n_in())]
+    data = args[10:]
     # SX: a skipped chunk reads its state alone (an MX Function would
     # copy every argument, the data included, into its work vector)
     sx = [ca.SX.sym(a.name(), a.sparsity()) for a in args]
     done = ca.Function("sw_done", sx, sx[:10])
-    # chunks of nested iterations (a converged iterate skips the rest of
-    # its chunk), called one after another, each skipped once converged:
-    # every nesting level reserves its callee's arguments in the work
-    # vector, so the depth stays at IPM_CHUNK
+    # chunks of IPM_CHUNK iterations, one after another in the chunk (a
+    # converged iterate skips the rest), the chunks one after another,
+    # each skipped once converged: every nesting level of Functions
+    # reserves its arguments in the work vector, so the calls stay side
+    # by side, two levels deep
     depth = min(IPM_CHUNK, max_iter)
-    inner: Any = None
-    for k in range(depth - 1, -1, -1):
-        out = it(*state, *data)
-        new, kn = out[:8], out[8]
-        res = [*new, n + 1, kn] if inner is None else \
-            inner(kn <= tol, *new, n + 1, kn, *data)
-        inner = ca.Function.if_else(
-            f"sw_ipm_{k}", done, ca.Function(f"sw_ipm_more_{k}", args, res))
-    chunk = ca.Function("sw_ipm_chunk", args, inner(0, *args))
+    step = ca.Function.if_else("sw_ipm_step", done, it)
+    cur: Any = it(*args)
+    for _ in range(depth - 1):
+        cur = step(cur[9] <= tol, *cur, *data)
+    chunk = ca.Function("sw_ipm_chunk", args, cur)
     skip = ca.Function.if_else("sw_ipm_skip", done, chunk)
-    cur: Any = [*state, n, kk]
-    for _ in range(0, max_iter, depth):
-        # the last chunk may run past max_iter by less than one chunk
-        cur = skip(cur[9] <= tol, *cur, *data)
-    loop = ca.Function("sw_ipm_loop", args, cur)
+
+    def loop(*a: Any) -> list:
+        # the chunks, called in the caller's own graph (one level less)
+        cur, dat = list(a[:10]), a[10:]
+        for _ in range(0, max_iter, depth):
+            # the last chunk may run past max_iter by less than one chunk
+            cur = skip(cur[9] <= tol, *cur, *dat)
+        return cur
+
     sym = ca.MX.sym
     C = tree.C
     dU0, dX0 = sym("dU0", nu, C), sym("dX0", nx, C)
@@ -442,7 +446,7 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
                        ["dU", "dX", "lam", "iterations", "kkt"])
 
 
-def _interior(loop: ca.Function, kern: dict, lay: BoxLayout, tree: Tree,
+def _interior(loop: Callable[..., list], kern: dict, lay: BoxLayout, tree: Tree,
               dims: tuple, flags: np.ndarray, sweeps: dict, sr, dU0, dX0,
               data: list) -> list:
     """``[dU, dX, lam, n, kkt]`` of the interior point from (dU0, dX0)
