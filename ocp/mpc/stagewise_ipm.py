@@ -16,9 +16,9 @@ iterate keeps the dynamics exactly, so each Newton system is the LQ
 problem of `ocp.mpc.stagewise_kernels`, solved by one Riccati factor
 (the predictor) and one more backward sweep (the corrector). Cost and
 generated code grow linearly in N: the sweeps are CasADi ``mapaccum`` of
-one stage's kernel, and the interior-point iterations nest as
-``if_else`` in chunks (`IPM_CHUNK`) so that a converged solve skips the
-rest.
+one stage's kernel, and the interior-point iterations are ``if_else``
+calls side by side in chunks (`IPM_CHUNK`) so that a converged solve
+skips the rest.
 
 The solve stops when its KKT residual (`IPM_TOL`) is met: the dual
 residual (the costate's reduced gradient, relative to ``1 + |g|``), the
@@ -46,7 +46,7 @@ from .stagewise_polish import POLISH_ACCEPT, polish, reduced_active
 IPM_TOL = 1e-9
 #: Interior-point iterations allowed per QP (a multiple of `IPM_CHUNK`).
 IPM_MAX_ITER = 40
-#: Iterations per nested chunk of the solve (`ipm_solve`).
+#: Iterations per chunk of the solve (`ipm_solve`).
 IPM_CHUNK = 5
 #: Fraction of the way to a box's boundary that one step may go.
 IPM_TAU = 0.995
