@@ -48,6 +48,10 @@ IPM_TOL = 1e-9
 IPM_MAX_ITER = 40
 #: Iterations per chunk of the solve (`ipm_solve`).
 IPM_CHUNK = 5
+#: Calls per level of a sweep's ``mapaccum`` tower (CasADi's default is
+#: 10): at N = 20 one level, whose accumulators no level above copies
+#: through; the generated code stays bounded in N.
+SWEEP_BASE = 20
 #: Fraction of the way to a box's boundary that one step may go.
 IPM_TAU = 0.995
 #: The initial slacks' floor and barrier parameter [scaled, 1].
@@ -175,7 +179,8 @@ class Tree:
 
     def sweep(self, f: ca.Function, name: str, n_acc: int) -> ca.Function:
         """``f`` accumulated over each scenario's N stages, the S mapped."""
-        acc = f.mapaccum(name, self.N, n_acc)
+        acc = f.mapaccum(name, self.N, n_acc,
+                         {"base": min(self.N, SWEEP_BASE)})
         return acc if self.S == 1 else acc.map(self.S)
 
     def root_factor(self, Lr, kr, nu: int) -> tuple:
