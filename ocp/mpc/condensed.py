@@ -233,7 +233,8 @@ def _free_qp(qp_in: list, N: int) -> ca.Function:
     optimum, its multipliers zero and its KKT residual: stationarity and
     complementarity hold exactly, so the residual is the bounds' largest
     excess (the last input), 0 where this branch runs. SX, so that it
-    reads the few inputs it needs (an MX Function copies every input)."""
+    reads the few inputs it needs (an MX Function reserves a slot in the
+    work vector for every input)."""
     i, stages, t = _qp_symbols(qp_in, ca.SX, N)
     return ca.Function("cond_qp_free", i,
                        [t["du0"], ca.horzcat(*stages[4]),
@@ -353,8 +354,6 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
             "use solver='sqpmethod'")
     plugin = plugin or condensed_qp_plugin()
     it = _iteration(mpc, plugin, row_tol=row_tol, qp_tol=qp_tol)
-    kkt_tol = as_finite_scalar(kkt_tol, "kkt_tol")
-    check_positive(kkt_tol, "kkt_tol")
     return sqp_step_functions(mpc, it, "mpc_cond", step_tol, anderson,
                               kkt_tol)
 
@@ -377,6 +376,8 @@ def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
     """
     step_tol = as_finite_scalar(step_tol, "step_tol")
     check_positive(step_tol, "step_tol")
+    kkt_tol = as_finite_scalar(kkt_tol, "kkt_tol")
+    check_positive(kkt_tol, "kkt_tol")
     if isinstance(anderson, bool) or not isinstance(
             anderson, (int, np.integer)) or anderson < 0:
         raise InvalidValueError(

@@ -95,10 +95,10 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
 
     ``qp(g, W⁻¹, G, lbu, ubu, lba, uba, lam_u0, lam_a0) -> [y, lam_u,
     lam_a, lam]`` (``lam``: the multipliers in G's order; a Python
-    callable of MX that calls the route in the caller's graph): minimise ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤
-    ubu`` (the bounds on δu) and ``lba ≤ rows·y ≤ uba`` (momentum, rate),
-    ``G`` W⁻¹ and the rows stage by stage (`ocp.mpc.riccati.factor_rows`,
-    `RowLayout`).
+    callable of MX that calls the route in the caller's graph): minimise
+    ``½|y|² + gᵀy`` subject to ``lbu ≤ W⁻¹y ≤ ubu`` (the bounds on δu)
+    and ``lba ≤ rows·y ≤ uba`` (momentum, rate), ``G`` W⁻¹ and the rows
+    stage by stage (`ocp.mpc.riccati.factor_rows`, `RowLayout`).
     When the warm start holds no active row (holds, small slews): the QP
     with the bounds alone first; its point is the answer when it meets
     every row within `ROW_TOL` (the rows can only cut that QP's feasible

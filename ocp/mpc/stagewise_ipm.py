@@ -246,12 +246,13 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     The state is ``(dU (n_u × C), dX (n_x × C), Sl, Su, Ll, Lu (nb × C),
     rd, rp)`` (C = S·N columns, `Tree`; rd, rp the carried dual and
     primal residuals), ``n`` the iterations made so far and ``kkt`` the
-    last residual (`ipm_solve`'s loop carries both); the data ``(A, B, Q (nonzeros × C), q (n_x × C),
-    g, r (n_u × C), lo, hi (nb × C), Ar, Br, Qr, rr)`` (``r`` the diagonal
-    of the control Hessian per stage; the last four reversed in time).
-    The ``kkt`` returned is the new point's KKT residual (module doc). ``flags`` (C,)
-    are 1 where a stage chooses its control and 0 where it holds the one
-    before it (move blocking; a tree's root stages).
+    last residual (`ipm_solve`'s loop carries both); the data ``(A, B, Q
+    (nonzeros × C), q (n_x × C), g, r (n_u × C), lo, hi (nb × C), Ar, Br,
+    Qr, rr)`` (``r`` the diagonal of the control Hessian per stage; the
+    last four reversed in time). The ``kkt`` returned is the new point's
+    KKT residual (module doc). ``flags`` (C,) are 1 where a stage chooses
+    its control and 0 where it holds the one before it (move blocking; a
+    tree's root stages).
     """
     nb, C = lay.nb, tree.C
     sym = ca.MX.sym
@@ -383,7 +384,8 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
             for i in range(it.n_in())]
     data = args[10:]
     # SX: a skipped chunk reads its state alone (an MX Function would
-    # copy every argument, the data included, into its work vector)
+    # reserve a slot for every argument, the data included, in the work
+    # vector)
     sx = [ca.SX.sym(a.name(), a.sparsity()) for a in args]
     done = ca.Function("sw_done", sx, sx[:10])
     # chunks of IPM_CHUNK iterations, one after another in the chunk (a
@@ -436,8 +438,8 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     interior = ca.Function("sw_ipm_interior", bi, _interior(
         loop, kern, lay, tree, dims, flags, sweeps, sr, bi[0], bi[1],
         bi[2:14]))
-    # SX: reads the free point alone (an MX Function reads its inputs
-    # through a copy of each)
+    # SX: reads the free point alone (an MX Function reserves a slot in
+    # the work vector for each of its inputs)
     sx = [ca.SX.sym(a.name(), a.sparsity()) for a in bi]
     free = ca.Function("sw_ipm_free", sx, [sx[14], sx[15],
                                            ca.SX.zeros(lay.nb, C),
@@ -451,9 +453,9 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
                        ["dU", "dX", "lam", "iterations", "kkt"])
 
 
-def _interior(loop: Callable[..., list], kern: dict, lay: BoxLayout, tree: Tree,
-              dims: tuple, flags: np.ndarray, sweeps: dict, sr, dU0, dX0,
-              data: list) -> list:
+def _interior(loop: Callable[..., list], kern: dict, lay: BoxLayout,
+              tree: Tree, dims: tuple, flags: np.ndarray, sweeps: dict,
+              sr, dU0, dX0, data: list) -> list:
     """``[dU, dX, lam, n, kkt]`` of the interior point from (dU0, dX0)
     and its polish on the active set, the one with the smaller residual
     (`ipm_solve`)."""
