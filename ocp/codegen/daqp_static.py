@@ -9,7 +9,9 @@ slot) from the problem dimensions known at generation time;
 `copy_daqp_sources` writes DAQP's C sources (MIT, vendored in
 ``ocp/codegen/vendor/daqp``, ``README.md`` there) beside the export. The
 vendored ``api.c`` keeps no allocating function, so any path back to the
-heap fails at link time.
+heap fails at link time. A small conic (`KEEP_MAX_NNZ`) keeps its setup
+from one call to the next while its H and A stay the same (the duty QP's
+are constants).
 """
 
 from __future__ import annotations
@@ -88,13 +90,23 @@ _SETUP_STATIC = r"""/* (ocp.codegen.patch_daqp_static) DAQP's setup_daqp
  * time.
  * Soft and binary constraints (which need more storage) are refused. */
 static int casadi_daqp_setup_static(DAQPProblem* qp, DAQPWorkspace* work,
-    c_float* w, int nw, int* iw, int niw, int diag) {
+    c_float* w, int nw, int* iw, int niw, int diag, int own_m, int same) {
   int i, mask = UPDATE_M+UPDATE_d+UPDATE_sense;
   int n = qp->n, m = qp->m, ms = qp->ms;
   for (i=0; i<m; ++i) if (qp->sense[i] & (SOFT|BINARY)) return -100;
-  if (5*(n+1) + (n+1)*(n+2)/2 + 2*n + 3*m + (diag ? 0 : n*(m-ms))
+  if (5*(n+1) + (n+1)*(n+2)/2 + 2*n + 3*m + (diag && !own_m ? 0 : n*(m-ms))
       + (diag ? n : n*(n+1)/2) + n > nw
       || (n+1) + m > niw) return -101;
+  if (same) {
+    /* H and A as at this workspace's last setup (casadi_daqp_same_data):
+     * its factor of H, M and the rows' scaling hold; DAQP's own partial
+     * update (update_ldp's mask) redoes the bounds, the sense and v */
+    work->qp = qp;
+    reset_daqp_workspace(work);
+    i = update_ldp(UPDATE_d+UPDATE_sense+(work->v ? UPDATE_v : 0), work);
+    if (i < 0) return i;
+    return activate_constraints(work);
+  }
   /* allocate_daqp_workspace(work, n, 0) */
   work->n = n;
   work->Rinv = NULL; work->v = NULL; work->scaling = NULL;
@@ -116,8 +128,9 @@ static int casadi_daqp_setup_static(DAQPProblem* qp, DAQPWorkspace* work,
   for (i=0; i<ms; ++i) work->scaling[i] = 1;
   /* a diagonal H (by its sparsity): DAQP scales A by H's diagonal
    * element by element (update_M), so M may be A itself, and H's factor
-   * is its diagonal (update_Rinv's RinvD) */
-  if (diag) work->M = qp->A;
+   * is its diagonal (update_Rinv's RinvD); a conic that keeps its setup
+   * holds M in its own storage (own_m) */
+  if (diag && !own_m) work->M = qp->A;
   else { work->M = w; w += n*(m-ms); }
   work->dupper = w; w += m;
   work->dlower = w; w += m;
@@ -141,6 +154,38 @@ static int casadi_daqp_setup_static(DAQPProblem* qp, DAQPWorkspace* work,
   return activate_constraints(work);
 }
 
+/* (ocp.codegen.patch_daqp_static) A conic with few nonzeros in H and A
+ * keeps its setup: 1 when this memory slot's last setup succeeded with the
+ * same H and A (compared value by value; a NaN never compares equal). The
+ * values are copied for the next call; kept is set again only when this
+ * call's setup succeeds (casadi_daqp_mark_kept). */
+static int casadi_daqp_same_data(struct casadi_daqp_data* d) {
+  int i, same = d->kept;
+  if (!d->keep) return 0;
+  for (i=0; i<d->nkh; ++i) {
+    if (d->keep[i] != d->qp->h[i]) same = 0;
+    d->keep[i] = d->qp->h[i];
+  }
+  for (i=0; i<d->nka; ++i) {
+    if (d->keep[d->nkh+i] != d->qp->a[i]) same = 0;
+    d->keep[d->nkh+i] = d->qp->a[i];
+  }
+  d->kept = 0;
+  return same;
+}
+
+/* After a setup that succeeded: keep it unless DAQP found a zero row of
+ * M (normalize_M marks it immutable in the workspace, which a partial
+ * update would not redo) */
+static void casadi_daqp_mark_kept(struct casadi_daqp_data* d) {
+  int i;
+  if (!d->keep) return;
+  for (i=d->daqp.ms; i<d->daqp.m; ++i)
+    if ((d->work.sense[i] & IMMUTABLE) && !(d->daqp.sense[i] & IMMUTABLE))
+      return;
+  d->kept = 1;
+}
+
 """
 
 _INCLUDE = "#include <daqp/api.h>\n"
@@ -150,11 +195,30 @@ _DATA_END_NEW = ("  int nodecount;\n  int bnb_itercount;\n"
                  "  c_float* ws;  /* static workspace "
                  "(ocp.codegen.patch_daqp_static) */\n"
                  "  int* iws;\n  int nws, niws;\n"
-                 "  int diag_h;  /* H's sparsity is diagonal */\n};\n")
+                 "  int diag_h;  /* H's sparsity is diagonal */\n"
+                 "  casadi_real* keep;  /* H, A of the kept setup, or NULL */\n"
+                 "  int nkh, nka, kept;\n};\n")
 _SOLVE_HEAD = "int casadi_daqp_solve(struct casadi_daqp_data* d,"
 _SETUP_CALL = "setup_daqp(&d->daqp,&d->work,&(d->res.setup_time))"
 _SETUP_NEW = ("casadi_daqp_setup_static(&d->daqp,&d->work,"
-              "d->ws,d->nws,d->iws,d->niws,d->diag_h)")
+              "d->ws,d->nws,d->iws,d->niws,d->diag_h,d->keep!=0,same)")
+_DENSIFY = ("  casadi_densify(d->qp->h, d->prob->qp->sp_h, d->daqp.H, 0);\n"
+            "  casadi_densify(d->qp->a, d->prob->qp->sp_a, d->daqp.A, 1);\n")
+_DENSIFY_NEW = ("  same = casadi_daqp_same_data(d);\n  if (!same) {\n"
+                + _DENSIFY.replace("  casadi", "    casadi") + "  }\n")
+_SOLVE_CALL = "  daqp_solve(&d->res,&d->work);\n"
+_SOLVE_CALL_NEW = "  casadi_daqp_mark_kept(d);\n" + _SOLVE_CALL
+_FLAG_DECL = "  int flag;\n  const struct casadi_daqp_prob* p = d->prob;\n"
+_FLAG_DECL_NEW = "  int flag, same;\n  const struct casadi_daqp_prob* p = d->prob;\n"
+
+#: A DAQP conic whose H and A hold at most this many nonzeros together
+#: keeps its setup (H's factor, M = A R⁻¹ and the rows' scaling) from one
+#: call to the next while H and A stay the same: the duty QP's conic is
+#: called with constant H and A, and its setup was a fifth of its
+#: instructions. The comparison costs a few per nonzero, and the copy a
+#: real each; a large conic (the condensed MPC QP, whose H and A change
+#: every step) keeps nothing.
+KEEP_MAX_NNZ = 64
 _FREES = re.compile(r"^[ \t]*free_daqp_(?:workspace|ldp)\(&d->work\);\n",
                     re.M)
 _CONIC = re.compile(
@@ -167,19 +231,26 @@ _SPARSITY = re.compile(r"static const casadi_int (casadi_s\d+)\[\d+\] = "
                        r"\s*\{([\d,\s]*)\}")
 
 
-def daqp_static_sizes(n: int, na: int, diag: bool = False
-                      ) -> tuple[int, int]:
+def daqp_static_sizes(n: int, na: int, diag: bool = False,
+                      own_m: bool = False) -> tuple[int, int]:
     """Reals and ints of the static workspace of one DAQP conic.
 
     ``n`` variables, ``na`` general rows (``m = n + na`` constraints, the
     first ``n`` the bounds): what ``setup_daqp`` would allocate. With
     ``diag`` (H's sparsity diagonal) DAQP's M is A itself (scaled in
-    place) and H's factor its diagonal: n·na + n(n−1)/2 reals fewer.
+    place) and H's factor its diagonal: n·na + n(n−1)/2 reals fewer;
+    ``own_m`` (a conic that keeps its setup) holds M all the same.
     """
     m = n + na
     nw = (5 * (n + 1) + (n + 1) * (n + 2) // 2 + 2 * n + 3 * m
-          + (0 if diag else n * na) + (n if diag else n * (n + 1) // 2) + n)
+          + (0 if diag and not own_m else n * na)
+          + (n if diag else n * (n + 1) // 2) + n)
     return nw, (n + 1) + m
+
+
+def _nnz(pattern: list[int]) -> int:
+    """Nonzeros of a CasADi sparsity array ``{nrow, ncol, colind…, row…}``."""
+    return pattern[2 + pattern[1]]
 
 
 def _is_diagonal(pattern: list[int]) -> bool:
@@ -200,14 +271,20 @@ def patch_daqp_static(source: str) -> tuple[str, dict[str, tuple[int, int]]]:
     ``setup_daqp`` call; the ``free_daqp_*`` calls go; each conic gets
     static arrays ``casadi_fN_daqp_w``/``_iw`` (one set per CasADi memory
     slot, ``CASADI_MAX_NUM_THREADS``) sized from its ``H`` and ``A``
-    sparsities, and points its data at them before each solve.
+    sparsities, and points its data at them before each solve. A conic
+    whose H and A hold at most `KEEP_MAX_NNZ` nonzeros also keeps its
+    setup (H's factor, M, the rows' scaling; M then in its own storage)
+    while H and A stay the same from call to call, compared value by
+    value: later calls redo only the bounds, the sense and v (DAQP's own
+    partial update, ``update_ldp``'s mask).
 
     Returns
     -------
     text : str
         The edited text (``source`` unchanged when it holds no DAQP).
     conics : dict
-        C name of each DAQP conic -> (reals, ints) of its static storage.
+        C name of each DAQP conic -> (reals, ints) of its static storage
+        (the reals count the kept copy of H and A too).
 
     Raises
     ------
@@ -220,6 +297,7 @@ def patch_daqp_static(source: str) -> tuple[str, dict[str, tuple[int, int]]]:
     sparsity = {m[1]: [int(v) for v in m[2].replace(",", " ").split()]
                 for m in _SPARSITY.finditer(source)}
     conics: dict[str, tuple[int, int]] = {}
+    layout: dict[str, tuple[int, int, int]] = {}
 
     def _conic(m: re.Match) -> str:
         sp_a = re.search(r"p_qp\.sp_a = (casadi_s\d+);", m["body"])
@@ -229,22 +307,31 @@ def patch_daqp_static(source: str) -> tuple[str, dict[str, tuple[int, int]]]:
         n = sparsity[sp_h[1]][1]
         na = sparsity[sp_a[1]][0]
         diag = _is_diagonal(sparsity[sp_h[1]])
-        conics[m[1]] = daqp_static_sizes(n, na, diag)
-        nw, niw = conics[m[1]]
+        nkh, nka = _nnz(sparsity[sp_h[1]]), _nnz(sparsity[sp_a[1]])
+        keep = nkh + nka <= KEEP_MAX_NNZ
+        nw, niw = daqp_static_sizes(n, na, diag, own_m=keep)
+        conics[m[1]] = (nw + (nkh + nka if keep else 0), niw)
+        layout[m[1]] = (nw, niw, nkh + nka if keep else 0)
+        kept = (f"  d->keep = {m[1]}_daqp_k[mem]; d->nkh = {nkh}; "
+                f"d->nka = {nka};\n" if keep else "  d->keep = 0;\n")
         return (m[0] + f"  d->ws = {m[1]}_daqp_w[mem]; d->nws = {nw};\n"
                 f"  d->iws = {m[1]}_daqp_iw[mem]; d->niws = {niw};\n"
-                f"  d->diag_h = {int(diag)};\n")
+                f"  d->diag_h = {int(diag)};\n" + kept)
 
     text = _CONIC.sub(_conic, source)
-    for name, (nw, niw) in conics.items():
+    for name, (nw, niw, nkeep) in layout.items():
         decl = (f"static struct casadi_daqp_data {name}_mem"
                 "[CASADI_MAX_NUM_THREADS];\n")
         text = text.replace(
             decl, decl + f"static c_float {name}_daqp_w"
             f"[CASADI_MAX_NUM_THREADS][{nw}];\n"
-            f"static int {name}_daqp_iw[CASADI_MAX_NUM_THREADS][{niw}];\n")
+            f"static int {name}_daqp_iw[CASADI_MAX_NUM_THREADS][{niw}];\n"
+            + (f"static casadi_real {name}_daqp_k"
+               f"[CASADI_MAX_NUM_THREADS][{nkeep}];\n" if nkeep else ""))
     ok = (bool(conics) and source.count(_DATA_END) == 1
           and source.count(_SOLVE_HEAD) == 1
+          and source.count(_DENSIFY) == 1 and source.count(_SOLVE_CALL) == 1
+          and source.count(_FLAG_DECL) == 1
           and text.count("casadi_daqp_set_work(d, &arg, &res, &iw, &w);")
           == len(conics))
     if ok:
@@ -252,6 +339,9 @@ def patch_daqp_static(source: str) -> tuple[str, dict[str, tuple[int, int]]]:
         text = text.replace(_DATA_END, _DATA_END_NEW)
         text = text.replace(_SOLVE_HEAD, _SETUP_STATIC + _SOLVE_HEAD)
         text = text.replace(_SETUP_CALL, _SETUP_NEW)
+        text = text.replace(_DENSIFY, _DENSIFY_NEW)
+        text = text.replace(_SOLVE_CALL, _SOLVE_CALL_NEW)
+        text = text.replace(_FLAG_DECL, _FLAG_DECL_NEW)
         text = _FREES.sub("", text)
     if not ok or "setup_daqp(" in text or "free_daqp_" in text:
         raise AdcsError(

@@ -179,7 +179,11 @@ def _memory_text(static_bytes: int) -> str:
             f"arrays sized for each QP at generation time ({static_bytes}"
             " bytes in all, per memory slot: `CASADI_MAX_NUM_THREADS`, "
             "default 1), and DAQP's own allocating functions are not in "
-            "`daqp/api.c`. ")
+            "`daqp/api.c`. A small QP (such as `duty_qp`'s, whose Hessian "
+            "and rows are constants) keeps its setup in those arrays from "
+            "one call to the next while its matrices stay the same: its "
+            "first call costs more than the later ones, so a flight build "
+            "makes one call at initialisation. ")
     heap += ("Check an object build with `nm`: no undefined `malloc`, "
              "`calloc`, `realloc` or `free`. `main.c` uses no heap either "
              "(static arrays, a static `stdout` buffer).")

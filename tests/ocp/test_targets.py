@@ -89,12 +89,13 @@ def test_wheel_qp_meets_its_instruction_goal_on_the_m7(m7):
 
 
 #: #28's goal for `duty_qp` (instructions per call). Measured: the M7
-#: (double DAQP) 9,240-9,280; the M4F in float 10,640-10,680 with DAQP's
-#: float build and its proximal iterations (73,880 with qrqp, which float
-#: needed before them): over the goal, so the M4F bound below guards
-#: the measured figure instead.
+#: (double DAQP) 7,920-8,000 a call, 9,240 the first (DAQP's setup, which
+#: later calls keep: `ocp.codegen.daqp_static.KEEP_MAX_NNZ`); the M4F in
+#: float 9,360-9,440 a call with DAQP's float build and its proximal
+#: iterations (73,880 with qrqp, which float needed before them), 10,640
+#: the first: the M4F's first call is guarded by the bound below instead.
 DUTY_QP_INSTRUCTIONS = 10_000
-DUTY_QP_M4F_INSTRUCTIONS = 11_000
+DUTY_QP_M4F_FIRST_INSTRUCTIONS = 11_000
 
 
 def test_duty_qp_meets_its_instruction_goal_on_the_m7(m7):
@@ -255,7 +256,9 @@ def test_m4f_single_condensed_closed_loop(tmp_path):
     assert times["wheel_qp"]["max"] <= WHEEL_QP_INSTRUCTIONS, \
         times["wheel_qp"]
     for name in ("duty_qp", "duty_qp:burn", "duty_qp:relaxed"):
-        assert times[name]["max"] <= DUTY_QP_M4F_INSTRUCTIONS, times[name]
+        assert times[name]["median"] <= DUTY_QP_INSTRUCTIONS, times[name]
+        assert times[name]["max"] <= DUTY_QP_M4F_FIRST_INSTRUCTIONS, \
+            times[name]
     rec = res.extras["memory"]["functions"]["mpc_cond_rti_step"]
     assert rec["heap"] is False
     assert not [c for c in rec["library_calls"]

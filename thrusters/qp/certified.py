@@ -138,11 +138,19 @@ def certified_duty_function(qp: DutyCycleQP, plugin: str = "daqp", *,
     after = ca.Function(f"{name}_out", [y, th0s, km0s, go, ok],
                         [duty, slack, ca.if_else(ok, violation, 0), status])
 
+    # the solve or its skip as a switch over before's outputs (an MX
+    # if_else would make its branches Functions of theta and kmax, and
+    # the solve's branch would redo `before`)
+    th0b, km0b = ca.MX.sym("theta0", nth), ca.MX.sym("kmax0", n)
+    solve = ca.Function(f"{name}_solve", [th0b, km0b],
+                        [ca.vertcat(*fast(th0b, km0b))])
+    skip = ca.Function(f"{name}_skip", [th0b, km0b],
+                       [ca.vertcat(ca.DM.zeros(n), 0.0, np.inf)])
+    branch = ca.Function.if_else(f"{name}_branch", solve, skip)
     theta = ca.MX.sym("theta", nth)
     kmax = ca.MX.sym("kmax", n)
     th0m, km0m, gom, okm = before(theta, kmax)
-    ym = ca.if_else(gom, ca.vertcat(*fast(th0m, km0m)),
-                    ca.vertcat(ca.DM.zeros(n), 0.0, np.inf), True)
+    ym = branch(gom, th0m, km0m)
     # casadi's stubs: a call of a Function with several outputs returns
     # a tuple of them, not one MX
     return ca.Function(name, [theta, kmax],  # type: ignore[call-overload]
