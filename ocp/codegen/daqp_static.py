@@ -90,7 +90,8 @@ _SETUP_STATIC = r"""/* (ocp.codegen.patch_daqp_static) DAQP's setup_daqp
  * time.
  * Soft and binary constraints (which need more storage) are refused. */
 static int casadi_daqp_setup_static(DAQPProblem* qp, DAQPWorkspace* work,
-    c_float* w, int nw, int* iw, int niw, int diag, int own_m, int same) {
+    c_float* w, int nw, int* iw, int niw, int diag, int own_m, int same,
+    const casadi_real* hdiag) {
   int i, mask = UPDATE_M+UPDATE_d+UPDATE_sense;
   int n = qp->n, m = qp->m, ms = qp->ms;
   for (i=0; i<m; ++i) if (qp->sense[i] & (SOFT|BINARY)) return -100;
@@ -138,7 +139,22 @@ static int casadi_daqp_setup_static(DAQPProblem* qp, DAQPWorkspace* work,
   work->RinvD = NULL;
   if (qp->H != NULL) {
     work->Rinv = w; w += diag ? n : n*(n+1)/2;
-    mask += UPDATE_Rinv;
+    if (diag) {
+      /* update_Rinv's branch for a diagonal H, read from H's nonzeros
+       * (hdiag: its sparsity is the diagonal): no dense H to fill and
+       * scan for off-diagonal entries */
+      work->RinvD = work->Rinv;
+      work->Rinv = NULL;
+      for (i=0; i<n; ++i) {
+        c_float hi = hdiag[i] + work->settings->eps_prox;
+        if (hi <= 0) return EXIT_NONCONVEX;
+        hi = sqrt(hi);
+        work->RinvD[i] = 1/hi;
+        if (i < ms) work->scaling[i] = hi;
+      }
+    } else {
+      mask += UPDATE_Rinv;
+    }
   } else {
     work->Rinv = NULL;
   }
@@ -201,11 +217,14 @@ _DATA_END_NEW = ("  int nodecount;\n  int bnb_itercount;\n"
 _SOLVE_HEAD = "int casadi_daqp_solve(struct casadi_daqp_data* d,"
 _SETUP_CALL = "setup_daqp(&d->daqp,&d->work,&(d->res.setup_time))"
 _SETUP_NEW = ("casadi_daqp_setup_static(&d->daqp,&d->work,"
-              "d->ws,d->nws,d->iws,d->niws,d->diag_h,d->keep!=0,same)")
+              "d->ws,d->nws,d->iws,d->niws,d->diag_h,d->keep!=0,same,"
+              "d->qp->h)")
 _DENSIFY = ("  casadi_densify(d->qp->h, d->prob->qp->sp_h, d->daqp.H, 0);\n"
             "  casadi_densify(d->qp->a, d->prob->qp->sp_a, d->daqp.A, 1);\n")
 _DENSIFY_NEW = ("  same = casadi_daqp_same_data(d);\n  if (!same) {\n"
-                + _DENSIFY.replace("  casadi", "    casadi") + "  }\n")
+                "    if (!d->diag_h)\n  " + _DENSIFY.replace(
+                    "  casadi", "    casadi", 1).replace(
+                    "\n  casadi", "\n    casadi") + "  }\n")
 _SOLVE_CALL = "  daqp_solve(&d->res,&d->work);\n"
 _SOLVE_CALL_NEW = "  casadi_daqp_mark_kept(d);\n" + _SOLVE_CALL
 _FLAG_DECL = "  int flag;\n  const struct casadi_daqp_prob* p = d->prob;\n"
