@@ -368,6 +368,22 @@ def test_cli_export_run_prints_cold_and_warm_times_and_checks(tmp_path,
     assert len(err) == 1 and "no-such-cc" in err[0]
 
 
+def _daqp_external(tmp_path, name: str, src: str):
+    """``src`` (a patched DAQP conic's C) built with the vendored DAQP
+    sources into ``tmp_path``, loaded as `casadi.external` ``name``."""
+    import subprocess
+
+    from ocp.codegen.daqp_static import copy_daqp_sources
+
+    (tmp_path / f"{name}.c").write_text(src)
+    lib = tmp_path / f"{name}.so"
+    subprocess.run(["gcc", "-O2", "-fPIC", "-shared",
+                    str(tmp_path / f"{name}.c"),
+                    *map(str, copy_daqp_sources(tmp_path)), "-o", str(lib),
+                    "-lm"], check=True)
+    return ca.external(name, str(lib))
+
+
 @pytest.mark.skipif(not daqp_available(), reason="needs casadi's daqp")
 def test_daqp_warm_start_patch_survives_a_dependent_working_set(tmp_path):
     """A row equal to a bound, both in the warm start: the right point.
@@ -375,9 +391,7 @@ def test_daqp_warm_start_patch_survives_a_dependent_working_set(tmp_path):
     DAQP's setup may refuse that working set: the patched conic then
     starts cold (in its static workspace, the vendored DAQP).
     """
-    import subprocess
-
-    from ocp.codegen.daqp_static import copy_daqp_sources, patch_daqp_static
+    from ocp.codegen.daqp_static import patch_daqp_static
     from ocp.codegen.patches import patch_daqp_failure, patch_daqp_warm_start
 
     H, A = ca.DM.eye(2), ca.DM([[1.0, 0.0]])
@@ -395,13 +409,7 @@ def test_daqp_warm_start_patch_survives_a_dependent_working_set(tmp_path):
     src, n_warm = patch_daqp_warm_start(src)
     src, conics = patch_daqp_static(src)
     assert n_fail == 1 and n_warm == 3 and len(conics) == 1
-    (tmp_path / "warm_qp.c").write_text(src)
-    lib = tmp_path / "warm_qp.so"
-    subprocess.run(["gcc", "-O2", "-fPIC", "-shared",
-                    str(tmp_path / "warm_qp.c"),
-                    *map(str, copy_daqp_sources(tmp_path)), "-o", str(lib),
-                    "-lm"], check=True)
-    ext = ca.external("warm_qp", str(lib))
+    ext = _daqp_external(tmp_path, "warm_qp", src)
     for warm in ([1.0, 0.0], [1.0, 1.0], [0.0, 0.0], [-1.0, 1.0]):
         for la in (1.0, 0.0, -1.0):
             x = np.asarray(ext([-2.0, -2.0], warm, la)).ravel()
@@ -409,3 +417,46 @@ def test_daqp_warm_start_patch_survives_a_dependent_working_set(tmp_path):
             np.testing.assert_allclose(
                 x, np.asarray(f([-2.0, -2.0], warm, la)).ravel(),
                 atol=1e-12)
+
+
+@pytest.mark.skipif(not daqp_available(), reason="needs casadi's daqp")
+def test_a_small_conic_keeps_its_setup_only_while_h_and_a_stay(tmp_path):
+    """A conic of few nonzeros (`KEEP_MAX_NNZ`) keeps DAQP's setup from
+    one call to the next; with H and A as inputs, every change of either
+    (and back, and a NaN) gives the answer of CasADi's own DAQP."""
+    from ocp.codegen.daqp_static import (KEEP_MAX_NNZ, daqp_static_sizes,
+                                         patch_daqp_static)
+
+    H, A = ca.DM(ca.Sparsity.diag(2), [2.0, 1.0]), ca.DM([[1.0, 1.0]])
+    qp = ca.conic("q", "daqp", {"h": H.sparsity(), "a": A.sparsity()},
+                  {"error_on_fail": False})
+    h, a = ca.MX.sym("h", H.sparsity()), ca.MX.sym("a", A.sparsity())
+    g = ca.MX.sym("g", 2)
+    sol = qp(h=h, g=g, a=a, lba=-10, uba=1, lbx=-10, ubx=10)
+    f = ca.Function("kept_qp", [h, a, g], [sol["x"]])
+    cg = ca.CodeGenerator("kept_qp.c")
+    cg.add(f)
+    cg.generate(f"{tmp_path}/")
+    src, conics = patch_daqp_static((tmp_path / "kept_qp.c").read_text())
+    assert KEEP_MAX_NNZ >= 4 and "casadi_daqp_same_data(d)" in src
+    (name, (nw, _)), = conics.items()
+    assert nw == daqp_static_sizes(2, 1, True, own_m=True)[0] + 4
+    ext = _daqp_external(tmp_path, "kept_qp", src)
+    cases = [([2.0, 1.0], [1.0, 1.0]), ([2.0, 1.0], [1.0, 1.0]),
+             ([4.0, 0.5], [1.0, 1.0]), ([4.0, 0.5], [1.0, 1.0]),
+             ([4.0, 0.5], [1.0, -2.0]), ([2.0, 1.0], [1.0, 1.0])]
+    for hd, ad in cases:
+        for gv in ([-3.0, -3.0], [1.0, -1.0], [-1.0, 0.0]):
+            args = (ca.DM(ca.Sparsity.diag(2), hd), ca.DM([ad]), gv)
+            got = np.asarray(ext(*args)).ravel()
+            want = np.asarray(f(*args)).ravel()
+            np.testing.assert_allclose(got, want, atol=1e-12)
+    nan = np.asarray(ext(ca.DM(ca.Sparsity.diag(2), [np.nan, 1.0]),
+                         ca.DM([[1.0, 1.0]]), [1.0, 1.0])).ravel()
+    assert np.isnan(nan).any()           # never a kept setup's point
+    again = np.asarray(ext(ca.DM(ca.Sparsity.diag(2), [2.0, 1.0]),
+                           ca.DM([[1.0, 1.0]]), [-3.0, -3.0])).ravel()
+    np.testing.assert_allclose(
+        again, np.asarray(f(ca.DM(ca.Sparsity.diag(2), [2.0, 1.0]),
+                            ca.DM([[1.0, 1.0]]), [-3.0, -3.0])).ravel(),
+        atol=1e-12)

@@ -25,9 +25,6 @@ from allocation import WheelArray
 from ocp.codegen.daqp_static import (
     DAQP_HEADERS,
     DAQP_SOURCES,
-    KEEP_MAX_NNZ,
-    copy_daqp_sources,
-    daqp_static_sizes,
     patch_daqp_static,
     vendored_daqp,
 )
@@ -285,50 +282,3 @@ def test_static_patch_refuses_a_runtime_it_does_not_know():
     plain = "int main(void) { return 0; }\n"
     assert patch_daqp_static(plain) == (plain, {})
 
-
-@pytest.mark.skipif(not daqp_available(), reason="needs casadi's daqp")
-def test_a_small_conic_keeps_its_setup_only_while_h_and_a_stay(tmp_path):
-    """A conic of few nonzeros (`KEEP_MAX_NNZ`) keeps DAQP's setup from
-    one call to the next; with H and A as inputs, every change of either
-    (and back, and a NaN) gives the answer of CasADi's own DAQP."""
-    import numpy as np
-
-    H, A = ca.DM(ca.Sparsity.diag(2), [2.0, 1.0]), ca.DM([[1.0, 1.0]])
-    qp = ca.conic("q", "daqp", {"h": H.sparsity(), "a": A.sparsity()},
-                  {"error_on_fail": False})
-    h, a = ca.MX.sym("h", H.sparsity()), ca.MX.sym("a", A.sparsity())
-    g = ca.MX.sym("g", 2)
-    sol = qp(h=h, g=g, a=a, lba=-10, uba=1, lbx=-10, ubx=10)
-    f = ca.Function("kept_qp", [h, a, g], [sol["x"]])
-    cg = ca.CodeGenerator("kept_qp.c")
-    cg.add(f)
-    cg.generate(f"{tmp_path}/")
-    src, conics = patch_daqp_static((tmp_path / "kept_qp.c").read_text())
-    assert KEEP_MAX_NNZ >= 4 and "casadi_daqp_same_data(d)" in src
-    (name, (nw, _)), = conics.items()
-    assert nw == daqp_static_sizes(2, 1, True, own_m=True)[0] + 4
-    (tmp_path / "kept_qp.c").write_text(src)
-    lib = tmp_path / "kept_qp.so"
-    subprocess.run(["gcc", "-O2", "-fPIC", "-shared",
-                    str(tmp_path / "kept_qp.c"),
-                    *map(str, copy_daqp_sources(tmp_path)), "-o", str(lib),
-                    "-lm"], check=True)
-    ext = ca.external("kept_qp", str(lib))
-    cases = [([2.0, 1.0], [1.0, 1.0]), ([2.0, 1.0], [1.0, 1.0]),
-             ([4.0, 0.5], [1.0, 1.0]), ([4.0, 0.5], [1.0, 1.0]),
-             ([4.0, 0.5], [1.0, -2.0]), ([2.0, 1.0], [1.0, 1.0])]
-    for hd, ad in cases:
-        for gv in ([-3.0, -3.0], [1.0, -1.0], [-1.0, 0.0]):
-            args = (ca.DM(ca.Sparsity.diag(2), hd), ca.DM([ad]), gv)
-            got = np.asarray(ext(*args)).ravel()
-            want = np.asarray(f(*args)).ravel()
-            np.testing.assert_allclose(got, want, atol=1e-12)
-    nan = np.asarray(ext(ca.DM(ca.Sparsity.diag(2), [np.nan, 1.0]),
-                         ca.DM([[1.0, 1.0]]), [1.0, 1.0])).ravel()
-    assert np.isnan(nan).any()           # never a kept setup's point
-    again = np.asarray(ext(ca.DM(ca.Sparsity.diag(2), [2.0, 1.0]),
-                           ca.DM([[1.0, 1.0]]), [-3.0, -3.0])).ravel()
-    np.testing.assert_allclose(
-        again, np.asarray(f(ca.DM(ca.Sparsity.diag(2), [2.0, 1.0]),
-                            ca.DM([[1.0, 1.0]]), [-3.0, -3.0])).ravel(),
-        atol=1e-12)
