@@ -79,6 +79,8 @@ def _export(args: argparse.Namespace) -> int:
 
     from ocp.codegen.checks import DriverCheckError
     from ocp.codegen.export import export_c, run_driver
+    from ocp.codegen.linux_target import LINUX_TARGETS
+    from ocp.codegen.target import CORES
     from ocp.mpc.certificate import LONG_HORIZON
     from ocp.spacecraft import load_spacecraft
 
@@ -116,11 +118,16 @@ def _export(args: argparse.Namespace) -> int:
     if variants:
         print("  driver's closed loop: "
               + _loop_text(res.extras["closed_loop"]))
-    if args.target != "host":
+    if args.target in CORES:
         return _export_target(args, res)
     if "warnings" in res.extras:
-        print(f"  built with {args.cc} (-Wall -Wextra): "
+        cc = (f"{LINUX_TARGETS[args.target][0]} -static"
+              if args.target in LINUX_TARGETS else args.cc)
+        print(f"  built with {cc} (-Wall -Wextra): "
               f"{res.extras['warnings']} warnings")
+    if args.run and args.target in LINUX_TARGETS:
+        print(f"  running under {' '.join(res.extras['runner'])}: the "
+              "times are the emulator's on this machine, not the board's")
     if args.run:
         try:
             times = run_driver(res)
@@ -384,8 +391,11 @@ def _add_export(sub) -> None:
     exp.add_argument("--cc", default="gcc",
                      help="C compiler of --build/--run (default gcc)")
     exp.add_argument("--target", default="host",
-                     choices=("host", "cortex-m7", "cortex-m4f"),
-                     help="where the driver runs: host (--cc), or a "
+                     choices=("host", "cortex-m7", "cortex-m4f", "aarch64"),
+                     help="where the driver runs: host (--cc); aarch64 "
+                     "(a Cortex-A Linux computer: aarch64-linux-gnu-gcc, "
+                     "static, --run under qemu-aarch64; its times are the "
+                     "emulator's); or a "
                      "Cortex-M7 (double FPU) / Cortex-M4F (single FPU, "
                      "double in software): cross-compiled with "
                      "arm-none-eabi-gcc (-Wall -Wextra -Werror), --run on "

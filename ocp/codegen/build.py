@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import re
+import shutil
 import subprocess
+from collections.abc import Sequence
+
 from adcs_common.codegen import compile_c
 from adcs_common.exceptions import AdcsError, InvalidValueError
+from .linux_target import linux_toolchain_missing
 from .checks import (DriverCheckError, loop_failures, parse_loop_line,
                      parse_series_line)
 from .result import OPT_FLAGS, SOURCE, ExportResult
@@ -19,8 +23,13 @@ STD_FLAGS = ("-std=c99",)
 
 
 def build_exported(res: ExportResult, cc: str = "gcc",
-                   progress: bool = False) -> ExportResult:
+                   progress: bool = False, shared: bool = True,
+                   link_flags: Sequence[str] = ()) -> ExportResult:
     """Compile the sources once; link the driver and a shared library.
+
+    ``shared`` False links the driver alone (a cross build, whose library
+    this Python could not load); ``link_flags`` go to the driver's link
+    (``-static`` for an emulated target).
 
     The generated source and the solver sources beside it
     (``extras["solver_sources"]``: DAQP) are compiled to objects in the
@@ -46,7 +55,8 @@ def build_exported(res: ExportResult, cc: str = "gcc",
     flags = [*STD_FLAGS, *WARNING_FLAGS, *res.extras.get("cflags", [])]
     log: list[str] = []
     # on a terminal only (None: tqdm's own test), not in logs or pipes
-    steps = tqdm(total=3, desc=f"compiling {SOURCE}.c", unit="step",
+    steps = tqdm(total=3 if shared else 2,
+                 desc=f"compiling {SOURCE}.c", unit="step",
                  disable=None if progress else True,
                  bar_format="{l_bar}{bar}| "
                  "{n}/{total} [{elapsed}]")
@@ -55,15 +65,17 @@ def build_exported(res: ExportResult, cc: str = "gcc",
                           shared=False, flags=["-fPIC", "-c", *flags],
                           libs=(), log=log)
                 for src in [res.source, *solver]]
-        steps.set_description("linking the shared library")
-        steps.update(1)
-        lib = compile_c(objs, res.out_dir / f"{SOURCE}.so", cc=cc,
-                        opt=opt, libs=ldflags, log=log)
+        lib = None
+        if shared:
+            steps.set_description("linking the shared library")
+            steps.update(1)
+            lib = compile_c(objs, res.out_dir / f"{SOURCE}.so", cc=cc,
+                            opt=opt, libs=ldflags, log=log)
         steps.set_description("building the driver")
         steps.update(1)
         exe = compile_c([res.driver, *objs], res.out_dir / "adcs_driver",
-                        cc=cc, opt=opt, shared=False, flags=flags,
-                        libs=ldflags, log=log)
+                        cc=cc, opt=opt, shared=False,
+                        flags=[*flags, *link_flags], libs=ldflags, log=log)
         steps.update(1)
     text = "".join(log)
     extras = {**res.extras, "warnings": text.count("warning:"),
@@ -113,8 +125,13 @@ def run_driver(res: ExportResult, timeout: float = 300.0,
     if res.executable is None:
         raise InvalidValueError(
             "res has no executable: call export_c(..., build=True)")
-    proc = subprocess.run([str(res.executable)], capture_output=True,
-                          text=True, timeout=timeout)
+    # an emulated target's driver runs under its emulator (`linux_target`)
+    runner = list(res.extras.get("runner", ()))
+    if runner and shutil.which(runner[0]) is None:
+        raise AdcsError(f"{runner[0]} not found: "
+                        f"{linux_toolchain_missing(res.extras['target'])}")
+    proc = subprocess.run([*runner, str(res.executable)],
+                          capture_output=True, text=True, timeout=timeout)
     out = _parse_driver(proc.stdout)
     failures = loop_failures(out, res.extras.get("closed_loop"))
     if proc.returncode != 0 and not failures:

@@ -85,7 +85,8 @@ from .mpc_variants import MPC_VARIANTS, check_variants as _check_variants
 from .mpc_variants import mpc_functions
 from .qrqp_patch import patch_qrqp
 from .result import ExportResult, OPT_FLAGS, SOURCE
-from .target import (build_target, check_target, daqp_c_sources,
+from .linux_target import AARCH64_LINK_FLAGS, LINUX_TARGETS
+from .target import (CORES, build_target, check_target, daqp_c_sources,
                      target_head, write_target_files)
 
 
@@ -455,9 +456,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         Body-rate limit [rad/s] of the MPC steps (``|ω_i| <= rate_max``
         on every planned state, as `ocp.mpc.AttitudeMPC`); default: the
         spacecraft's ``rate_max`` (none without a spacecraft).
-    target : {"host", "cortex-m7", "cortex-m4f"}
+    target : {"host", "cortex-m7", "cortex-m4f", "aarch64"}
         Where the driver runs (`ocp.codegen.target`): the host (``cc``),
-        or a Cortex-M7 (double-precision FPU) / Cortex-M4F (single
+        an aarch64 Linux computer (the host's driver, built static with
+        ``aarch64-linux-gnu-gcc`` and run by `run_driver` under
+        ``qemu-aarch64``, `ocp.codegen.linux_target`; no shared
+        library), or a Cortex-M7 (double-precision FPU) / Cortex-M4F (single
         precision: double in software) on qemu: a bare-metal driver,
         startup code and linker script are written too, built with
         ``arm-none-eabi-gcc`` (``-Wall -Wextra -Werror``) and a memory
@@ -509,7 +513,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         raise InvalidValueError(f"repeats must be >= 1, got {repeats!r}")
     check_loop_steps(loop_steps)
     mpc_variants = _check_variants(mpc_variants)
-    cortex_m = check_target(target) != "host"
+    cortex_m = check_target(target) in CORES
     wheel_qp_plugin, duty_qp_plugin, condensed = _target_plugins(
         target, out, wheel_qp_plugin, duty_qp_plugin)
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
@@ -576,6 +580,19 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
             fns, samples, max(int(repeats) // 10, 3), model, dt,
             precision, head=target_head(), loop=loop))
         return build_target(res) if build else res
+    return _build_host_like(res, target, build, cc, progress)
+
+
+def _build_host_like(res: ExportResult, target: str, build: bool, cc: str,
+                     progress: bool) -> ExportResult:
+    """The host export or a Linux target's (`linux_target`), built."""
+    if target in LINUX_TARGETS:
+        tcc, runner = LINUX_TARGETS[target]
+        res = ExportResult(**{**res.__dict__, "extras": {
+            **res.extras, "target": target, "runner": list(runner)}})
+        return build_exported(res, cc=tcc, progress=progress, shared=False,
+                              link_flags=AARCH64_LINK_FLAGS) \
+            if build else res
     if build:
         return build_exported(res, cc=cc, progress=progress)
     return res

@@ -41,8 +41,9 @@ from .checks import (DriverCheckError, driver_verdict, loop_failures,
 from .driver import _template
 from .result import OPT_FLAGS, SOURCE, ExportResult
 
-#: Targets of ``export_c(target=...)`` and ``adcs export --target``.
-TARGETS = ("host", "cortex-m7", "cortex-m4f")
+#: Targets of ``export_c(target=...)`` and ``adcs export --target``
+#: (aarch64: `ocp.codegen.linux_target`).
+TARGETS = ("host", "cortex-m7", "cortex-m4f", "aarch64")
 
 #: Cross compiler and emulator of the Cortex-M targets.
 CROSS_CC = "arm-none-eabi-gcc"
