@@ -146,7 +146,7 @@ static int casadi_daqp_setup_static(DAQPProblem* qp, DAQPWorkspace* work,
       work->RinvD = work->Rinv;
       work->Rinv = NULL;
       for (i=0; i<n; ++i) {
-        c_float hi = hdiag[i] + work->settings->eps_prox;
+        c_float hi = (hdiag ? hdiag[i] : 0) + work->settings->eps_prox;
         if (hi <= 0) return EXIT_NONCONVEX;
         hi = sqrt(hi);
         work->RinvD[i] = 1/hi;
@@ -177,7 +177,7 @@ static int casadi_daqp_setup_static(DAQPProblem* qp, DAQPWorkspace* work,
  * call's setup succeeds (casadi_daqp_mark_kept). */
 static int casadi_daqp_same_data(struct casadi_daqp_data* d) {
   int i, same = d->kept;
-  if (!d->keep) return 0;
+  if (!d->keep || !d->qp->h || !d->qp->a) return d->kept = 0;
   for (i=0; i<d->nkh; ++i) {
     if (d->keep[i] != d->qp->h[i]) same = 0;
     d->keep[i] = d->qp->h[i];
