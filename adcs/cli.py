@@ -79,7 +79,6 @@ def _export(args: argparse.Namespace) -> int:
 
     from ocp.codegen.checks import DriverCheckError
     from ocp.codegen.export import export_c, run_driver
-    from ocp.codegen.linux_target import LINUX_TARGETS
     from ocp.codegen.target import CORES
     from ocp.mpc.certificate import LONG_HORIZON
     from ocp.spacecraft import load_spacecraft
@@ -121,11 +120,9 @@ def _export(args: argparse.Namespace) -> int:
     if args.target in CORES:
         return _export_target(args, res)
     if "warnings" in res.extras:
-        cc = (f"{LINUX_TARGETS[args.target][0]} -static"
-              if args.target in LINUX_TARGETS else args.cc)
-        print(f"  built with {cc} (-Wall -Wextra): "
+        print(f"  built with {res.extras['built_with']} (-Wall -Wextra): "
               f"{res.extras['warnings']} warnings")
-    if args.run and args.target in LINUX_TARGETS:
+    if args.run and res.extras.get("runner"):
         print(f"  running under {' '.join(res.extras['runner'])}: the "
               "times are the emulator's on this machine, not the board's")
     if args.run:

@@ -9,7 +9,7 @@ from collections.abc import Sequence
 
 from adcs_common.codegen import compile_c
 from adcs_common.exceptions import AdcsError, InvalidValueError
-from .linux_target import linux_toolchain_missing
+from .linux_target import LINUX_INSTALL
 from .checks import (DriverCheckError, loop_failures, parse_loop_line,
                      parse_series_line)
 from .result import OPT_FLAGS, SOURCE, ExportResult
@@ -35,7 +35,8 @@ def build_exported(res: ExportResult, cc: str = "gcc",
     (``extras["solver_sources"]``: DAQP) are compiled to objects in the
     export folder, C99, with ``-Wall -Wextra``: the compiler's warnings
     are counted in ``extras["warnings"]`` (0 for the toolbox's exports;
-    their text in ``extras["warning_text"]``). ``progress`` shows a bar
+    their text in ``extras["warning_text"]``; the compiler and the
+    driver's link flags in ``extras["built_with"]``). ``progress`` shows a bar
     over the three steps (the object takes most of the 20-30 s of an MPC
     export).
 
@@ -79,6 +80,7 @@ def build_exported(res: ExportResult, cc: str = "gcc",
         steps.update(1)
     text = "".join(log)
     extras = {**res.extras, "warnings": text.count("warning:"),
+              "built_with": " ".join([cc, *link_flags]),
               "warning_text": text, "objects": objs}
     return ExportResult(**{**res.__dict__, "executable": exe,
                            "shared_library": lib, "extras": extras})
@@ -128,8 +130,8 @@ def run_driver(res: ExportResult, timeout: float = 300.0,
     # an emulated target's driver runs under its emulator (`linux_target`)
     runner = list(res.extras.get("runner", ()))
     if runner and shutil.which(runner[0]) is None:
-        raise AdcsError(f"{runner[0]} not found: "
-                        f"{linux_toolchain_missing(res.extras['target'])}")
+        raise AdcsError(f"{runner[0]} not found "
+                        f"({LINUX_INSTALL[res.extras['target']]})")
     proc = subprocess.run([*runner, str(res.executable)],
                           capture_output=True, text=True, timeout=timeout)
     out = _parse_driver(proc.stdout)

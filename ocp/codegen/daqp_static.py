@@ -221,10 +221,13 @@ _SETUP_NEW = ("casadi_daqp_setup_static(&d->daqp,&d->work,"
               "d->qp->h)")
 _DENSIFY = ("  casadi_densify(d->qp->h, d->prob->qp->sp_h, d->daqp.H, 0);\n"
             "  casadi_densify(d->qp->a, d->prob->qp->sp_a, d->daqp.A, 1);\n")
-_DENSIFY_NEW = ("  same = casadi_daqp_same_data(d);\n  if (!same) {\n"
-                "    if (!d->diag_h)\n  " + _DENSIFY.replace(
-                    "  casadi", "    casadi", 1).replace(
-                    "\n  casadi", "\n    casadi") + "  }\n")
+_DENSIFY_NEW = (
+    "  same = casadi_daqp_same_data(d);\n"
+    "  if (!same) {\n"
+    "    if (!d->diag_h)\n"
+    "      casadi_densify(d->qp->h, d->prob->qp->sp_h, d->daqp.H, 0);\n"
+    "    casadi_densify(d->qp->a, d->prob->qp->sp_a, d->daqp.A, 1);\n"
+    "  }\n")
 _SOLVE_CALL = "  daqp_solve(&d->res,&d->work);\n"
 _SOLVE_CALL_NEW = "  casadi_daqp_mark_kept(d);\n" + _SOLVE_CALL
 _FLAG_DECL = "  int flag;\n  const struct casadi_daqp_prob* p = d->prob;\n"

@@ -85,7 +85,7 @@ from .mpc_variants import MPC_VARIANTS, check_variants as _check_variants
 from .mpc_variants import mpc_functions
 from .qrqp_patch import patch_qrqp
 from .result import ExportResult, OPT_FLAGS, SOURCE
-from .linux_target import AARCH64_LINK_FLAGS, LINUX_TARGETS
+from .linux_target import LINUX_TARGETS
 from .target import (CORES, build_target, check_target, daqp_c_sources,
                      target_head, write_target_files)
 
@@ -587,12 +587,11 @@ def _build_host_like(res: ExportResult, target: str, build: bool, cc: str,
                      progress: bool) -> ExportResult:
     """The host export or a Linux target's (`linux_target`), built."""
     if target in LINUX_TARGETS:
-        tcc, runner = LINUX_TARGETS[target]
+        tcc, runner, link = LINUX_TARGETS[target]
         res = ExportResult(**{**res.__dict__, "extras": {
             **res.extras, "target": target, "runner": list(runner)}})
         return build_exported(res, cc=tcc, progress=progress, shared=False,
-                              link_flags=AARCH64_LINK_FLAGS) \
-            if build else res
+                              link_flags=link) if build else res
     if build:
         return build_exported(res, cc=cc, progress=progress)
     return res

@@ -19,21 +19,23 @@ import shutil
 AARCH64_CC = "aarch64-linux-gnu-gcc"
 AARCH64_QEMU = "qemu-aarch64"
 
-#: Flags of the aarch64 driver's link: static, so that the emulator needs
-#: no aarch64 system libraries.
-AARCH64_LINK_FLAGS = ("-static",)
+#: Linux targets: name -> (compiler, emulator prefix of the driver,
+#: flags of the driver's link). aarch64's is static, so that the emulator
+#: needs no aarch64 system libraries.
+LINUX_TARGETS = {"aarch64": (AARCH64_CC, (AARCH64_QEMU,), ("-static",))}
 
-#: Linux targets: name -> (compiler, emulator prefix of the driver).
-LINUX_TARGETS = {"aarch64": (AARCH64_CC, (AARCH64_QEMU,))}
+
+#: How to install a Linux target's compiler and emulator.
+LINUX_INSTALL = {"aarch64": "Debian: apt-get install gcc-aarch64-linux-gnu "
+                            "libc6-dev-arm64-cross qemu-user"}
 
 
 def linux_toolchain_missing(target: str = "aarch64", run: bool = True
                             ) -> str | None:
     """Why a Linux target cannot be built (or run) here, or None."""
-    cc, runner = LINUX_TARGETS[target]
+    cc, runner, _ = LINUX_TARGETS[target]
     missing = [t for t in (cc, *(runner if run else ()))
                if shutil.which(t) is None]
     if missing:
-        return (f"needs {' and '.join(missing)} (Debian: apt-get install "
-                "gcc-aarch64-linux-gnu libc6-dev-arm64-cross qemu-user)")
+        return f"needs {' and '.join(missing)} ({LINUX_INSTALL[target]})"
     return None

@@ -460,3 +460,23 @@ def test_a_small_conic_keeps_its_setup_only_while_h_and_a_stay(tmp_path):
         again, np.asarray(f(ca.DM(ca.Sparsity.diag(2), [2.0, 1.0]),
                             ca.DM([[1.0, 1.0]]), [-3.0, -3.0])).ravel(),
         atol=1e-12)
+
+
+def test_an_aarch64_export_names_its_emulator_and_a_missing_one_is_an_error(
+        tmp_path):
+    """Without building, an aarch64 export is the host's folder plus the
+    emulator its driver runs under; a driver whose emulator is not on the
+    machine is the toolbox's error, naming what to install."""
+    from adcs_common.exceptions import AdcsError
+    from ocp.codegen.export import ExportResult, run_driver
+
+    res = export_c(tmp_path / "a", "demo", mpc_variants=(),
+                   target="aarch64")
+    assert res.extras["runner"] == ["qemu-aarch64"]
+    assert res.executable is None and (res.out_dir / "main.c").is_file()
+    fake = ExportResult(**{**res.__dict__, "executable": tmp_path / "x",
+                           "extras": {**res.extras,
+                                      "runner": ["no-such-emulator-xyz"]}})
+    with pytest.raises(AdcsError, match="no-such-emulator-xyz not found.*"
+                       "apt-get install"):
+        run_driver(fake)
