@@ -40,7 +40,8 @@ import numpy as np
 from .stagewise_kernels import (reverse_columns, root_kernel, root_rhs,
                                 root_solve, root_terms)
 from .stagewise_lq import FactoredLQ
-from .stagewise_polish import POLISH_ACCEPT, polish, reduced_active
+from .stagewise_polish import (POLISH_ACCEPT, POLISH_TIGHT, broken,
+                               clear_active, polish, reduced_active)
 
 #: KKT residual [scaled, 1] at which the interior point stops.
 IPM_TOL = 1e-9
@@ -354,11 +355,14 @@ def kkt_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
 
 def _residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
               point: list, data: list, flags_r) -> ca.MX:
-    """The KKT residual of a point, boxes broken included (scaled)."""
+    """The KKT residual of a point, boxes broken included (scaled); +inf
+    for a point with a NaN or an infinity (the maxima skip NaNs)."""
     dual, primal, comp = kkt_residual(kern, lay, tree, dims, point, data,
                                       flags_r)
-    broken = -ca.fmin(0.0, ca.fmin(ca.mmin(point[2]), ca.mmin(point[3])))
-    return ca.fmax(ca.fmax(dual, broken), ca.fmax(primal, comp))
+    res = ca.fmax(ca.fmax(dual, broken(point)), ca.fmax(primal, comp))
+    total = sum(ca.sum1(ca.sum2(v)) for v in point)
+    finite = ca.logic_and(total == total, ca.fabs(total) < ca.inf)
+    return ca.if_else(finite, res, ca.inf)
 
 
 def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
@@ -475,17 +479,63 @@ def _interior(loop: Callable[..., list], kern: dict, lay: BoxLayout,
     pol = list(polish(kern, lay, tree, dims, flags, ipm_point, data,
                       sweeps))
     kkt_p = _residual(kern, lay, tree, dims, pol, data, sr)
-    # a second polish without the rows whose multiplier came out with the
-    # wrong sign (dependent boxes), from the first polish's point
-    pol2 = list(polish(kern, lay, tree, dims, flags, pol, data,
-                       sweeps, reduced_active(pol)))
+    # a second polish: when the first met its equalities, without the rows
+    # whose multiplier came out with the wrong sign (dependent boxes), from
+    # the first polish's point; when it could not (an inconsistent active
+    # set: nearly parallel boxes not yet decided), on the interior point's
+    # clearly active boxes, from the interior point
+    met = broken(pol) <= POLISH_TIGHT
+    again = [ca.if_else(met, a, b) for a, b in zip(pol, ipm_point)]
+    act = [ca.if_else(met, a, b) for a, b in
+           zip(reduced_active(pol), clear_active(ipm_point))]
+    pol2 = list(polish(kern, lay, tree, dims, flags, again, data,
+                       sweeps, tuple(act)))
     kkt_2 = _residual(kern, lay, tree, dims, pol2, data, sr)
     second = kkt_2 < kkt_p
     pol = [ca.if_else(second, a, b) for a, b in zip(pol2, pol)]
     kkt_p = ca.fmin(kkt_p, kkt_2)
+    # a third, only when neither polish met POLISH_ACCEPT: the second's
+    # active set with the boxes its point breaks
+    more = _polish_more(kern, lay, tree, dims, flags, sweeps, sr)
+    *pol3, kkt_3 = more(ca.fmin(kkt, kkt_p) > POLISH_ACCEPT, *pol2, *act,
+                        *data)
+    third = kkt_3 < kkt_p
+    pol = [ca.if_else(third, a, b) for a, b in zip(pol3, pol)]
+    kkt_p = ca.if_else(third, kkt_3, kkt_p)     # a NaN kkt_3 is not taken
     # the polish is the active set's exact solution: kept unless its
     # residual is worse than both the interior point's and POLISH_ACCEPT
     better = kkt_p <= ca.fmax(kkt, POLISH_ACCEPT)
     dU, dX, _, _, Ll, Lu = (ca.if_else(better, a, b)
                             for a, b in zip(pol, ipm_point))
     return [dU, dX, Lu - Ll, count, ca.fmin(kkt, kkt_p)]
+
+
+def _polish_more(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
+                 flags: np.ndarray, sweeps: dict, sr) -> ca.Function:
+    """``more(c, point…, act_l, act_u, data…) -> (point…, kkt)``.
+
+    When ``c``: the polish on the active masks with every box that the
+    polished ``point`` breaks added (the active-set method's other step),
+    and its residual; otherwise ``point`` and an infinite residual (the
+    generated C skips the polish).
+    """
+    nx, nu = dims
+    nb, C = lay.nb, tree.C
+    sym = ca.MX.sym
+    point = [sym("dU", nu, C), sym("dX", nx, C)] + [
+        sym(n, nb, C) for n in ("Sl", "Su", "Ll", "Lu")]
+    act = [sym("act_l", nb, C), sym("act_u", nb, C)]
+    it = ipm_iteration(kern, lay, tree, nx, nu, flags)
+    data = [sym(it.name_in(i), it.sparsity_in(i)) for i in range(10, 22)]
+    grown = tuple(ca.fmax(a, ca.if_else(S < -POLISH_TIGHT, 1.0, 0.0))
+                  for a, S in zip(act, point[2:4]))
+    pol = list(polish(kern, lay, tree, dims, flags, point, data, sweeps,
+                      grown))
+    args = point + act + data
+    run = ca.Function("sw_polish_more", args,
+                      pol + [_residual(kern, lay, tree, dims, pol, data,
+                                       sr)])
+    # SX: reads the point alone (module doc of `ipm_solve`)
+    sx = [ca.SX.sym(a.name(), a.sparsity()) for a in args]
+    skip = ca.Function("sw_polish_enough", sx, sx[:6] + [ca.SX(ca.inf)])
+    return ca.Function.if_else("sw_polish_third", run, skip)

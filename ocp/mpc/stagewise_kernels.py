@@ -115,10 +115,16 @@ def stage_kernels(sp_a: ca.Sparsity, sp_b: ca.Sparsity, sp_q: ca.Sparsity,
         Re[i, i] += su[j]
     Lit = inv_lower(chol_lower(Re)).T
     Rinv = ca.mtimes(Lit, Lit.T)
-    K = -ca.mtimes(Rinv, Mxv.T)
+    # P_k = AᵀP̂A − MRe⁻¹Mᵀ as AᵀP̂A − WᵀW with W = L⁻¹Mᵀ: the subtracted
+    # term stays positive semidefinite in rounding. With Re⁻¹ formed first
+    # (MK), a barrier diagonal of 1e10 or more on a controllable state (a
+    # rate bound active over many stages) left P_k indefinite by 1e2–1e5
+    # and the next stages' factors NaN
+    W = ca.mtimes(Lit.T, Mxv.T)
+    K = -ca.mtimes(Lit, W)
     ph = p + qt
     rhs = rt * mask + ca.mtimes(B.T, ph) + pv
-    Pk = ca.mtimes(A.T, ca.mtimes(Ph, A)) + flag * ca.mtimes(Mxv, K)
+    Pk = ca.mtimes(A.T, ca.mtimes(Ph, A)) - flag * ca.mtimes(W.T, W)
     keep = 1.0 - flag
     ric = ca.Function(
         "sw_ric", [pl, p, *held, an, bn, qn, sx, su, qt, rt, r, s],

@@ -28,6 +28,11 @@ POLISH_RHO = 1e8
 #: KKT residual [scaled, 1] up to which the polished point is preferred to
 #: the interior point's (it is the active set's exact solution).
 POLISH_ACCEPT = 1e-8
+#: How many times its slack a box's multiplier must be for the box to be
+#: clearly active (`clear_active`) [1].
+POLISH_CLEAR = 1e4
+#: A box held as an equality counts as met within this [scaled, 1].
+POLISH_TIGHT = 1e-9
 
 
 def polish(kern: dict, lay, tree, dims: tuple, flags: np.ndarray,
@@ -81,9 +86,31 @@ def reduced_active(point: list) -> tuple:
     method's step: drop it and solve again.
     """
     _, _, Sl, Su, Ll, Lu = point
-    tight = 1e-9
+    tight = POLISH_TIGHT
     act_l = ca.if_else(ca.fabs(Sl) <= tight, 1.0, 0.0) * ca.if_else(
         Lu > 0, 0.0, 1.0)
     act_u = ca.if_else(ca.fabs(Su) <= tight, 1.0, 0.0) * ca.if_else(
         Ll > 0, 0.0, 1.0)
     return act_l, act_u
+
+
+def clear_active(point: list) -> tuple:
+    """The active masks of an interior point's clearly active boxes.
+
+    A box whose multiplier is `POLISH_CLEAR` times its slack or more.
+    The default test (λ > s) also takes the boxes that an interior point
+    has not yet decided, where slack and multiplier are both small: in a
+    scenario tree, the rate boxes at x_1 of several scenarios are all
+    functions of the shared u_0, nearly parallel, and near a cruise at
+    the rate bound all nearly active. Held as equalities together they
+    are inconsistent (their slacks differ by 1e-5), and the polish can
+    meet none of them; only the tightest is active at the optimum.
+    """
+    _, _, Sl, Su, Ll, Lu = point
+    return (ca.if_else(Ll > POLISH_CLEAR * Sl, 1.0, 0.0),
+            ca.if_else(Lu > POLISH_CLEAR * Su, 1.0, 0.0))
+
+
+def broken(point: list) -> ca.MX:
+    """How far [scaled, 1] a point breaks its worst box (0 if none)."""
+    return -ca.fmin(0.0, ca.fmin(ca.mmin(point[2]), ca.mmin(point[3])))

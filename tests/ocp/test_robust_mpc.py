@@ -339,20 +339,27 @@ def _rate_bounded_loop(n):
     return mpc, flown, None
 
 
-def test_a_rate_bounded_robust_loop_keeps_every_scenario_s_bounds():
-    """Every step flown keeps torque, momentum and rate bounds in every
-    scenario's plan (the rate bound reached), the scenarios share their
-    first command, and the plant's rate stays within the bound. A step
-    whose QP fails its certificate is refused (SolverError), never
-    applied: with several scenarios the tree's interior point stalls
-    once the rate boxes at x_1 are active together (see the xfail
-    below)."""
-    mpc, flown, refusal = _rate_bounded_loop(12)
-    assert len(flown) >= 6
+def test_a_rate_bounded_robust_loop_flies_the_slew_within_every_bound():
+    """The 90° slew of a rate-bounded RobustMPC, 120 steps (60 s): every
+    step's QP is certified, every step keeps torque, momentum and rate
+    bounds in every scenario's plan (the rate bound reached), the
+    scenarios share their first command, and the plant's rate stays
+    within the bound.
+
+    The scenarios' rate boxes at x_1 are all functions of the shared u_0
+    and nearly parallel; in the cruise at the rate bound they are all
+    nearly active, and the rate boxes of every later stage are active
+    with barrier diagonals past 1e10. Until the Riccati step formed its
+    subtracted term as WᵀW and the polish took the clearly active boxes
+    (`stagewise_polish.clear_active`) and then the boxes its point broke,
+    the tree's interior point stalled there (KKT 1.25e-6 at step 7) or
+    went NaN, and the step was refused."""
+    mpc, flown, refusal = _rate_bounded_loop(120)
+    assert refusal is None and len(flown) == 120
     h_max, m_max = np.asarray(WHEELS.h_max), np.asarray(WHEELS.m_max)
     peak = 0.0
     for s, x in flown:
-        assert s.qp_kkt <= 1e-6 and s.violation <= 1e-9
+        assert s.qp_kkt <= 1e-8 and s.violation <= 1e-9
         plans = mpc.scenario_plans(s.plan)
         for plan in plans:
             np.testing.assert_allclose(plan[mpc._us[0]], s.u, rtol=0,
@@ -366,17 +373,5 @@ def test_a_rate_bounded_robust_loop_keeps_every_scenario_s_bounds():
                 peak = max(peak, float(np.abs(w).max()))
         assert np.all(np.abs(x[4:7]) <= RATE_MAX * (1 + 1e-9))
     assert peak >= RATE_MAX * (1 - 1e-6)        # the rate box is active
-    if refusal is not None:
-        assert "certificate" in str(refusal) or "constraints" in str(
-            refusal)
-
-
-@pytest.mark.xfail(strict=True, reason="with rate_max and several "
-                   "scenarios the tree's interior point stalls (KKT "
-                   "residual ~1e-6) or breaks (NaN) once the scenarios' "
-                   "rate boxes at x_1, all functions of the shared u_0, "
-                   "are active together (dependent rows); ocp.mpc."
-                   "stagewise_ipm, issue #25 follow-up")
-def test_a_rate_bounded_robust_loop_flies_the_slew():
-    _, flown, refusal = _rate_bounded_loop(60)
-    assert refusal is None and len(flown) == 60
+    err = 2.0 * np.arccos(min(1.0, abs(float(np.dot(flown[-1][1][:4], QF)))))
+    assert err < np.deg2rad(0.01)               # the slew is done
