@@ -209,10 +209,6 @@ class AttitudeMPC:
                 f"horizon must be an integer >= 2, got {horizon!r}")
         if solver is None:
             solver = default_mpc_solver(model, horizon)
-            if solver == "stagewise" and rate_max is not None:
-                # an active rate box breaks the stage-wise step's Riccati
-                # factor on some steps (docs: long horizons)
-                solver = "condensed"
         self.dt = as_finite_scalar(dt, "dt")
         check_positive(self.dt, "dt")
         if not isinstance(solver, str) or solver not in MPC_SOLVERS:

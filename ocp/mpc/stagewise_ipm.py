@@ -26,7 +26,18 @@ boxes' primal residual and every complementarity product ``s·λ``. The
 first two are linear in the iterate, so a step of length α scales them
 by 1 − α: they are computed at the start and carried, and the residual
 that the solve returns (its certificate, ``qp_kkt``) is recomputed in
-full at the point returned.
+full at the point returned. Exact arithmetic would keep the two equal;
+near the end of a solve with state boxes active over many stages (a
+rate bound in a cruise), the barrier's curvature λ/s passes 1e12 and
+each Riccati step's rounding grows with it, so the residual recomputed
+at each iterate can rise while the carried one falls. The solve
+therefore recomputes it at every iterate (one costate sweep) and returns
+the best iterate it saw, or its polish (`ocp.mpc.stagewise_polish`).
+
+The Riccati step subtracts ``WᵀW`` (W = L⁻¹Mᵀ, `stagewise_kernels`),
+which stays positive semidefinite in rounding: formed as ``MK`` through
+Re⁻¹, a curvature of 1e10 on a controllable state left P_k indefinite by
+1e2–1e5 and the next stages' factors NaN.
 """
 
 from __future__ import annotations
@@ -53,6 +64,10 @@ IPM_CHUNK = 5
 #: 10): at N = 20 one level, whose accumulators no level above copies
 #: through; the generated code stays bounded in N.
 SWEEP_BASE = 20
+#: Entries of the solve's loop state before the iteration count and the
+#: residual: the iterate (6 arrays), the carried residuals rd, rp, the best
+#: iterate so far (6) and its residual (`ipm_iteration`).
+STATE_LEN = 15
 #: Fraction of the way to a box's boundary that one step may go.
 IPM_TAU = 0.995
 #: The initial slacks' floor and barrier parameter [scaled, 1].
@@ -245,9 +260,11 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     one Mehrotra step.
 
     The state is ``(dU (n_u × C), dX (n_x × C), Sl, Su, Ll, Lu (nb × C),
-    rd, rp)`` (C = S·N columns, `Tree`; rd, rp the carried dual and
-    primal residuals), ``n`` the iterations made so far and ``kkt`` the
-    last residual (`ipm_solve`'s loop carries both); the data ``(A, B, Q
+    rd, rp, best…, best_kkt)`` (C = S·N columns, `Tree`; rd, rp the
+    carried dual and primal residuals; best the six arrays of the iterate
+    whose recomputed residual, best_kkt, is the smallest so far), ``n``
+    the iterations made so far and ``kkt`` the last carried residual
+    (`ipm_solve`'s loop carries both; it stops on it); the data ``(A, B, Q
     (nonzeros × C), q (n_x × C), g, r (n_u × C), lo, hi (nb × C), Ar, Br,
     Qr, rr)`` (``r`` the diagonal of the control Hessian per stage; the
     last four reversed in time). The ``kkt`` returned is the new point's
@@ -267,7 +284,9 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
                     (("q", nx), ("g", nu), ("r", nu), ("rr", nu)))
     lo, hi = sym("lo", nb, C), sym("hi", nb, C)
     rd, rp = sym("rd"), sym("rp")
-    state = [dU, dX, Sl, Su, Ll, Lu, rd, rp]
+    best = [sym("b" + v.name(), v.sparsity()) for v in
+            (dU, dX, Sl, Su, Ll, Lu)] + [sym("b_kkt")]
+    state = [dU, dX, Sl, Su, Ll, Lu, rd, rp, *best]
     count = [sym("n"), sym("kkt")]
     data = [A, B, Q, q, g, r, lo, hi, Ar, Br, Qr, rr_]
     sw = _sweeps(kern, tree)
@@ -321,6 +340,16 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     ok = ca.logic_and(total == total, ca.fabs(total) < 1e300)
     new = [ca.if_else(ok, v, v0) for v, v0 in zip(new, state)]
     kkt = ca.if_else(ok, kkt, 0.0)
+    # the carried residuals stop the solve; the iterate returned is the
+    # one whose recomputed residual is the smallest: near the end a
+    # barrier curvature λ/s past 1e12 makes each Riccati step's rounding
+    # grow, and on the rate-bounded trees the recomputed residual rose
+    # from 1e-7 to 1e-5–1e-3 in the last steps while the carried one fell
+    true = _residual(kern, lay, tree, (nx, nu), new[:6], data,
+                     ca.DM(flags[::-1]).T)
+    better = true < best[6]
+    new += [ca.if_else(better, v, b) for v, b in
+            zip(new[:6] + [true], best)]
     return ca.Function("sw_ipm_iter", state + count + data,
                        new + [count[0] + 1, kkt])
 
@@ -386,12 +415,12 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     # fresh symbols: a call on the Function's own inputs would inline it
     args = [ca.MX.sym(it.name_in(i), it.sparsity_in(i))
             for i in range(it.n_in())]
-    data = args[10:]
+    data = args[STATE_LEN + 2:]
     # SX: a skipped chunk reads its state alone (an MX Function would
     # reserve a slot for every argument, the data included, in the work
     # vector)
     sx = [ca.SX.sym(a.name(), a.sparsity()) for a in args]
-    done = ca.Function("sw_done", sx, sx[:10])
+    done = ca.Function("sw_done", sx, sx[:STATE_LEN + 2])
     # chunks of IPM_CHUNK iterations, one after another in the chunk (a
     # converged iterate skips the rest), the chunks one after another,
     # each skipped once converged: every nesting level of Functions
@@ -401,16 +430,16 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     step = ca.Function.if_else("sw_ipm_step", done, it)
     cur: Any = it(*args)
     for _ in range(depth - 1):
-        cur = step(cur[9] <= tol, *cur, *data)
+        cur = step(cur[STATE_LEN + 1] <= tol, *cur, *data)
     chunk = ca.Function("sw_ipm_chunk", args, cur)
     skip = ca.Function.if_else("sw_ipm_skip", done, chunk)
 
     def loop(*a: Any) -> list:
         # the chunks, called in the caller's own graph (one level less)
-        cur, dat = list(a[:10]), a[10:]
+        cur, dat = list(a[:STATE_LEN + 2]), a[STATE_LEN + 2:]
         for _ in range(0, max_iter, depth):
             # the last chunk may run past max_iter by less than one chunk
-            cur = skip(cur[9] <= tol, *cur, *dat)
+            cur = skip(cur[STATE_LEN + 1] <= tol, *cur, *dat)
         return cur
 
     sym = ca.MX.sym
@@ -469,13 +498,14 @@ def _interior(loop: Callable[..., list], kern: dict, lay: BoxLayout,
     Sl = ca.fmax(V0 - lo, IPM_SLACK0)
     Su = ca.fmax(hi - V0, IPM_SLACK0)
     start = [dU0, dX0, Sl, Su, IPM_MU0 / Sl, IPM_MU0 / Su]
-    rd0, rp0, _ = kkt_residual(kern, lay, tree, dims, start, data, sr)
-    out = loop(*start, rd0, rp0, 0.0, 1.0, *data)
-    ipm_point = list(out[:6])
-    count = out[8]
+    rd0, rp0, comp0 = kkt_residual(kern, lay, tree, dims, start, data, sr)
+    kkt0 = ca.fmax(ca.fmax(rd0, rp0), comp0)
+    out = loop(*start, rd0, rp0, *start, kkt0, 0.0, 1.0, *data)
     # the certificate: the residual recomputed at the point returned, the
-    # interior point's or its polish on the active set, the smaller
-    kkt = _residual(kern, lay, tree, dims, ipm_point, data, sr)
+    # interior point's best iterate or the polish (from its last iterate,
+    # whose active set is the clearest) on the active set, the smaller
+    ipm_point, best = list(out[:6]), list(out[8:14])
+    kkt, count = out[14], out[15]
     pol = list(polish(kern, lay, tree, dims, flags, ipm_point, data,
                       sweeps))
     kkt_p = _residual(kern, lay, tree, dims, pol, data, sr)
@@ -506,7 +536,7 @@ def _interior(loop: Callable[..., list], kern: dict, lay: BoxLayout,
     # residual is worse than both the interior point's and POLISH_ACCEPT
     better = kkt_p <= ca.fmax(kkt, POLISH_ACCEPT)
     dU, dX, _, _, Ll, Lu = (ca.if_else(better, a, b)
-                            for a, b in zip(pol, ipm_point))
+                            for a, b in zip(pol, best))
     return [dU, dX, Lu - Ll, count, ca.fmin(kkt, kkt_p)]
 
 
@@ -526,7 +556,8 @@ def _polish_more(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
         sym(n, nb, C) for n in ("Sl", "Su", "Ll", "Lu")]
     act = [sym("act_l", nb, C), sym("act_u", nb, C)]
     it = ipm_iteration(kern, lay, tree, nx, nu, flags)
-    data = [sym(it.name_in(i), it.sparsity_in(i)) for i in range(10, 22)]
+    data = [sym(it.name_in(i), it.sparsity_in(i))
+            for i in range(STATE_LEN + 2, it.n_in())]
     grown = tuple(ca.fmax(a, ca.if_else(S < -POLISH_TIGHT, 1.0, 0.0))
                   for a, S in zip(act, point[2:4]))
     pol = list(polish(kern, lay, tree, dims, flags, point, data, sweeps,

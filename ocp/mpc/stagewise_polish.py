@@ -2,7 +2,7 @@
 
 An interior point ends near the QP's solution with every active box's
 slack small but not zero, and its multipliers become inaccurate when a
-state box is active: the barrier's curvature λ/s grows past 1e14 and
+state box is active: the barrier's curvature λ/s grows past 1e12 and
 amplifies the rounding of each step (`ocp.mpc.stagewise_ipm`). The
 polish takes the boxes the interior point found active (λ > s) as
 equalities and solves the QP on them by two augmented-Lagrangian steps,
@@ -13,6 +13,15 @@ point's multipliers it reaches the active set's exact solution to
 rounding (the method of OSQP's polish, Stellato et al. 2020, §5.2, on
 the stage-wise QP). The caller keeps the point whose KKT residual is the
 smaller, so a wrong active set costs nothing but the time.
+
+The caller (`stagewise_ipm`) polishes up to three times, each a step of
+an active-set method on the guess before it: on λ > s; then either
+without the rows whose multiplier came out with the wrong sign
+(`reduced_active`: dependent boxes, a torque bound and the rate bound it
+drives) or, when the first polish could not meet its equalities (an
+inconsistent guess), on the clearly active boxes (`clear_active`); and,
+only when neither met `POLISH_ACCEPT`, on the second's guess with the
+boxes its point breaks added.
 """
 
 from __future__ import annotations
