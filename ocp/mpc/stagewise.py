@@ -25,7 +25,8 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError
 from .condensed import (ANDERSON_MEMORY, STEP_TOL, _kernels,
                         sqp_step_functions)
-from .stagewise_ipm import (IPM_MAX_ITER, IPM_TOL, BoxLayout, Tree,
+from .stagewise_boxes import BoxLayout
+from .stagewise_ipm import (IPM_MAX_ITER, IPM_TOL, Tree,
                             ipm_solve)
 from .stagewise_kernels import nz_of, stage_kernels
 

@@ -30,9 +30,11 @@ full at the point returned. Exact arithmetic would keep the two equal;
 near the end of a solve with state boxes active over many stages (a
 rate bound in a cruise), the barrier's curvature λ/s passes 1e12 and
 each Riccati step's rounding grows with it, so the residual recomputed
-at each iterate can rise while the carried one falls. The solve
-therefore recomputes it at every iterate (one costate sweep) and returns
-the best iterate it saw, or its polish (`ocp.mpc.stagewise_polish`).
+at each iterate can rise while the carried one falls. Once the carried
+residual is below `IPM_TRACK`, the solve therefore recomputes it at
+every iterate (one costate sweep) and returns the best iterate it saw,
+or the polish (`ocp.mpc.stagewise_polish`) of its last iterate, whose
+active set is the clearest.
 
 The Riccati step subtracts ``WᵀW`` (W = L⁻¹Mᵀ, `stagewise_kernels`),
 which stays positive semidefinite in rounding: formed as ``MK`` through
@@ -48,6 +50,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from .stagewise_boxes import BoxLayout, to_boundary, box_kernels
 from .stagewise_kernels import (reverse_columns, root_kernel, root_rhs,
                                 root_solve, root_terms)
 from .stagewise_lq import FactoredLQ
@@ -68,113 +71,13 @@ SWEEP_BASE = 20
 #: residual: the iterate (6 arrays), the carried residuals rd, rp, the best
 #: iterate so far (6) and its residual (`ipm_iteration`).
 STATE_LEN = 15
+#: Carried KKT residual [scaled, 1] below which each iterate's residual is
+#: recomputed, for the best iterate (`ipm_iteration`).
+IPM_TRACK = 1e-5
 #: Fraction of the way to a box's boundary that one step may go.
 IPM_TAU = 0.995
 #: The initial slacks' floor and barrier parameter [scaled, 1].
 IPM_SLACK0, IPM_MU0 = 0.1, 10.0
-
-
-class BoxLayout:
-    """Which components carry boxes, their widths and selection matrices.
-
-    ``v = Eu δu + Ex δx`` (nb,) are the boxed components, each divided by
-    its bound's width (so a feasible v spans [lo, lo + 1]).
-    """
-
-    def __init__(self, nx: int, nu: int, free: np.ndarray,
-                 width_u: np.ndarray, bx: list[int],
-                 width_x: np.ndarray) -> None:
-        self.bu = [int(i) for i in np.flatnonzero(free)]
-        self.bx = list(bx)
-        self.nbu, self.nbx = len(self.bu), len(self.bx)
-        self.nb = self.nbu + self.nbx
-        wu = np.asarray(width_u, dtype=float)[self.bu]
-        wx = np.asarray(width_x, dtype=float)
-        eu = np.zeros((self.nb, nu))
-        ex = np.zeros((self.nb, nx))
-        for j, i in enumerate(self.bu):
-            eu[j, i] = 1.0 / wu[j]
-        for j, i in enumerate(self.bx):
-            ex[self.nbu + j, i] = 1.0 / wx[j]
-        self.Eu = ca.DM(ca.sparsify(ca.DM(eu)))
-        self.Ex = ca.DM(ca.sparsify(ca.DM(ex)))
-        inv2 = np.r_[1.0 / wu ** 2, 1.0 / wx ** 2]
-        self.sigma_scale = ca.DM(ca.sparsify(ca.DM(np.diag(inv2))))
-        self.width = np.r_[wu, wx]
-        # one stage's selections as SX kernels, mapped over the columns:
-        # a loop in C with no cleared products (the same operations as
-        # the selection matrices: each row or column holds one entry)
-        du, dx, b = ca.SX.sym("du", nu), ca.SX.sym("dx", nx), \
-            ca.SX.sym("b", self.nb)
-        m = ca.SX.sym("m", self.nb)
-        gx, gu = ca.SX.sym("gx", nx), ca.SX.sym("gu", nu)
-        self._kernels = {
-            "values": ca.Function("sw_values", [du, dx],
-                                  [ca.mtimes(self.Eu, du)
-                                   + ca.mtimes(self.Ex, dx)]),
-            "lift": ca.Function("sw_lift", [gx, gu, b],
-                                [gx + ca.mtimes(self.Ex.T, b),
-                                 gu + ca.mtimes(self.Eu.T, b)]),
-            "sigma": ca.Function("sw_sigma", [m],
-                                 [ca.mtimes(self.sigma_scale, m)])}
-        self._mapped: dict[tuple[str, int], ca.Function] = {}
-
-    def _map(self, name: str, C: int) -> ca.Function:
-        if (name, C) not in self._mapped:
-            self._mapped[name, C] = self._kernels[name].map(C)
-        return self._mapped[name, C]
-
-    def values(self, dU, dX):
-        """The scaled boxed components (nb × C) of controls and states."""
-        return self._map("values", dU.shape[1])(dU, dX)
-
-    def lift(self, gx, gu, beta) -> tuple:
-        """``(gx + Exᵀβ, gu + Euᵀβ)``: a box term added to the gradients."""
-        return self._map("lift", beta.shape[1])(gx, gu, beta)
-
-    def sigma(self, M):
-        """The barrier diagonals in unscaled units: M (nb × C) / width²."""
-        return self._map("sigma", M.shape[1])(M)
-
-
-def _smax(a, b):
-    """max(a, b) of SX scalars as a branch (no libm call in C)."""
-    return ca.if_else(a > b, a, b)
-
-
-def box_kernels(nb: int) -> dict[str, ca.Function]:
-    """One stage's element-wise interior-point work on its nb boxes.
-
-    ``ratio(Sl, Su, Ll, Lu, dSl, dSu, dLl, dLu) -> max(−dv / v)`` over
-    the four pairs (the step to the boundary, `_to_boundary`);
-    ``mu(…, a) -> Σ (v + a dv)·(w + a dw)`` over both complementarity
-    pairs; ``step(…, a) -> (Sl, Su, Ll, Lu) + a (dSl, …), max s·λ``.
-    Mapped over the stages: one loop, no temporaries per operation.
-    """
-    vs = [ca.SX.sym(n, nb) for n in ("Sl", "Su", "Ll", "Lu")]
-    ds = [ca.SX.sym("d" + n, nb) for n in ("Sl", "Su", "Ll", "Lu")]
-    a = ca.SX.sym("a")
-    worst = ca.SX(-1e300)
-    for v, d in zip(vs, ds):
-        for i in range(nb):
-            worst = _smax(worst, -d[i] / v[i])
-    new = [v + a * d for v, d in zip(vs, ds)]
-    prod = ca.vertcat(new[0] * new[2], new[1] * new[3])
-    comp = prod[0]
-    for i in range(1, 2 * nb):
-        comp = _smax(comp, prod[i])
-    return {"ratio": ca.Function("sw_ratio", vs + ds, [worst]),
-            "mu": ca.Function("sw_mu", vs + ds + [a], [ca.sum1(prod)]),
-            "step": ca.Function("sw_step", vs + ds + [a], new + [comp])}
-
-
-def _to_boundary(ratio: ca.Function, vs: list, ds: list, tau: float
-                 ) -> ca.MX:
-    """Largest α ≤ 1 with ``v + α dv ≥ (1 − τ) v`` for every pair (v > 0).
-
-    ``α = 1 / max(1, max(−dv / v) / τ)``.
-    """
-    return 1.0 / ca.fmax(1.0, ca.mmax(ratio(*vs, *ds)) / tau)
 
 
 class Tree:
@@ -315,7 +218,7 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     box = {k: f.map(C) for k, f in box_kernels(nb).items()}
     vs = [Sl, Su, Ll, Lu]
     ds_a = [dSl_a, dSu_a, dLl_a, dLu_a]
-    a_aff = _to_boundary(box["ratio"], vs, ds_a, 1.0)
+    a_aff = to_boundary(box["ratio"], vs, ds_a, 1.0)
     mu_aff = ca.sum2(box["mu"](*vs, *ds_a, a_aff)) / m
     smu = (mu_aff / mu) ** 3 * mu
     cl, cu = dSl_a * dLl_a, dSu_a * dLu_a
@@ -325,7 +228,7 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     dLl = -Ll + (smu - cl - Ll * dSl) / Sl
     dLu = -Lu + (smu - cu - Lu * dSu) / Su
     ds = [dSl, dSu, dLl, dLu]
-    alpha = _to_boundary(box["ratio"], vs, ds, IPM_TAU)
+    alpha = to_boundary(box["ratio"], vs, ds, IPM_TAU)
     *boxes, comp = box["step"](*vs, *ds, alpha)
     new = [dU + alpha * ddU, dX + alpha * ddX, *boxes]
     # a QP's stationarity and box residuals are linear in the iterate:
@@ -344,20 +247,54 @@ def ipm_iteration(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     # one whose recomputed residual is the smallest: near the end a
     # barrier curvature λ/s past 1e12 makes each Riccati step's rounding
     # grow, and on the rate-bounded trees the recomputed residual rose
-    # from 1e-7 to 1e-5–1e-3 in the last steps while the carried one fell
-    true = _residual(kern, lay, tree, (nx, nu), new[:6], data,
-                     ca.DM(flags[::-1]).T)
-    better = true < best[6]
-    new += [ca.if_else(better, v, b) for v, b in
-            zip(new[:6] + [true], best)]
+    # from 1e-7 to 1e-5–1e-3 in the last steps while the carried one fell.
+    # Recomputed (one costate sweep) only once the carried residual is
+    # below IPM_TRACK: the generated C skips it before
+    track = _tracker(kern, lay, tree, (nx, nu), flags, state[8:], data)
+    new += list(track(kkt < IPM_TRACK, *new[:6], *best, *data))
     return ca.Function("sw_ipm_iter", state + count + data,
                        new + [count[0] + 1, kkt])
 
 
+def _tracker(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
+             flags: np.ndarray, best: list, data: list) -> ca.Function:
+    """``track(c, point…, best…, best_kkt, data…) -> (best…, best_kkt)``:
+    when ``c``, the point if its recomputed residual is below
+    ``best_kkt``; otherwise (and when ``c`` is false) the best unchanged.
+    """
+    sym = ca.MX.sym
+    point = [sym(v.name()[1:], v.sparsity()) for v in best[:6]]
+    b = [sym(v.name(), v.sparsity()) for v in best]
+    d = [sym(v.name(), v.sparsity()) for v in data]
+    true = _residual(kern, lay, tree, dims, point, d, ca.DM(flags[::-1]).T)
+    better = true < b[6]
+    run = ca.Function("sw_ipm_track", point + b + d,
+                      [ca.if_else(better, v, w) for v, w in
+                       zip(point + [true], b)])
+    keep = _passing("sw_ipm_keep", point + b + d, lambda a: a[6:13])
+    return ca.Function.if_else("sw_ipm_best", run, keep)
+
+
+def _passing(name: str, like: list, pick: Callable[[list], list]
+             ) -> ca.Function:
+    """A branch that passes some of its arguments through: ``pick`` of
+    fresh MX symbols shaped as ``like``.
+
+    MX, so that the generated C copies whole arrays in loops: an SX
+    Function writes each element on a line of its own (34,000 lines for
+    a skipped chunk's state on a tree of 9 scenarios, and four times the
+    compile time). Its work is the largest array it passes, not a slot
+    per argument.
+    """
+    args = [ca.MX.sym(a.name(), a.sparsity()) for a in like]
+    return ca.Function(name, args, pick(args))
+
+
 def kkt_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
-                 state, data, flags_r) -> tuple[ca.MX, ca.MX, ca.MX]:
+                 state, data, flags_r) -> tuple[ca.MX, ...]:
     """The KKT residual of an iterate (module doc): its dual, primal and
-    complementarity parts, scaled, ≥ 0.
+    complementarity parts, scaled, ≥ 0; then how far it breaks its worst
+    box (≥ 0) and the sum of its entries (NaN or infinite with them).
 
     ``dims`` is ``(n_x, n_u)``, ``flags_r`` the flags reversed in time (a
     held control's gradient joins its block's, the root's sums the
@@ -366,30 +303,26 @@ def kkt_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
     nx, nu = dims
     dU, dX, Sl, Su, Ll, Lu = state
     A, B, Q, q, g, r, lo, hi, Ar, Br, Qr, _ = data
-    V = lay.values(dU, dX)
     lam = Lu - Ll
     gx, gu = lay.lift(kern["qmul"].map(tree.C)(Q, dX) + q, r * dU + g, lam)
     _, racc, rho = _sweeps(kern, tree)["costate"](
         ca.DM.zeros(nx), ca.DM.zeros(nu), Ar, Br, reverse_columns(gx),
         reverse_columns(gu), flags_r)
-    scale = 1.0 + ca.fmax(ca.mmax(ca.fabs(q)), ca.mmax(ca.fabs(g)))
     if tree.root:
         rho = tree.root_residual(rho, nu)
-    dual = ca.mmax(ca.fabs(rho))
-    primal = ca.mmax(ca.fabs(ca.vertcat(ca.vec(V - lo - Sl),
-                                        ca.vec(hi - V - Su))))
-    comp = ca.mmax(ca.vertcat(ca.vec(Sl * Ll), ca.vec(Su * Lu)))
-    return dual / scale, primal, comp
+    rows = lay.residual_rows(list(state), lo, hi, q, g)
+    primal, comp, brk, scale = (ca.mmax(rows[i, :]) for i in (0, 1, 2, 4))
+    dual = ca.mmax(ca.fabs(rho)) / (1.0 + scale)
+    return dual, primal, comp, brk, ca.sum2(rows[3, :])
 
 
 def _residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
               point: list, data: list, flags_r) -> ca.MX:
     """The KKT residual of a point, boxes broken included (scaled); +inf
     for a point with a NaN or an infinity (the maxima skip NaNs)."""
-    dual, primal, comp = kkt_residual(kern, lay, tree, dims, point, data,
-                                      flags_r)
-    res = ca.fmax(ca.fmax(dual, broken(point)), ca.fmax(primal, comp))
-    total = sum(ca.sum1(ca.sum2(v)) for v in point)
+    dual, primal, comp, brk, total = kkt_residual(kern, lay, tree, dims,
+                                                  point, data, flags_r)
+    res = ca.fmax(ca.fmax(dual, brk), ca.fmax(primal, comp))
     finite = ca.logic_and(total == total, ca.fabs(total) < ca.inf)
     return ca.if_else(finite, res, ca.inf)
 
@@ -416,11 +349,8 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     args = [ca.MX.sym(it.name_in(i), it.sparsity_in(i))
             for i in range(it.n_in())]
     data = args[STATE_LEN + 2:]
-    # SX: a skipped chunk reads its state alone (an MX Function would
-    # reserve a slot for every argument, the data included, in the work
-    # vector)
-    sx = [ca.SX.sym(a.name(), a.sparsity()) for a in args]
-    done = ca.Function("sw_done", sx, sx[:STATE_LEN + 2])
+    # a skipped chunk passes its state through
+    done = _passing("sw_done", args, lambda a: a[:STATE_LEN + 2])
     # chunks of IPM_CHUNK iterations, one after another in the chunk (a
     # converged iterate skips the rest), the chunks one after another,
     # each skipped once converged: every nesting level of Functions
@@ -471,12 +401,8 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     interior = ca.Function("sw_ipm_interior", bi, _interior(
         loop, kern, lay, tree, dims, flags, sweeps, sr, bi[0], bi[1],
         bi[2:14]))
-    # SX: reads the free point alone (an MX Function reserves a slot in
-    # the work vector for each of its inputs)
-    sx = [ca.SX.sym(a.name(), a.sparsity()) for a in bi]
-    free = ca.Function("sw_ipm_free", sx, [sx[14], sx[15],
-                                           ca.SX.zeros(lay.nb, C),
-                                           ca.SX(0.0), sx[16]])
+    free = _passing("sw_ipm_free", bi, lambda a: [
+        a[14], a[15], ca.MX.zeros(lay.nb, C), ca.MX(0.0), a[16]])
     branch = ca.Function.if_else("sw_ipm_first", free, interior)
     dU, dX, lam, count, kkt = branch(inside, dU0, dX0, *data, dUf, dXf,
                                      kkt_f)
@@ -498,14 +424,18 @@ def _interior(loop: Callable[..., list], kern: dict, lay: BoxLayout,
     Sl = ca.fmax(V0 - lo, IPM_SLACK0)
     Su = ca.fmax(hi - V0, IPM_SLACK0)
     start = [dU0, dX0, Sl, Su, IPM_MU0 / Sl, IPM_MU0 / Su]
-    rd0, rp0, comp0 = kkt_residual(kern, lay, tree, dims, start, data, sr)
+    rd0, rp0, comp0, *_ = kkt_residual(kern, lay, tree, dims, start, data,
+                                      sr)
     kkt0 = ca.fmax(ca.fmax(rd0, rp0), comp0)
     out = loop(*start, rd0, rp0, *start, kkt0, 0.0, 1.0, *data)
     # the certificate: the residual recomputed at the point returned, the
     # interior point's best iterate or the polish (from its last iterate,
     # whose active set is the clearest) on the active set, the smaller
     ipm_point, best = list(out[:6]), list(out[8:14])
-    kkt, count = out[14], out[15]
+    kkt_last = _residual(kern, lay, tree, dims, ipm_point, data, sr)
+    last = kkt_last <= out[14]
+    best = [ca.if_else(last, a, b) for a, b in zip(ipm_point, best)]
+    kkt, count = ca.if_else(last, kkt_last, out[14]), out[15]
     pol = list(polish(kern, lay, tree, dims, flags, ipm_point, data,
                       sweeps))
     kkt_p = _residual(kern, lay, tree, dims, pol, data, sr)
@@ -566,7 +496,6 @@ def _polish_more(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
     run = ca.Function("sw_polish_more", args,
                       pol + [_residual(kern, lay, tree, dims, pol, data,
                                        sr)])
-    # SX: reads the point alone (module doc of `ipm_solve`)
-    sx = [ca.SX.sym(a.name(), a.sparsity()) for a in args]
-    skip = ca.Function("sw_polish_enough", sx, sx[:6] + [ca.SX(ca.inf)])
+    skip = _passing("sw_polish_enough", args,
+                    lambda a: a[:6] + [ca.MX(ca.inf)])
     return ca.Function.if_else("sw_polish_third", run, skip)
