@@ -55,7 +55,8 @@ from .stagewise_kernels import (reverse_columns, root_kernel, root_rhs,
                                 root_solve, root_terms)
 from .stagewise_lq import FactoredLQ
 from .stagewise_polish import (POLISH_ACCEPT, POLISH_TIGHT, broken,
-                               clear_active, polish, reduced_active)
+                               clear_active, next_active, polish,
+                               reduced_active)
 
 #: KKT residual [scaled, 1] at which the interior point stops.
 IPM_TOL = 1e-9
@@ -455,7 +456,7 @@ def _interior(loop: Callable[..., list], kern: dict, lay: BoxLayout,
     pol = [ca.if_else(second, a, b) for a, b in zip(pol2, pol)]
     kkt_p = ca.fmin(kkt_p, kkt_2)
     # a third, only when neither polish met POLISH_ACCEPT: the second's
-    # active set with the boxes its point breaks
+    # active set less its wrong-signed rows, with the boxes its point breaks
     more = _polish_more(kern, lay, tree, dims, flags, sweeps, sr)
     *pol3, kkt_3 = more(ca.fmin(kkt, kkt_p) > POLISH_ACCEPT, *pol2, *act,
                         *data)
@@ -474,9 +475,9 @@ def _polish_more(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
                  flags: np.ndarray, sweeps: dict, sr) -> ca.Function:
     """``more(c, point…, act_l, act_u, data…) -> (point…, kkt)``.
 
-    When ``c``: the polish on the active masks with every box that the
-    polished ``point`` breaks added (the active-set method's other step),
-    and its residual; otherwise ``point`` and an infinite residual (the
+    When ``c``: the polish on the active masks less the rows whose
+    multiplier came out with the wrong sign at the polished ``point`` and
+    with every box it breaks (`next_active`), and its residual; otherwise ``point`` and an infinite residual (the
     generated C skips the polish).
     """
     nx, nu = dims
@@ -488,10 +489,8 @@ def _polish_more(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
     it = ipm_iteration(kern, lay, tree, nx, nu, flags)
     data = [sym(it.name_in(i), it.sparsity_in(i))
             for i in range(STATE_LEN + 2, it.n_in())]
-    grown = tuple(ca.fmax(a, ca.if_else(S < -POLISH_TIGHT, 1.0, 0.0))
-                  for a, S in zip(act, point[2:4]))
     pol = list(polish(kern, lay, tree, dims, flags, point, data, sweeps,
-                      grown))
+                      next_active(point, tuple(act))))
     args = point + act + data
     run = ca.Function("sw_polish_more", args,
                       pol + [_residual(kern, lay, tree, dims, pol, data,

@@ -20,8 +20,8 @@ without the rows whose multiplier came out with the wrong sign
 (`reduced_active`: dependent boxes, a torque bound and the rate bound it
 drives) or, when the first polish could not meet its equalities (an
 inconsistent guess), on the clearly active boxes (`clear_active`); and,
-only when neither met `POLISH_ACCEPT`, on the second's guess with the
-boxes its point breaks added.
+only when neither met `POLISH_ACCEPT`, on the second's guess less its
+wrong-signed rows and with the boxes its point breaks (`next_active`).
 """
 
 from __future__ import annotations
@@ -101,6 +101,18 @@ def reduced_active(point: list) -> tuple:
     act_u = ca.if_else(ca.fabs(Su) <= tight, 1.0, 0.0) * ca.if_else(
         Ll > 0, 0.0, 1.0)
     return act_l, act_u
+
+
+def next_active(point: list, active: tuple) -> tuple:
+    """The active-set method's step from a polished point: the masks
+    ``active`` it was polished on, less the rows whose multiplier came out
+    with the wrong sign, plus the boxes it breaks."""
+    _, _, Sl, Su, Ll, Lu = point
+    act_l, act_u = active
+    return (ca.fmax(act_l * ca.if_else(Lu > 0, 0.0, 1.0),
+                    ca.if_else(Sl < -POLISH_TIGHT, 1.0, 0.0)),
+            ca.fmax(act_u * ca.if_else(Ll > 0, 0.0, 1.0),
+                    ca.if_else(Su < -POLISH_TIGHT, 1.0, 0.0)))
 
 
 def clear_active(point: list) -> tuple:
