@@ -49,9 +49,8 @@ MISALIGNMENT = float(np.deg2rad(0.5))
 #: Default rate bound of the Monte Carlo [rad/s]: none (0). Without one
 #: the wheel momentum and torque cannot exceed their bounds whatever the
 #: plant (dH/dt = m exactly, the applied m and H_1 are bounded in every
-#: plan): a bound violation needs a rate bound, where the plant's
-#: inertia matters. With a rate bound set the stage-wise RTI step can
-#: fail its KKT certificate (counted as a broken loop).
+#: plan): a bound violation needs a rate bound (``rate_max``, e.g. 0.04),
+#: where the plant's inertia matters.
 RATE_MAX = 0.0
 #: A bound counts as violated above this fraction of the bound [1].
 VIOLATION_TOL = 1e-6
@@ -331,6 +330,9 @@ class ControllerSummary:
         Median energy [N²·m²·s].
     step_time_median : float
         Median over the loops of their median step time [s].
+    rate_over_median, rate_over_max : float
+        Median and largest rate overshoot over the loops that ran, as a
+        fraction of the rate bound [1] (0 without a bound).
     """
 
     controller: str
@@ -345,6 +347,8 @@ class ControllerSummary:
     final_error_max: float
     energy_median: float
     step_time_median: float
+    rate_over_median: float = 0.0
+    rate_over_max: float = 0.0
 
 
 def _nan_stat(f: Any, v: np.ndarray) -> float:
@@ -384,7 +388,9 @@ def summarise(ds: Any, wheels: WheelArray | None = None
             settle_worst=_nan_stat(np.max, settle),
             final_error_max=_nan_stat(np.max, col("final_error")[ran]),
             energy_median=_nan_stat(np.median, col("energy")[ran]),
-            step_time_median=_nan_stat(np.median, col("step_time")[ran])))
+            step_time_median=_nan_stat(np.median, col("step_time")[ran]),
+            rate_over_median=_nan_stat(np.median, scaled_rate[ran]),
+            rate_over_max=_nan_stat(np.max, scaled_rate[ran])))
     return out
 
 
@@ -392,7 +398,8 @@ def robust_mc_table(ds: Any, wheels: WheelArray | None = None) -> str:
     """Markdown table: nominal and robust side by side, with ratios.
 
     Rows: draws, loops broken, momentum / torque / rate violations,
-    settled loops, settling time median and worst [s], largest final
+    the rate overshoot's median and largest [% of the bound], settled
+    loops, settling time median and worst [s], largest final
     error [deg], median energy [N²·m²·s], median step time [ms]; the
     last column is robust over nominal (the cost of robustness).
     """
@@ -401,6 +408,10 @@ def robust_mc_table(ds: Any, wheels: WheelArray | None = None) -> str:
             ("momentum violations", "momentum", "{:d}"),
             ("torque violations", "torque", "{:d}"),
             ("rate violations", "rate", "{:d}"),
+            ("rate overshoot, median [% of bound]", "rate_over_median",
+             "{:.3f}"),
+            ("rate overshoot, largest [% of bound]", "rate_over_max",
+             "{:.3f}"),
             ("settled (0.1°)", "settled", "{:d}"),
             ("settling time, median [s]", "settle_median", "{:.1f}"),
             ("settling time, worst [s]", "settle_worst", "{:.1f}"),
@@ -415,6 +426,8 @@ def robust_mc_table(ds: Any, wheels: WheelArray | None = None) -> str:
             a, b = np.rad2deg(a), np.rad2deg(b)
         elif key == "step_time_median":
             a, b = 1e3 * a, 1e3 * b
+        elif key.startswith("rate_over"):
+            a, b = 100.0 * a, 100.0 * b
         ratio = ("–" if isinstance(a, int) or not a > 0
                  else f"{b / a:.2f}")
         lines.append(f"| {label} | {fmt.format(a)} | {fmt.format(b)} | "

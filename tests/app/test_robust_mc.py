@@ -111,6 +111,26 @@ def test_the_summary_counts_the_draws(serial):
     assert f"{rob.energy_median / nom.energy_median:.2f}" in table
 
 
+def test_the_summary_scales_the_rate_overshoot_by_the_bound(serial):
+    """With a rate bound the summary counts the loops over it by more than
+    1e-6 of the bound, and gives the overshoot's median and largest as a
+    fraction of it (percent in the table); a broken loop is not counted."""
+    ds = serial.copy(deep=True)
+    ds["rate_max"][:] = 0.04
+    ds["nominal_rate_violation"][:] = [0.0, 4e-9, 1e-4, 2e-3]
+    ds["robust_rate_violation"][:] = [0.0, 0.0, 2e-5, float("nan")]
+    ds["robust_failed"][:] = [0.0, 0.0, 0.0, 1.0]
+    nom, rob = summarise(ds)
+    assert nom.rate == 2 and rob.rate == 1 and rob.failed == 1
+    assert nom.rate_over_max == pytest.approx(0.05, rel=1e-12)
+    assert nom.rate_over_median == pytest.approx(1.25e-3 + 0.5e-7,
+                                                 rel=1e-12)
+    assert rob.rate_over_max == pytest.approx(5e-4, rel=1e-12)
+    table = robust_mc_table(ds)
+    assert "| rate overshoot, largest [% of bound] | 5.000 | 0.050 | 0.01 |" \
+        in table
+
+
 def test_params_and_the_registered_sweep():
     rows = SWEEPS["robust"][1](True)
     assert len(rows) == 8 and rows[3]["draw"] == 3
