@@ -14,7 +14,7 @@ def test_robust_study_table_is_the_monte_carlo(tmp_path):
     section = study.run(StudyContext(out=tmp_path, quick=True))
     assert section.key == "robust" and "robust" in STUDIES
     assert (tmp_path / section.figures[0].filename).stat().st_size > 10_000
-    (table,) = section.tables
+    table, rated = section.tables
     rows = {r[0]: r[1:] for r in table.rows}
     nom, rob = summarise(run_robust_mc(4, t_final=30.0))
     assert rows["loops broken"][:2] == [nom.failed, rob.failed] == [0, 0]
@@ -28,3 +28,12 @@ def test_robust_study_table_is_the_monte_carlo(tmp_path):
     assert 20.0 < nom.settle_median < 30.0            # a 90° slew, 30 s
     assert 0 < rows["final error, largest [deg]"][0] < 0.1    # settled
     assert "robust / nominal: energy" in section.summary[1]
+    # the second Monte Carlo bounds the rate: its overshoot rows are the
+    # summary's, in percent of the bound
+    nom_r, rob_r = summarise(run_robust_mc(4, t_final=30.0,
+                                           rate_max=study.RATE_BOUND))
+    rows = {r[0]: r[1:] for r in rated.rows}
+    assert rows["rate overshoot, largest [% of bound]"][:2] == [
+        100.0 * nom_r.rate_over_max, 100.0 * rob_r.rate_over_max]
+    assert nom_r.rate_over_max > rob_r.rate_over_max
+    assert "rate bound 0.04 rad/s" in section.summary[2]
