@@ -193,7 +193,8 @@ def _fly(name: str, mpc: Any, plant: Any, qf: np.ndarray, t_final: float,
 
 def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
                    rate_max: float, spread: float, angle_deg: float,
-                   horizon: int = 20, dt: float = 0.5) -> dict:
+                   horizon: int = 20, dt: float = 0.5,
+                   rate_margin: float = 0.0) -> dict:
     """Fly draw ``draw`` by the nominal and the robust MPC.
 
     Parameters
@@ -212,6 +213,9 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
         Slew angle about (1, 1, 0) from rest [deg].
     horizon, dt
         Both MPCs' horizon and sample time [s].
+    rate_margin : float
+        Both MPCs plan with the rate bound ``rate_max·(1 − rate_margin)``;
+        the violations are counted against ``rate_max`` [1].
 
     Returns
     -------
@@ -228,8 +232,9 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
 
     text = _craft_text(spacecraft)
     sc, nominal, robust = _controllers(
-        text, str(spacecraft), int(horizon), float(dt), float(rate_max),
-        float(spread), threading.get_ident())
+        text, str(spacecraft), int(horizon), float(dt),
+        float(rate_max) * (1.0 - float(rate_margin)), float(spread),
+        threading.get_ident())
     d = draw_plant(sc.inertia, sc.wheels, seed, draw)
     plant = rigid_spacecraft(d.inertia, d.wheels)
     qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(angle_deg))
@@ -256,7 +261,8 @@ def robust_mc_params(draws: int, *, seed: int = 0,
                      rate_max: float = RATE_MAX,
                      spread: float = INERTIA_SPREAD,
                      angle_deg: float = 90.0, horizon: int = 20,
-                     dt: float = 0.5) -> list[dict]:
+                     dt: float = 0.5, rate_margin: float = 0.0
+                     ) -> list[dict]:
     """One parameter row per draw (`robust_mc_case`'s arguments)."""
     if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) \
             or draws < 1:
@@ -267,10 +273,14 @@ def robust_mc_params(draws: int, *, seed: int = 0,
     if not rate_max >= 0:
         raise InvalidValueError(
             f"rate_max must be >= 0 rad/s (0: none), got {rate_max!r}")
+    if not 0.0 <= rate_margin < 1.0:
+        raise InvalidValueError(
+            f"rate_margin must be in [0, 1), got {rate_margin!r}")
     return [{"spacecraft": spacecraft, "seed": int(seed), "draw": k,
              "t_final": float(t_final), "rate_max": float(rate_max),
              "spread": float(spread), "angle_deg": float(angle_deg),
-             "horizon": int(horizon), "dt": float(dt)}
+             "horizon": int(horizon), "dt": float(dt),
+             "rate_margin": float(rate_margin)}
             for k in range(int(draws))]
 
 

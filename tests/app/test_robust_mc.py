@@ -14,7 +14,7 @@ distributed = pytest.importorskip(
 
 from adcs.cli import main  # noqa: E402
 from adcs.robust_mc import (CONTROLLERS, MISALIGNMENT, draw_plant,  # noqa
-                            robust_mc_params, robust_mc_table,
+                            robust_mc_case, robust_mc_params, robust_mc_table,
                             run_robust_mc, summarise)
 from adcs.sweep import SWEEPS  # noqa: E402
 from adcs_common.exceptions import InvalidValueError  # noqa: E402
@@ -129,6 +129,23 @@ def test_the_summary_scales_the_rate_overshoot_by_the_bound(serial):
     table = robust_mc_table(ds)
     assert "| rate overshoot, largest [% of bound] | 5.000 | 0.050 | 0.01 |" \
         in table
+
+
+def test_a_rate_margin_plans_below_the_bound_and_counts_against_it():
+    """With ``rate_margin`` both MPCs plan the rate bound that fraction
+    below it, and the violations are counted against the bound itself:
+    planned at half of 0.04 rad/s, no plant gets near 0.04 (without the
+    margin the nominal MPC passes it on this draw)."""
+    rows = robust_mc_params(1, t_final=12.0, rate_max=0.04, rate_margin=0.5)
+    assert rows[0]["rate_margin"] == 0.5
+    half = robust_mc_case(**rows[0])
+    full = robust_mc_case(**{**rows[0], "rate_margin": 0.0})
+    assert half["nominal_rate_violation"] == 0.0
+    assert half["robust_rate_violation"] == 0.0
+    assert full["nominal_rate_violation"] > 1e-4
+    for bad in (-0.1, 1.0, float("nan")):
+        with pytest.raises(InvalidValueError, match="rate_margin"):
+            robust_mc_params(1, rate_max=0.04, rate_margin=bad)
 
 
 def test_params_and_the_registered_sweep():
