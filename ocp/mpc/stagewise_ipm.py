@@ -45,6 +45,7 @@ Re⁻¹, a curvature of 1e10 on a controllable state left P_k indefinite by
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 import casadi as ca
@@ -54,9 +55,8 @@ from .stagewise_boxes import BoxLayout, to_boundary, box_kernels
 from .stagewise_kernels import (reverse_columns, root_kernel, root_rhs,
                                 root_solve, root_terms)
 from .stagewise_lq import FactoredLQ
-from .stagewise_polish import (POLISH_ACCEPT, POLISH_TIGHT, broken,
-                               clear_active, next_active, polish,
-                               reduced_active)
+from .stagewise_cascade import cascade, cascade_function, passing
+from .stagewise_polish import POLISH_ACCEPT
 
 #: KKT residual [scaled, 1] at which the interior point stops.
 IPM_TOL = 1e-9
@@ -272,23 +272,8 @@ def _tracker(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
     run = ca.Function("sw_ipm_track", point + b + d,
                       [ca.if_else(better, v, w) for v, w in
                        zip(point + [true], b)])
-    keep = _passing("sw_ipm_keep", point + b + d, lambda a: a[6:13])
+    keep = passing("sw_ipm_keep", point + b + d, lambda a: a[6:13])
     return ca.Function.if_else("sw_ipm_best", run, keep)
-
-
-def _passing(name: str, like: list, pick: Callable[[list], list]
-             ) -> ca.Function:
-    """A branch that passes some of its arguments through: ``pick`` of
-    fresh MX symbols shaped as ``like``.
-
-    MX, so that the generated C copies whole arrays in loops: an SX
-    Function writes each element on a line of its own (34,000 lines for
-    a skipped chunk's state on a tree of 9 scenarios, and four times the
-    compile time). Its work is the largest array it passes, not a slot
-    per argument.
-    """
-    args = [ca.MX.sym(a.name(), a.sparsity()) for a in like]
-    return ca.Function(name, args, pick(args))
 
 
 def kkt_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
@@ -351,7 +336,7 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
             for i in range(it.n_in())]
     data = args[STATE_LEN + 2:]
     # a skipped chunk passes its state through
-    done = _passing("sw_done", args, lambda a: a[:STATE_LEN + 2])
+    done = passing("sw_done", args, lambda a: a[:STATE_LEN + 2])
     # chunks of IPM_CHUNK iterations, one after another in the chunk (a
     # converged iterate skips the rest), the chunks one after another,
     # each skipped once converged: every nesting level of Functions
@@ -402,7 +387,7 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     interior = ca.Function("sw_ipm_interior", bi, _interior(
         loop, kern, lay, tree, dims, flags, sweeps, sr, bi[0], bi[1],
         bi[2:14]))
-    free = _passing("sw_ipm_free", bi, lambda a: [
+    free = passing("sw_ipm_free", bi, lambda a: [
         a[14], a[15], ca.MX.zeros(lay.nb, C), ca.MX(0.0), a[16]])
     branch = ca.Function.if_else("sw_ipm_first", free, interior)
     dU, dX, lam, count, kkt = branch(inside, dU0, dX0, *data, dUf, dXf,
@@ -437,64 +422,23 @@ def _interior(loop: Callable[..., list], kern: dict, lay: BoxLayout,
     last = kkt_last <= out[14]
     best = [ca.if_else(last, a, b) for a, b in zip(ipm_point, best)]
     kkt, count = ca.if_else(last, kkt_last, out[14]), out[15]
-    pol = list(polish(kern, lay, tree, dims, flags, ipm_point, data,
-                      sweeps))
-    kkt_p = _residual(kern, lay, tree, dims, pol, data, sr)
-    # a second polish: when the first met its equalities, without the rows
-    # whose multiplier came out with the wrong sign (dependent boxes), from
-    # the first polish's point; when it could not (an inconsistent active
-    # set: nearly parallel boxes not yet decided), on the interior point's
-    # clearly active boxes, from the interior point
-    met = broken(pol) <= POLISH_TIGHT
-    again = [ca.if_else(met, a, b) for a, b in zip(pol, ipm_point)]
-    act = [ca.if_else(met, a, b) for a, b in
-           zip(reduced_active(pol), clear_active(ipm_point))]
-    pol2 = list(polish(kern, lay, tree, dims, flags, again, data,
-                       sweeps, tuple(act)))
-    kkt_2 = _residual(kern, lay, tree, dims, pol2, data, sr)
-    second = kkt_2 < kkt_p
-    pol = [ca.if_else(second, a, b) for a, b in zip(pol2, pol)]
-    kkt_p = ca.fmin(kkt_p, kkt_2)
-    # a third, only when neither polish met POLISH_ACCEPT: the second's
-    # active set less its wrong-signed rows, with the boxes its point breaks
-    more = _polish_more(kern, lay, tree, dims, flags, sweeps, sr)
-    *pol3, kkt_3 = more(ca.fmin(kkt, kkt_p) > POLISH_ACCEPT, *pol2, *act,
-                        *data)
-    third = kkt_3 < kkt_p
-    pol = [ca.if_else(third, a, b) for a, b in zip(pol3, pol)]
-    kkt_p = ca.if_else(third, kkt_3, kkt_p)     # a NaN kkt_3 is not taken
+    res = partial(_residual, kern, lay, tree, dims, flags_r=sr)
+    pol, kkt_p = cascade(kern, lay, tree, dims, flags, sweeps, res,
+                         ipm_point, data, kkt)
+    # the cascade again from the best iterate, only when neither it nor
+    # the cascade from the last met POLISH_ACCEPT (a branch in C): the
+    # last iterate's active set is the clearer, the best's multipliers
+    # the more accurate, and either can be the one that succeeds
+    again = cascade_function(kern, lay, tree, dims, flags, sweeps, res,
+                             data)
+    *polb, kkt_b = again(ca.fmin(kkt, kkt_p) > POLISH_ACCEPT, *best, kkt,
+                         *data)
+    take = kkt_b < kkt_p                      # a NaN kkt_b is not taken
+    pol = [ca.if_else(take, a, b) for a, b in zip(polb, pol)]
+    kkt_p = ca.if_else(take, kkt_b, kkt_p)
     # the polish is the active set's exact solution: kept unless its
     # residual is worse than both the interior point's and POLISH_ACCEPT
     better = kkt_p <= ca.fmax(kkt, POLISH_ACCEPT)
     dU, dX, _, _, Ll, Lu = (ca.if_else(better, a, b)
                             for a, b in zip(pol, best))
     return [dU, dX, Lu - Ll, count, ca.fmin(kkt, kkt_p)]
-
-
-def _polish_more(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
-                 flags: np.ndarray, sweeps: dict, sr) -> ca.Function:
-    """``more(c, point…, act_l, act_u, data…) -> (point…, kkt)``.
-
-    When ``c``: the polish on the active masks less the rows whose
-    multiplier came out with the wrong sign at the polished ``point`` and
-    with every box it breaks (`next_active`), and its residual; otherwise ``point`` and an infinite residual (the
-    generated C skips the polish).
-    """
-    nx, nu = dims
-    nb, C = lay.nb, tree.C
-    sym = ca.MX.sym
-    point = [sym("dU", nu, C), sym("dX", nx, C)] + [
-        sym(n, nb, C) for n in ("Sl", "Su", "Ll", "Lu")]
-    act = [sym("act_l", nb, C), sym("act_u", nb, C)]
-    it = ipm_iteration(kern, lay, tree, nx, nu, flags)
-    data = [sym(it.name_in(i), it.sparsity_in(i))
-            for i in range(STATE_LEN + 2, it.n_in())]
-    pol = list(polish(kern, lay, tree, dims, flags, point, data, sweeps,
-                      next_active(point, tuple(act))))
-    args = point + act + data
-    run = ca.Function("sw_polish_more", args,
-                      pol + [_residual(kern, lay, tree, dims, pol, data,
-                                       sr)])
-    skip = _passing("sw_polish_enough", args,
-                    lambda a: a[:6] + [ca.MX(ca.inf)])
-    return ca.Function.if_else("sw_polish_third", run, skip)
