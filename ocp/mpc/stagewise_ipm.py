@@ -33,8 +33,9 @@ each Riccati step's rounding grows with it, so the residual recomputed
 at each iterate can rise while the carried one falls. Once the carried
 residual is below `IPM_TRACK`, the solve therefore recomputes it at
 every iterate (one costate sweep) and returns the best iterate it saw,
-or the polish (`ocp.mpc.stagewise_polish`) of its last iterate, whose
-active set is the clearest.
+or the polish cascade (`ocp.mpc.stagewise_cascade`) of its last
+iterate, whose active set is the clearest, or, only when that and the
+best iterate both miss `POLISH_ACCEPT`, of its best iterate.
 
 The Riccati step subtracts ``WᵀW`` (W = L⁻¹Mᵀ, `stagewise_kernels`),
 which stays positive semidefinite in rounding: formed as ``MK`` through

@@ -14,7 +14,7 @@ rounding (the method of OSQP's polish, Stellato et al. 2020, §5.2, on
 the stage-wise QP). The caller keeps the point whose KKT residual is the
 smaller, so a wrong active set costs nothing but the time.
 
-The caller (`stagewise_ipm`) polishes up to three times, each a step of
+The caller (`stagewise_cascade`) polishes up to three times, each a step of
 an active-set method on the guess before it: on λ > s; then either
 without the rows whose multiplier came out with the wrong sign
 (`reduced_active`: dependent boxes, a torque bound and the rate bound it
