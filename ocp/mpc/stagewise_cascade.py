@@ -53,7 +53,8 @@ def _symbols(lay: Any, tree: Any, dims: tuple, data: list) -> tuple:
 
 def cascade(kern: dict, lay: Any, tree: Any, dims: tuple,
             flags: np.ndarray, sweeps: dict, residual: Residual,
-            point: list, data: list, kkt_ref: Any) -> tuple[list, Any]:
+            more: ca.Function, point: list, data: list, kkt_ref: Any
+            ) -> tuple[list, Any]:
     """``(polished point, its residual)``: the best of up to three polishes
     from the interior-point iterate ``point``.
 
@@ -64,7 +65,9 @@ def cascade(kern: dict, lay: Any, tree: Any, dims: tuple,
     on the clearly active boxes, from ``point``. The third, only when
     neither met `POLISH_ACCEPT` and ``kkt_ref`` (the iterate's own
     residual) misses it too: the second's guess less its wrong-signed
-    rows, with the boxes its point breaks (`next_active`).
+    rows, with the boxes its point breaks (`next_active`): ``more``
+    (`polish_more`, built once per solve so that the generated C holds
+    its code once).
     """
     pol = list(polish(kern, lay, tree, dims, flags, point, data, sweeps))
     kkt_p = residual(pol, data)
@@ -78,8 +81,6 @@ def cascade(kern: dict, lay: Any, tree: Any, dims: tuple,
     second = kkt_2 < kkt_p
     pol = [ca.if_else(second, a, b) for a, b in zip(pol2, pol)]
     kkt_p = ca.fmin(kkt_p, kkt_2)
-    more = _polish_more(kern, lay, tree, dims, flags, sweeps, residual,
-                        data)
     *pol3, kkt_3 = more(ca.fmin(kkt_ref, kkt_p) > POLISH_ACCEPT, *pol2,
                         *act, *data)
     third = kkt_3 < kkt_p
@@ -88,7 +89,7 @@ def cascade(kern: dict, lay: Any, tree: Any, dims: tuple,
     return pol, kkt_p
 
 
-def _polish_more(kern: dict, lay: Any, tree: Any, dims: tuple,
+def polish_more(kern: dict, lay: Any, tree: Any, dims: tuple,
                  flags: np.ndarray, sweeps: dict, residual: Residual,
                  data: list) -> ca.Function:
     """``more(c, point…, act_l, act_u, data…) -> (point…, kkt)``.
@@ -113,14 +114,14 @@ def _polish_more(kern: dict, lay: Any, tree: Any, dims: tuple,
 
 def cascade_function(kern: dict, lay: Any, tree: Any, dims: tuple,
                      flags: np.ndarray, sweeps: dict, residual: Residual,
-                     data: list) -> ca.Function:
+                     more: ca.Function, data: list) -> ca.Function:
     """``again(c, point…, kkt_ref, data…) -> (point…, kkt)``: when ``c``,
     the `cascade` from ``point`` and its residual; otherwise ``point``
     and an infinite residual (the generated C skips it)."""
     point, d = _symbols(lay, tree, dims, data)
     ref = ca.MX.sym("kkt_ref")
     pol, kkt_p = cascade(kern, lay, tree, dims, flags, sweeps, residual,
-                         point, d, ref)
+                         more, point, d, ref)
     args = point + [ref] + d
     run = ca.Function("sw_polish_cascade", args, pol + [kkt_p])
     skip = passing("sw_polish_kept", args,

@@ -56,7 +56,8 @@ from .stagewise_boxes import BoxLayout, to_boundary, box_kernels
 from .stagewise_kernels import (reverse_columns, root_kernel, root_rhs,
                                 root_solve, root_terms)
 from .stagewise_lq import FactoredLQ
-from .stagewise_cascade import cascade, cascade_function, passing
+from .stagewise_cascade import (cascade, cascade_function, passing,
+                               polish_more)
 from .stagewise_polish import POLISH_ACCEPT
 
 #: KKT residual [scaled, 1] at which the interior point stops.
@@ -419,21 +420,24 @@ def _interior(loop: Callable[..., list], kern: dict, lay: BoxLayout,
     # interior point's best iterate or the polish (from its last iterate,
     # whose active set is the clearest) on the active set, the smaller
     ipm_point, best = list(out[:6]), list(out[8:14])
-    kkt_last = _residual(kern, lay, tree, dims, ipm_point, data, sr)
+    res = partial(_residual, kern, lay, tree, dims, flags_r=sr)
+    kkt_last = res(ipm_point, data)
     last = kkt_last <= out[14]
     best = [ca.if_else(last, a, b) for a, b in zip(ipm_point, best)]
     kkt, count = ca.if_else(last, kkt_last, out[14]), out[15]
-    res = partial(_residual, kern, lay, tree, dims, flags_r=sr)
-    pol, kkt_p = cascade(kern, lay, tree, dims, flags, sweeps, res,
+    more = polish_more(kern, lay, tree, dims, flags, sweeps, res, data)
+    pol, kkt_p = cascade(kern, lay, tree, dims, flags, sweeps, res, more,
                          ipm_point, data, kkt)
-    # the cascade again from the best iterate, only when neither it nor
-    # the cascade from the last met POLISH_ACCEPT (a branch in C): the
-    # last iterate's active set is the clearer, the best's multipliers
-    # the more accurate, and either can be the one that succeeds
+    # the cascade again from the best iterate, only when it is not the
+    # last one and neither it nor the cascade from the last met
+    # POLISH_ACCEPT (a branch in C): the last iterate's active set is the
+    # clearer, the best's multipliers the more accurate, and either can
+    # be the one that succeeds
     again = cascade_function(kern, lay, tree, dims, flags, sweeps, res,
-                             data)
-    *polb, kkt_b = again(ca.fmin(kkt, kkt_p) > POLISH_ACCEPT, *best, kkt,
-                         *data)
+                             more, data)
+    *polb, kkt_b = again(ca.logic_and(ca.logic_not(last),
+                                      ca.fmin(kkt, kkt_p) > POLISH_ACCEPT),
+                         *best, kkt, *data)
     take = kkt_b < kkt_p                      # a NaN kkt_b is not taken
     pol = [ca.if_else(take, a, b) for a, b in zip(polb, pol)]
     kkt_p = ca.if_else(take, kkt_b, kkt_p)
