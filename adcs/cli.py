@@ -236,8 +236,14 @@ def _sweep(args: argparse.Namespace) -> int:
         raise InvalidValueError(f"--samples must be >= 1, got {args.samples}")
     if args.t_fail is not None and not args.t_fail > 0:
         raise InvalidValueError(f"--t-fail must be > 0 s, got {args.t_fail}")
+    if args.name == "robust-basilisk":
+        from .basilisk import require_basilisk
+
+        require_basilisk()
     params = make_params(args.quick, samples=args.samples,
-                         spacecraft=args.spacecraft, t_fail=args.t_fail)
+                         spacecraft=args.spacecraft, t_fail=args.t_fail,
+                         rate_max=args.rate_max,
+                         rate_margin=args.rate_margin)
     with _dask_client(args, local=not args.sync) as client, \
             warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", SweepCacheWarning)
@@ -250,7 +256,7 @@ def _sweep(args: argparse.Namespace) -> int:
             warnings.warn_explicit(w.message, w.category, w.filename,
                                    w.lineno)
     describe(args.name, ds, args.spacecraft if args.name in (
-        "agility", "failures", "robust") else None,
+        "agility", "failures", "robust", "robust-basilisk") else None,
         SWEEPS[args.name][2])
     ds.to_netcdf(out / f"{args.name}.nc", engine="scipy")
     plot_sweep(args.name, ds, out / f"{args.name}.png")
@@ -282,7 +288,8 @@ def _add_sweep(sub) -> None:
     swp = sub.add_parser("sweep", help="run a design-space sweep or Monte "
                          "Carlo campaign on Dask")
     swp.add_argument("name", choices=("geometry", "accuracy", "agility",
-                                      "failures", "robust"))
+                                      "failures", "robust",
+                                      "robust-basilisk"))
     swp.add_argument("--out", default="adcs-sweep",
                      help="output folder (dataset, plot, finished chunks: "
                      "a rerun resumes)")
@@ -291,6 +298,13 @@ def _add_sweep(sub) -> None:
     swp.add_argument("--samples", type=int, default=None,
                      help="Monte Carlo samples (accuracy, default 1e6; "
                      "robust: draws, default 200)")
+    swp.add_argument("--rate-max", type=float, default=0.0,
+                     help="robust: body-rate bound of both MPCs [rad/s] "
+                     "(default 0: none)")
+    swp.add_argument("--rate-margin", type=float, default=0.0,
+                     help="robust: both MPCs plan the rate bound this "
+                     "fraction below it; violations count against the "
+                     "bound (default 0)")
     swp.add_argument("--spacecraft", default="demo", help=SPACECRAFT_HELP)
     swp.add_argument("--t-fail", type=float, default=None,
                      help="failures: when the wheel fails [s] (default 10, "

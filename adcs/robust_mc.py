@@ -227,7 +227,27 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
         ``final_error`` [rad], ``energy`` [N²·m²·s], ``step_time``
         (median, [s]; the only output that varies between runs).
     """
-    from ocp import quat_from_axis_angle, rigid_spacecraft
+    from ocp import rigid_spacecraft
+
+    pair, d, qf, out = draw_case(spacecraft, seed, draw, rate_max, spread,
+                                 angle_deg, horizon, dt, rate_margin)
+    plant = rigid_spacecraft(d.inertia, d.wheels)
+    for name, mpc in zip(CONTROLLERS, pair):
+        out.update(_fly(name, mpc, plant, qf, t_final, float(rate_max)))
+    return out
+
+
+def draw_case(spacecraft: str, seed: int, draw: int, rate_max: float,
+              spread: float, angle_deg: float, horizon: int, dt: float,
+              rate_margin: float) -> tuple:
+    """What a case of the Monte Carlo flies (`robust_mc_case`'s inputs).
+
+    Returns ``((nominal, robust), draw, qf, outputs)``: the two MPCs of
+    this thread (planning ``rate_max·(1 − rate_margin)``), the
+    `PlantDraw`, the target quaternion and the draw's own outputs (scale
+    factors, products, largest tilt [rad]).
+    """
+    from ocp import quat_from_axis_angle
     from .sweep.builtin import _craft_text
 
     text = _craft_text(spacecraft)
@@ -236,15 +256,12 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
         float(rate_max) * (1.0 - float(rate_margin)), float(spread),
         threading.get_ident())
     d = draw_plant(sc.inertia, sc.wheels, seed, draw)
-    plant = rigid_spacecraft(d.inertia, d.wheels)
     qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(angle_deg))
     out = {f"factor_{i + 1}": float(f) for i, f in enumerate(d.factors)}
     out.update({f"product_{k}": float(p) for k, p in
                 zip(("xy", "xz", "yz"), d.products)})
     out["tilt_max"] = float(np.max(np.abs(np.r_[d.tilt_a, d.tilt_b])))
-    for name, mpc in zip(CONTROLLERS, (nominal, robust)):
-        out.update(_fly(name, mpc, plant, qf, t_final, float(rate_max)))
-    return out
+    return (nominal, robust), d, qf, out
 
 
 def _craft_inputs(row: dict) -> dict:

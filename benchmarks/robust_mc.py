@@ -4,7 +4,7 @@ Run from the repository root::
 
     python -m benchmarks.robust_mc [--draws 200] [--workers 2]
                                    [--t-final 50] [--rate-max 0]
-                                   [--rate-margin 0]
+                                   [--rate-margin 0] [--basilisk]
 
 Each draw is a plant of the demo craft's uncertainty set (principal
 moments ±20 %, products of inertia up to 5 % of the largest moment,
@@ -15,7 +15,10 @@ its 8 corners (RTI both, horizon 20, 0.5 s). The draws run on a local
 Dask cluster (`adcs.sweep`). Prints the counts side by side (loops
 broken, bound violations, settled loops), the settling time, final
 error, energy and step time of each and robust / nominal: the cost of
-robustness, measured in this run.
+robustness, measured in this run. ``--basilisk`` flies the same draws in
+Basilisk instead (`adcs.basilisk.robust_mc.run_basilisk_mc`: the drawn
+hub and tilted wheels, the MPCs in `AttitudeMPCModule`; needs the
+``basilisk`` extra).
 """
 
 from __future__ import annotations
@@ -29,19 +32,21 @@ from adcs.sweep import close, connect
 
 def run(draws: int = 200, workers: int = 2, t_final: float = 50.0,
         rate_max: float = 0.0, seed: int = 0,
-        rate_margin: float = 0.0) -> str:
+        rate_margin: float = 0.0, basilisk: bool = False) -> str:
     """Fly the draws on ``workers`` local workers; the Markdown table."""
+    mc = run_robust_mc
+    if basilisk:
+        from adcs.basilisk.robust_mc import run_basilisk_mc as mc
     client, cluster = connect(workers=workers)
     try:
         t0 = time.perf_counter()
-        ds = run_robust_mc(draws, client=client, progress=True, seed=seed,
-                           t_final=t_final, rate_max=rate_max,
-                           rate_margin=rate_margin)
+        ds = mc(draws, client=client, progress=True, seed=seed,
+                t_final=t_final, rate_max=rate_max, rate_margin=rate_margin)
         wall = time.perf_counter() - t0
     finally:
         close(client, cluster)
     failed = int((ds["error"] != "").sum())
-    head = (f"{draws} draws (seed {seed}), {t_final:g} s loops, rate "
+    head = (("In Basilisk: " if basilisk else "") + f"{draws} draws (seed {seed}), {t_final:g} s loops, rate "
             f"bound {'none' if rate_max <= 0 else f'{rate_max:g} rad/s'}"
             + (f" (planned {100 * rate_margin:g} % below it)"
                if rate_max > 0 and rate_margin > 0 else "") + ", "
@@ -62,9 +67,11 @@ def main() -> None:
                     help="both MPCs plan the rate bound this fraction "
                     "below it; violations count against the bound [1]")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--basilisk", action="store_true",
+                    help="fly the draws in Basilisk")
     a = ap.parse_args()
     print(run(a.draws, a.workers, a.t_final, a.rate_max, a.seed,
-              a.rate_margin))
+              a.rate_margin, a.basilisk))
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@ state) is the reference each Basilisk run is compared with.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TYPE_CHECKING
 
 import numpy as np
 
@@ -26,7 +26,11 @@ from . import require_basilisk
 from .convert import mrp_to_quaternion, rotor_momenta
 from .mpc_scenario import _angle, mpc_task
 
-__all__ = ["BasiliskDraw", "basilisk_robust_mc", "fly_in_basilisk"]
+if TYPE_CHECKING:
+    import xarray as xr
+
+__all__ = ["BasiliskDraw", "basilisk_mc_case", "basilisk_robust_mc",
+           "fly_in_basilisk", "run_basilisk_mc"]
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -72,8 +76,8 @@ def _basilisk_run(mpc: Any, inertia: np.ndarray, wheels: WheelArray,
                   Js: float) -> tuple:
     """Fly ``mpc`` on the plant in Basilisk.
 
-    Returns ``(q (K+1, 4), H_w (K+1, N) true rotor momenta, commands
-    (K, N), faults)``, sampled at the MPC's period.
+    Returns ``(q (K+1, 4), ω (K+1, 3) [rad/s], H_w (K+1, N) true rotor
+    momenta, commands (K, N), the module)``, sampled at the MPC's period.
     """
     from Basilisk.utilities import SimulationBaseClass, macros
 
@@ -94,7 +98,7 @@ def _basilisk_run(mpc: Any, inertia: np.ndarray, wheels: WheelArray,
     q = np.array([mrp_to_quaternion(s) for s in sigma])
     h = np.array([rotor_momenta(wheels, Js, sp, w)
                   for sp, w in zip(speeds, omega)])
-    return q, h, u, int(ctl.faults)
+    return q, omega, h, u, ctl
 
 
 def fly_in_basilisk(draw: int, controller: str, mpc: Any, *, seed: int = 0,
@@ -129,7 +133,7 @@ def fly_in_basilisk(draw: int, controller: str, mpc: Any, *, seed: int = 0,
     qf = quat_from_axis_angle([1.0, 1.0, 0.0], angle)
     ours = simulate_mpc(mpc, [1.0, 0.0, 0.0, 0.0], qf, t_final=t_final,
                         plant=rigid_spacecraft(d.inertia, d.wheels))
-    q, h, u, faults = _basilisk_run(mpc, d.inertia, d.wheels, qf, t_final,
+    q, _, h, u, ctl = _basilisk_run(mpc, d.inertia, d.wheels, qf, t_final,
                                     dt_dynamics, Js)
     err_b = np.array([_angle(x, qf) for x in q])
     err_o = ours.trajectory.error_angle()
@@ -143,7 +147,8 @@ def fly_in_basilisk(draw: int, controller: str, mpc: Any, *, seed: int = 0,
             u - ours.trajectory.wheel_torque).max()),
         momentum_excess=float(np.max(np.abs(h) - wh.h_max)),
         torque_excess=float(np.max(np.abs(u) - wh.m_max)),
-        energy_basilisk=float(np.sum(u ** 2) * mpc.dt), faults=faults)
+        energy_basilisk=float(np.sum(u ** 2) * mpc.dt),
+        faults=int(ctl.faults))
 
 
 def basilisk_robust_mc(draws: int = 3, *, seed: int = 0,
@@ -168,3 +173,86 @@ def basilisk_robust_mc(draws: int = 3, *, seed: int = 0,
     return [fly_in_basilisk(k, name, mpc, seed=seed, t_final=t_final,
                             **options)
             for k in range(draws) for name, mpc in mpcs.items()]
+
+
+def _fly_basilisk(name: str, mpc: Any, d: Any, qf: np.ndarray,
+                  t_final: float, rate_max: float, dt_dynamics: float,
+                  Js: float) -> dict:
+    """One loop in Basilisk: `adcs.robust_mc`'s metrics, prefixed."""
+    from ocp.mpc.closed_loop import settle_time
+
+    q, w, h, u, ctl = _basilisk_run(mpc, d.inertia, d.wheels, qf, t_final,
+                                    dt_dynamics, Js)
+    wh = mpc.model.wheels
+    err = np.array([_angle(x, qf) for x in q])
+    solve = [s.solve_time for s in ctl.steps]
+    return {
+        f"{name}_failed": float(ctl.faults > 0),
+        f"{name}_faults": float(ctl.faults),
+        f"{name}_momentum_violation": max(
+            float(np.max(np.abs(h) - wh.h_max)), 0.0),
+        f"{name}_torque_violation": max(
+            float(np.max(np.abs(u) - wh.m_max)), 0.0),
+        f"{name}_rate_violation": (max(float(np.abs(w).max()) - rate_max,
+                                       0.0) if rate_max > 0.0 else 0.0),
+        f"{name}_settle_time": settle_time(
+            mpc.dt * np.arange(len(err)), err, float(np.deg2rad(0.1))),
+        f"{name}_final_error": float(err[-1]),
+        f"{name}_energy": float(np.sum(u ** 2) * mpc.dt),
+        f"{name}_step_time": (float(np.median(solve)) if solve
+                              else float("nan"))}
+
+
+def basilisk_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
+                     rate_max: float, spread: float, angle_deg: float,
+                     horizon: int = 20, dt: float = 0.5,
+                     rate_margin: float = 0.0, dt_dynamics: float = 0.1,
+                     Js: float = 1e-3) -> dict:
+    """`adcs.robust_mc.robust_mc_case` flown in Basilisk.
+
+    The same draw, controllers and outputs (so `adcs.robust_mc.summarise`
+    and `robust_mc_table` read both), with the craft in Basilisk (RK4 at
+    ``dt_dynamics`` [s], rotors of spin inertia ``Js`` [kg·m²]) and each
+    MPC in `AttitudeMPCModule`. Differences: the module does not raise,
+    it commands zero torques for a refused step and counts it, so
+    ``failed`` is 1 when the loop had a fault (``faults``: how many); the
+    rate is Basilisk's navigation rate at the MPC's samples, the momenta
+    the true rotor momenta on the tilted axes; ``step_time`` is the
+    median of the module's steps' ``solve_time`` [s].
+    """
+    require_basilisk()
+    from adcs.robust_mc import CONTROLLERS, draw_case
+
+    pair, d, qf, out = draw_case(spacecraft, seed, draw, rate_max, spread,
+                                 angle_deg, horizon, dt, rate_margin)
+    for name, mpc in zip(CONTROLLERS, pair):
+        out.update(_fly_basilisk(name, mpc, d, qf, float(t_final),
+                                 float(rate_max), float(dt_dynamics),
+                                 float(Js)))
+    return out
+
+
+def _craft_inputs(row: dict) -> dict:
+    from adcs.robust_mc import robust_mc_case
+
+    return robust_mc_case.sweep_inputs(row)  # type: ignore[attr-defined]
+
+
+basilisk_mc_case.sweep_inputs = _craft_inputs  # type: ignore[attr-defined]
+
+
+def run_basilisk_mc(draws: int, *, client: Any = None,
+                    progress: bool = False, out: Any = None,
+                    **options: Any) -> xr.Dataset:
+    """`adcs.robust_mc.run_robust_mc`'s Monte Carlo flown in Basilisk.
+
+    Same draws for the same ``seed`` (`adcs.robust_mc.robust_mc_params`'
+    keywords in ``options``), on ``client`` (a `distributed.Client`) or
+    here; one ``case`` per draw with `basilisk_mc_case`'s outputs.
+    """
+    require_basilisk()
+    from adcs.robust_mc import robust_mc_params
+    from adcs.sweep import run_sweep
+
+    return run_sweep(basilisk_mc_case, robust_mc_params(draws, **options),
+                     client=client, progress=progress, out=out)

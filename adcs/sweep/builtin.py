@@ -23,6 +23,7 @@ import numpy as np
 from allocation import WheelArray, envelope, torque_reach
 from allocation import min_norm_law
 
+from adcs.basilisk.robust_mc import basilisk_mc_case
 from adcs.robust_mc import robust_mc_case, robust_mc_params
 
 __all__ = ["SWEEPS", "accuracy_case", "agility_case", "craft_inputs",
@@ -212,11 +213,14 @@ def _failures(quick: bool, spacecraft: str = "demo",
 
 
 def _robust(quick: bool, samples: int | None = None,
-            spacecraft: str = "demo", **_) -> list[dict]:
-    # draws of the robust-MPC Monte Carlo (adcs.robust_mc): 200, quick 8
-    return robust_mc_params(samples or (8 if quick else 200),
-                            spacecraft=spacecraft,
-                            t_final=30.0 if quick else 50.0)
+            spacecraft: str = "demo", rate_max: float = 0.0,
+            rate_margin: float = 0.0, **_) -> list[dict]:
+    # draws of the robust-MPC Monte Carlo (adcs.robust_mc): 200, quick 8;
+    # a rate bound's loops run 60 s (the slew is slower)
+    return robust_mc_params(
+        samples or (8 if quick else 200), spacecraft=spacecraft,
+        t_final=30.0 if quick else (60.0 if rate_max > 0 else 50.0),
+        rate_max=rate_max, rate_margin=rate_margin)
 
 
 # the engine hashes a case's inputs through this hook (`chunk_inputs`)
@@ -237,4 +241,7 @@ SWEEPS: dict[str, tuple[Callable[..., dict], Callable[..., list[dict]],
     "robust": (robust_mc_case, _robust,
                "Monte Carlo of plants (inertia ±20 %, products, axis "
                "tilts): nominal against robust MPC"),
+    "robust-basilisk": (basilisk_mc_case, _robust,
+                        "the robust Monte Carlo's draws flown in Basilisk "
+                        "(needs the basilisk extra)"),
 }

@@ -60,6 +60,7 @@ VARIABLES: dict[str, tuple[str, str]] = {
     # robust (adcs.robust_mc); per controller in _robust_variables
     "draw": ("1", "Monte Carlo draw (its random stream: seed, draw)"),
     "rate_max": ("rad/s", "body-rate bound of both MPCs (0: none)"),
+    "rate_margin": ("1", "both MPCs plan rate_max·(1 − rate_margin)"),
     "spread": ("1", "robust MPC's inertia corners 1 ± spread"),
     "horizon": ("1", "MPC horizon (stages)"),
     "dt": ("s", "MPC sample time"),
@@ -91,6 +92,8 @@ for _c in ("nominal", "robust"):
                               "end"),
         f"{_c}_energy": ("N²·m²·s", f"{_c} MPC: sum of ∫ m_i² dt"),
         f"{_c}_step_time": ("s", f"{_c} MPC: median step time"),
+        f"{_c}_faults": ("1", f"{_c} MPC in Basilisk: steps the module "
+                         "refused (zero torques)"),
     })
 
 

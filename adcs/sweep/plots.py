@@ -94,7 +94,7 @@ def sweep_figure(name: str, ds):
         ax.set_ylabel("p95 torque direction error [deg]")
     elif name == "agility":
         _agility(ax, ds, ok)
-    elif name == "robust":
+    elif name in ("robust", "robust-basilisk"):
         _robust(ax, ds, ok)
     else:
         ax.bar(np.asarray(ds["wheel"])[ok],

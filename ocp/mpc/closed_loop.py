@@ -29,6 +29,7 @@ __all__ = [
     "ClosedLoopResult",
     "closed_loop_table",
     "compare_slew",
+    "settle_time",
     "simulate_mpc",
 ]
 
@@ -108,7 +109,10 @@ class ClosedLoopResult(ResultMixin):
                     and self.hold_error < self.settle_angle)
 
 
-def _settle_time(t: np.ndarray, err: np.ndarray, angle: float) -> float:
+def settle_time(t: np.ndarray, err: np.ndarray, angle: float) -> float:
+    """First sample time from which ``err`` (K,) [rad] stays below
+    ``angle`` [rad] to the end of ``t`` (K,) [s]; NaN if the last sample
+    is not below it (`ClosedLoopResult.settle_time`)."""
     outside = np.flatnonzero(err >= angle)
     if len(outside) == 0:
         return 0.0
@@ -130,7 +134,7 @@ def _result_from_trajectory(name: str, traj: SlewTrajectory, wheels,
     st = np.asarray(step_times if step_times is not None else [np.nan])
     return ClosedLoopResult(
         name=name, trajectory=traj,
-        settle_time=_settle_time(traj.t, err, settle_angle),
+        settle_time=settle_time(traj.t, err, settle_angle),
         settle_angle=settle_angle, energy=traj.energy,
         peak_torque=traj.peak_wheel_torque,
         peak_momentum=traj.peak_wheel_momentum,

@@ -155,6 +155,19 @@ def test_params_and_the_registered_sweep():
     assert len(SWEEPS["robust"][1](False)) == 200
     with pytest.raises(InvalidValueError, match="draws"):
         robust_mc_params(0)
+    # `adcs sweep robust --rate-max 0.04 --rate-margin 0.05`: 60 s loops
+    bound = SWEEPS["robust"][1](False, rate_max=0.04, rate_margin=0.05)
+    assert (bound[0]["rate_max"], bound[0]["rate_margin"],
+            bound[0]["t_final"]) == (0.04, 0.05, 60.0)
+    assert SWEEPS["robust-basilisk"][1] is SWEEPS["robust"][1]
+
+
+def test_cli_sweep_robust_refuses_a_bad_margin(tmp_path, capsys):
+    assert main(["sweep", "robust", "--quick", "--sync", "--rate-max",
+                 "0.04", "--rate-margin", "1.5", "--out",
+                 str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "rate_margin" in err[0]
 
 
 def test_cli_sweep_robust(tmp_path, capsys):
@@ -164,3 +177,14 @@ def test_cli_sweep_robust(tmp_path, capsys):
     assert "1 cases, 0 failed" in out
     assert (tmp_path / "robust.nc").exists()
     assert (tmp_path / "robust.png").exists()
+
+
+def test_cli_sweep_robust_in_basilisk_without_basilisk(tmp_path, capsys,
+                                                       monkeypatch):
+    import adcs.basilisk
+
+    monkeypatch.setattr(adcs.basilisk, "basilisk_available", lambda: False)
+    assert main(["sweep", "robust-basilisk", "--quick", "--sync",
+                 "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Basilisk is not installed" in err[0]
