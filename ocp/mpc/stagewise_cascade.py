@@ -1,9 +1,9 @@
 """The polish cascade of the stage-wise interior point, and its branches.
 
 `ocp.mpc.stagewise_polish` solves the QP on a guess of the active set;
-this module chains up to three such polishes from one interior-point
+this module chains up to four such polishes from one interior-point
 iterate, each a step of an active-set method on the guess before it
-(`cascade`), and wraps what is needed only when the others fail as
+(`cascade`; the last two only when needed, `polish_more`), and wraps what is needed only when the others fail as
 branches that the generated C skips (`cascade_function`): a CasADi
 ``Function.if_else`` whose other branch passes its arguments through
 (`passing`).
@@ -65,7 +65,8 @@ def cascade(kern: dict, lay: Any, tree: Any, dims: tuple,
     on the clearly active boxes, from ``point``. The third, only when
     neither met `POLISH_ACCEPT` and ``kkt_ref`` (the iterate's own
     residual) misses it too: the second's guess less its wrong-signed
-    rows, with the boxes its point breaks (`next_active`): ``more``
+    rows, with the boxes its point breaks (`next_active`), and a fourth
+    the same way when the third's point still breaks a box: ``more``
     (`polish_more`, built once per solve so that the generated C holds
     its code once).
     """
@@ -89,27 +90,57 @@ def cascade(kern: dict, lay: Any, tree: Any, dims: tuple,
     return pol, kkt_p
 
 
-def polish_more(kern: dict, lay: Any, tree: Any, dims: tuple,
+def _active_step(kern: dict, lay: Any, tree: Any, dims: tuple,
                  flags: np.ndarray, sweeps: dict, residual: Residual,
                  data: list) -> ca.Function:
-    """``more(c, point…, act_l, act_u, data…) -> (point…, kkt)``.
+    """``step(c, point…, act_l, act_u, data…) -> (point…, act_l, act_u,
+    kkt)``: one step of the active-set method when ``c``.
 
-    When ``c``: the polish on the active masks less the rows whose
-    multiplier came out with the wrong sign at the polished ``point``
-    and with every box it breaks (`next_active`), and its residual;
-    otherwise ``point`` and an infinite residual (the generated C skips
-    the polish).
+    The polish on the masks less the rows whose multiplier came out with
+    the wrong sign at ``point`` and with every box it breaks
+    (`next_active`), those masks and its residual; otherwise ``point``,
+    the masks and an infinite residual (the generated C skips it).
     """
     point, d = _symbols(lay, tree, dims, data)
     act = [ca.MX.sym("act_l", point[2].sparsity()),
            ca.MX.sym("act_u", point[2].sparsity())]
+    nxt = list(next_active(point, tuple(act)))
     pol = list(polish(kern, lay, tree, dims, flags, point, d, sweeps,
-                      next_active(point, tuple(act))))
+                      tuple(nxt)))
     args = point + act + d
-    run = ca.Function("sw_polish_more", args, pol + [residual(pol, d)])
+    run = ca.Function("sw_polish_step", args,
+                      pol + nxt + [residual(pol, d)])
     skip = passing("sw_polish_enough", args,
-                   lambda a: a[:6] + [ca.MX(ca.inf)])
-    return ca.Function.if_else("sw_polish_third", run, skip)
+                   lambda a: a[:8] + [ca.MX(ca.inf)])
+    return ca.Function.if_else("sw_polish_next", run, skip)
+
+
+def polish_more(kern: dict, lay: Any, tree: Any, dims: tuple,
+                flags: np.ndarray, sweeps: dict, residual: Residual,
+                data: list) -> ca.Function:
+    """``more(c, point…, act_l, act_u, data…) -> (point…, kkt)``.
+
+    When ``c``: a step of the active-set method from the polished
+    ``point`` (`_active_step`), and a second one when the first's point
+    still breaks a box (the boxes it added were not all: on a tree of
+    17 scenarios a cruise at the rate bound took two), the better of
+    the two and its residual; otherwise ``point`` and an infinite
+    residual (the generated C skips both). The step is one Function,
+    called twice (its code is in the C once).
+    """
+    point, d = _symbols(lay, tree, dims, data)
+    act = [ca.MX.sym("act_l", point[2].sparsity()),
+           ca.MX.sym("act_u", point[2].sparsity())]
+    c = ca.MX.sym("c")
+    step = _active_step(kern, lay, tree, dims, flags, sweeps, residual,
+                        data)
+    *pol, al, au, kkt = step(c, *point, *act, *d)
+    *pol2, _, _, kkt2 = step(ca.logic_and(c, broken(pol) > POLISH_TIGHT),
+                             *pol, al, au, *d)
+    second = kkt2 < kkt                     # a NaN kkt2 is not taken
+    out = [ca.if_else(second, a, b) for a, b in zip(pol2, pol)]
+    return ca.Function("sw_polish_third", [c, *point, *act, *d],
+                       out + [ca.if_else(second, kkt2, kkt)])
 
 
 def cascade_function(kern: dict, lay: Any, tree: Any, dims: tuple,

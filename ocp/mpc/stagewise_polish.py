@@ -21,7 +21,8 @@ without the rows whose multiplier came out with the wrong sign
 drives) or, when the first polish could not meet its equalities (an
 inconsistent guess), on the clearly active boxes (`clear_active`); and,
 only when neither met `POLISH_ACCEPT`, on the second's guess less its
-wrong-signed rows and with the boxes its point breaks (`next_active`).
+wrong-signed rows and with the boxes its point breaks (`next_active`),
+and once more so when that point still breaks a box.
 """
 
 from __future__ import annotations
