@@ -243,7 +243,8 @@ def _sweep(args: argparse.Namespace) -> int:
     params = make_params(args.quick, samples=args.samples,
                          spacecraft=args.spacecraft, t_fail=args.t_fail,
                          rate_max=args.rate_max,
-                         rate_margin=args.rate_margin)
+                         rate_margin=args.rate_margin,
+                         tree_products=args.tree_products)
     with _dask_client(args, local=not args.sync) as client, \
             warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", SweepCacheWarning)
@@ -305,6 +306,10 @@ def _add_sweep(sub) -> None:
                      help="robust: both MPCs plan the rate bound this "
                      "fraction below it; violations count against the "
                      "bound (default 0)")
+    swp.add_argument("--tree-products", type=float, default=0.0,
+                     help="robust: the robust MPC's tree also spans these "
+                     "products of inertia, ± of the largest moment (17 "
+                     "scenarios; default 0: the 9 corners)")
     swp.add_argument("--spacecraft", default="demo", help=SPACECRAFT_HELP)
     swp.add_argument("--t-fail", type=float, default=None,
                      help="failures: when the wheel fails [s] (default 10, "

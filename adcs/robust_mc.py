@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 
 __all__ = ["CONTROLLERS", "ControllerSummary", "PlantDraw", "draw_plant",
            "robust_mc_case", "robust_mc_params", "robust_mc_table",
-           "run_robust_mc", "summarise"]
+           "robust_scenarios", "run_robust_mc", "summarise"]
 
 #: Spread of each principal moment, as a fraction of it [1].
 INERTIA_SPREAD = 0.2
@@ -143,7 +143,8 @@ def draw_plant(inertia: Any, wheels: WheelArray, seed: int, draw: int, *,
 
 @functools.lru_cache(maxsize=8)
 def _controllers(text: str, source: str, horizon: int, dt: float,
-                 rate_max: float, spread: float, thread: int) -> tuple:
+                 rate_max: float, spread: float, thread: int,
+                 tree_products: float = 0.0) -> tuple:
     """(craft, nominal MPC, robust MPC), built once per worker thread.
 
     ``text`` (the craft's TOML) keys the cache, so an edited file gets
@@ -151,7 +152,7 @@ def _controllers(text: str, source: str, horizon: int, dt: float,
     one trajectory at a time).
     """
     from ocp import rigid_spacecraft
-    from ocp.mpc import AttitudeMPC, RobustMPC, inertia_corners
+    from ocp.mpc import AttitudeMPC, RobustMPC
     from .sweep.builtin import _craft_of
 
     del thread
@@ -160,9 +161,27 @@ def _controllers(text: str, source: str, horizon: int, dt: float,
     rate = None if rate_max <= 0.0 else rate_max
     nominal = AttitudeMPC(model, horizon=horizon, dt=dt, solver="stagewise",
                           rti=True, rate_max=rate)
-    robust = RobustMPC(model, inertia_corners(sc.inertia, spread),
+    robust = RobustMPC(model, robust_scenarios(sc.inertia, spread,
+                                               tree_products),
                        horizon=horizon, dt=dt, rti=True, rate_max=rate)
     return sc, nominal, robust
+
+
+def robust_scenarios(inertia: Any, spread: float = INERTIA_SPREAD,
+                     tree_products: float = 0.0) -> list:
+    """The robust MPC's scenarios: the nominal craft and the 8 corners of
+    ``1 ± spread`` principal moments (`ocp.mpc.inertia_corners`); with
+    ``tree_products`` > 0, the nominal craft and those 8 corners each
+    with the products ``±tree_products`` of the largest moment
+    (`ocp.mpc.scenario_grid`: 17 scenarios) [1]."""
+    from ocp.mpc import inertia_corners, scenario_grid
+
+    corners = inertia_corners(inertia, spread)
+    if tree_products <= 0.0:
+        return corners
+    return corners[:1] + scenario_grid(
+        inertia, inertia_scale=(1.0 - spread, 1.0 + spread),
+        products=(-tree_products, tree_products))
 
 
 def _fly(name: str, mpc: Any, plant: Any, qf: np.ndarray, t_final: float,
@@ -194,7 +213,8 @@ def _fly(name: str, mpc: Any, plant: Any, qf: np.ndarray, t_final: float,
 def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
                    rate_max: float, spread: float, angle_deg: float,
                    horizon: int = 20, dt: float = 0.5,
-                   rate_margin: float = 0.0) -> dict:
+                   rate_margin: float = 0.0,
+                   tree_products: float = 0.0) -> dict:
     """Fly draw ``draw`` by the nominal and the robust MPC.
 
     Parameters
@@ -216,6 +236,9 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
     rate_margin : float
         Both MPCs plan with the rate bound ``rate_max·(1 − rate_margin)``;
         the violations are counted against ``rate_max`` [1].
+    tree_products : float
+        The robust MPC's tree also spans the products of inertia
+        ``±tree_products`` of the largest moment (`robust_scenarios`) [1].
 
     Returns
     -------
@@ -230,7 +253,8 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
     from ocp import rigid_spacecraft
 
     pair, d, qf, out = draw_case(spacecraft, seed, draw, rate_max, spread,
-                                 angle_deg, horizon, dt, rate_margin)
+                                 angle_deg, horizon, dt, rate_margin,
+                                 tree_products)
     plant = rigid_spacecraft(d.inertia, d.wheels)
     for name, mpc in zip(CONTROLLERS, pair):
         out.update(_fly(name, mpc, plant, qf, t_final, float(rate_max)))
@@ -239,7 +263,7 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
 
 def draw_case(spacecraft: str, seed: int, draw: int, rate_max: float,
               spread: float, angle_deg: float, horizon: int, dt: float,
-              rate_margin: float) -> tuple:
+              rate_margin: float, tree_products: float = 0.0) -> tuple:
     """What a case of the Monte Carlo flies (`robust_mc_case`'s inputs).
 
     Returns ``((nominal, robust), draw, qf, outputs)``: the two MPCs of
@@ -254,7 +278,7 @@ def draw_case(spacecraft: str, seed: int, draw: int, rate_max: float,
     sc, nominal, robust = _controllers(
         text, str(spacecraft), int(horizon), float(dt),
         float(rate_max) * (1.0 - float(rate_margin)), float(spread),
-        threading.get_ident())
+        threading.get_ident(), float(tree_products))
     d = draw_plant(sc.inertia, sc.wheels, seed, draw)
     qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(angle_deg))
     out = {f"factor_{i + 1}": float(f) for i, f in enumerate(d.factors)}
@@ -278,8 +302,8 @@ def robust_mc_params(draws: int, *, seed: int = 0,
                      rate_max: float = RATE_MAX,
                      spread: float = INERTIA_SPREAD,
                      angle_deg: float = 90.0, horizon: int = 20,
-                     dt: float = 0.5, rate_margin: float = 0.0
-                     ) -> list[dict]:
+                     dt: float = 0.5, rate_margin: float = 0.0,
+                     tree_products: float = 0.0) -> list[dict]:
     """One parameter row per draw (`robust_mc_case`'s arguments)."""
     if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) \
             or draws < 1:
@@ -293,11 +317,15 @@ def robust_mc_params(draws: int, *, seed: int = 0,
     if not 0.0 <= rate_margin < 1.0:
         raise InvalidValueError(
             f"rate_margin must be in [0, 1), got {rate_margin!r}")
+    if not 0.0 <= tree_products < 1.0:
+        raise InvalidValueError(
+            f"tree_products must be in [0, 1), got {tree_products!r}")
     return [{"spacecraft": spacecraft, "seed": int(seed), "draw": k,
              "t_final": float(t_final), "rate_max": float(rate_max),
              "spread": float(spread), "angle_deg": float(angle_deg),
              "horizon": int(horizon), "dt": float(dt),
-             "rate_margin": float(rate_margin)}
+             "rate_margin": float(rate_margin),
+             "tree_products": float(tree_products)}
             for k in range(int(draws))]
 
 

@@ -32,7 +32,8 @@ from adcs.sweep import close, connect
 
 def run(draws: int = 200, workers: int = 2, t_final: float = 50.0,
         rate_max: float = 0.0, seed: int = 0,
-        rate_margin: float = 0.0, basilisk: bool = False) -> str:
+        rate_margin: float = 0.0, basilisk: bool = False,
+        tree_products: float = 0.0) -> str:
     """Fly the draws on ``workers`` local workers; the Markdown table."""
     mc = run_robust_mc
     if basilisk:
@@ -41,15 +42,19 @@ def run(draws: int = 200, workers: int = 2, t_final: float = 50.0,
     try:
         t0 = time.perf_counter()
         ds = mc(draws, client=client, progress=True, seed=seed,
-                t_final=t_final, rate_max=rate_max, rate_margin=rate_margin)
+                t_final=t_final, rate_max=rate_max, rate_margin=rate_margin,
+                tree_products=tree_products)
         wall = time.perf_counter() - t0
     finally:
         close(client, cluster)
     failed = int((ds["error"] != "").sum())
-    head = (("In Basilisk: " if basilisk else "") + f"{draws} draws (seed {seed}), {t_final:g} s loops, rate "
+    head = (("In Basilisk: " if basilisk else "")
+            + f"{draws} draws (seed {seed}), {t_final:g} s loops, rate "
             f"bound {'none' if rate_max <= 0 else f'{rate_max:g} rad/s'}"
             + (f" (planned {100 * rate_margin:g} % below it)"
-               if rate_max > 0 and rate_margin > 0 else "") + ", "
+               if rate_max > 0 and rate_margin > 0 else "")
+            + (f", the robust tree spanning products ±{tree_products:g}"
+               if tree_products > 0 else "") + ", "
             f"{workers} workers: {wall:.0f} s wall; {failed} draws "
             "raised outside the loops")
     return head + "\n\n" + robust_mc_table(ds)
@@ -69,9 +74,12 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--basilisk", action="store_true",
                     help="fly the draws in Basilisk")
+    ap.add_argument("--tree-products", type=float, default=0.0,
+                    help="the robust tree also spans these products of "
+                    "inertia, ± of the largest moment (17 scenarios)")
     a = ap.parse_args()
     print(run(a.draws, a.workers, a.t_final, a.rate_max, a.seed,
-              a.rate_margin, a.basilisk))
+              a.rate_margin, a.basilisk, a.tree_products))
 
 
 if __name__ == "__main__":

@@ -206,8 +206,8 @@ def _fly_basilisk(name: str, mpc: Any, d: Any, qf: np.ndarray,
 def basilisk_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
                      rate_max: float, spread: float, angle_deg: float,
                      horizon: int = 20, dt: float = 0.5,
-                     rate_margin: float = 0.0, dt_dynamics: float = 0.1,
-                     Js: float = 1e-3) -> dict:
+                     rate_margin: float = 0.0, tree_products: float = 0.0,
+                     dt_dynamics: float = 0.1, Js: float = 1e-3) -> dict:
     """`adcs.robust_mc.robust_mc_case` flown in Basilisk.
 
     The same draw, controllers and outputs (so `adcs.robust_mc.summarise`
@@ -224,7 +224,8 @@ def basilisk_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
     from adcs.robust_mc import CONTROLLERS, draw_case
 
     pair, d, qf, out = draw_case(spacecraft, seed, draw, rate_max, spread,
-                                 angle_deg, horizon, dt, rate_margin)
+                                 angle_deg, horizon, dt, rate_margin,
+                                 tree_products)
     for name, mpc in zip(CONTROLLERS, pair):
         out.update(_fly_basilisk(name, mpc, d, qf, float(t_final),
                                  float(rate_max), float(dt_dynamics),

@@ -61,6 +61,8 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "draw": ("1", "Monte Carlo draw (its random stream: seed, draw)"),
     "rate_max": ("rad/s", "body-rate bound of both MPCs (0: none)"),
     "rate_margin": ("1", "both MPCs plan rate_max·(1 − rate_margin)"),
+    "tree_products": ("1", "robust MPC's tree also spans these products "
+                      "of inertia (± of the largest moment; 0: none)"),
     "spread": ("1", "robust MPC's inertia corners 1 ± spread"),
     "horizon": ("1", "MPC horizon (stages)"),
     "dt": ("s", "MPC sample time"),

@@ -160,6 +160,28 @@ def test_params_and_the_registered_sweep():
     assert (bound[0]["rate_max"], bound[0]["rate_margin"],
             bound[0]["t_final"]) == (0.04, 0.05, 60.0)
     assert SWEEPS["robust-basilisk"][1] is SWEEPS["robust"][1]
+    wide = SWEEPS["robust"][1](True, tree_products=0.05)
+    assert wide[0]["tree_products"] == 0.05
+    for bad in (-0.01, 1.0, float("nan")):
+        with pytest.raises(InvalidValueError, match="tree_products"):
+            robust_mc_params(1, tree_products=bad)
+
+
+def test_the_robust_tree_spans_the_products_when_asked():
+    from adcs.robust_mc import robust_scenarios
+
+    assert len(robust_scenarios(J)) == 9
+    wide = robust_scenarios(J, 0.2, 0.05)
+    assert len(wide) == 17
+    np.testing.assert_array_equal(wide[0].inertia, J)
+    # each product ±5 % of the scenario's largest moment
+    off = sorted({round(float(s.inertia[0, 1] / np.diag(s.inertia).max()),
+                        12) for s in wide[1:]})
+    assert off == [-0.05, 0.05]
+    diag = {tuple(np.round(np.diag(s.inertia) / np.diag(J), 12))
+            for s in wide[1:]}
+    assert diag == {(a, b, c) for a in (0.8, 1.2) for b in (0.8, 1.2)
+                    for c in (0.8, 1.2)}
 
 
 def test_cli_sweep_robust_refuses_a_bad_margin(tmp_path, capsys):
