@@ -53,7 +53,8 @@ def _symbols(lay: Any, tree: Any, dims: tuple, data: list) -> tuple:
 
 def cascade(kern: dict, lay: Any, tree: Any, dims: tuple,
             flags: np.ndarray, sweeps: dict, residual: Residual,
-            more: ca.Function, point: list, data: list, kkt_ref: Any
+            more: Callable[..., list], point: list, data: list,
+            kkt_ref: Any
             ) -> tuple[list, Any]:
     """``(polished point, its residual)``: the best of up to three polishes
     from the interior-point iterate ``point``.
@@ -117,8 +118,8 @@ def _active_step(kern: dict, lay: Any, tree: Any, dims: tuple,
 
 def polish_more(kern: dict, lay: Any, tree: Any, dims: tuple,
                 flags: np.ndarray, sweeps: dict, residual: Residual,
-                data: list) -> ca.Function:
-    """``more(c, point…, act_l, act_u, data…) -> (point…, kkt)``.
+                data: list) -> Callable[..., list]:
+    """``more(c, point…, act_l, act_u, data…) -> [point…, kkt]``.
 
     When ``c``: a step of the active-set method from the polished
     ``point`` (`_active_step`), and a second one when the first's point
@@ -126,26 +127,29 @@ def polish_more(kern: dict, lay: Any, tree: Any, dims: tuple,
     17 scenarios a cruise at the rate bound took two), the better of
     the two and its residual; otherwise ``point`` and an infinite
     residual (the generated C skips both). The step is one Function,
-    called twice (its code is in the C once).
+    built once per solve and called twice, in the caller's own graph
+    (its code is in the C once, and no Function level more reserves the
+    QP's data in the work vector).
     """
-    point, d = _symbols(lay, tree, dims, data)
-    act = [ca.MX.sym("act_l", point[2].sparsity()),
-           ca.MX.sym("act_u", point[2].sparsity())]
-    c = ca.MX.sym("c")
     step = _active_step(kern, lay, tree, dims, flags, sweeps, residual,
                         data)
-    *pol, al, au, kkt = step(c, *point, *act, *d)
-    *pol2, _, _, kkt2 = step(ca.logic_and(c, broken(pol) > POLISH_TIGHT),
-                             *pol, al, au, *d)
-    second = kkt2 < kkt                     # a NaN kkt2 is not taken
-    out = [ca.if_else(second, a, b) for a, b in zip(pol2, pol)]
-    return ca.Function("sw_polish_third", [c, *point, *act, *d],
-                       out + [ca.if_else(second, kkt2, kkt)])
+
+    def more(c: Any, *args: Any) -> list:
+        point, act, d = args[:6], args[6:8], args[8:]
+        *pol, al, au, kkt = step(c, *point, *act, *d)
+        *pol2, _, _, kkt2 = step(
+            ca.logic_and(c, broken(pol) > POLISH_TIGHT), *pol, al, au, *d)
+        second = kkt2 < kkt                  # a NaN kkt2 is not taken
+        return ([ca.if_else(second, a, b) for a, b in zip(pol2, pol)]
+                + [ca.if_else(second, kkt2, kkt)])
+
+    return more
 
 
 def cascade_function(kern: dict, lay: Any, tree: Any, dims: tuple,
                      flags: np.ndarray, sweeps: dict, residual: Residual,
-                     more: ca.Function, data: list) -> ca.Function:
+                     more: Callable[..., list], data: list
+                     ) -> ca.Function:
     """``again(c, point…, kkt_ref, data…) -> (point…, kkt)``: when ``c``,
     the `cascade` from ``point`` and its residual; otherwise ``point``
     and an infinite residual (the generated C skips it)."""
