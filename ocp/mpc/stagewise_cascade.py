@@ -67,7 +67,7 @@ def cascade(kern: dict, lay: Any, tree: Any, dims: tuple,
     neither met `POLISH_ACCEPT` and ``kkt_ref`` (the iterate's own
     residual) misses it too: the second's guess less its wrong-signed
     rows, with the boxes its point breaks (`next_active`), and a fourth
-    the same way when the third's point still breaks a box: ``more``
+    the same way when the third's misses `POLISH_ACCEPT` too: ``more``
     (`polish_more`, built once per solve so that the generated C holds
     its code once).
     """
@@ -123,9 +123,10 @@ def polish_more(kern: dict, lay: Any, tree: Any, dims: tuple,
 
     When ``c``: a step of the active-set method from the polished
     ``point`` (`_active_step`), and a second one when the first's point
-    still breaks a box (the boxes it added were not all: on a tree of
-    17 scenarios a cruise at the rate bound took two), the better of
-    the two and its residual; otherwise ``point`` and an infinite
+    misses `POLISH_ACCEPT` (it still breaks a box, or a box it added
+    came out with the wrong sign: on a tree of 17 scenarios a cruise at
+    the rate bound took two steps), the better of the two and its
+    residual; otherwise ``point`` and an infinite
     residual (the generated C skips both). The step is one Function,
     built once per solve and called twice, in the caller's own graph
     (its code is in the C once, and no Function level more reserves the
@@ -138,7 +139,7 @@ def polish_more(kern: dict, lay: Any, tree: Any, dims: tuple,
         point, act, d = args[:6], args[6:8], args[8:]
         *pol, al, au, kkt = step(c, *point, *act, *d)
         *pol2, _, _, kkt2 = step(
-            ca.logic_and(c, broken(pol) > POLISH_TIGHT), *pol, al, au, *d)
+            ca.logic_and(c, kkt > POLISH_ACCEPT), *pol, al, au, *d)
         second = kkt2 < kkt                  # a NaN kkt2 is not taken
         return ([ca.if_else(second, a, b) for a, b in zip(pol2, pol)]
                 + [ca.if_else(second, kkt2, kkt)])

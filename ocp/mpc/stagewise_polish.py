@@ -22,7 +22,7 @@ drives) or, when the first polish could not meet its equalities (an
 inconsistent guess), on the clearly active boxes (`clear_active`); and,
 only when neither met `POLISH_ACCEPT`, on the second's guess less its
 wrong-signed rows and with the boxes its point breaks (`next_active`),
-and once more so when that point still breaks a box.
+and once more so when that point still misses `POLISH_ACCEPT`.
 """
 
 from __future__ import annotations
