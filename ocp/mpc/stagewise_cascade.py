@@ -3,8 +3,9 @@
 `ocp.mpc.stagewise_polish` solves the QP on a guess of the active set;
 this module chains up to four such polishes from one interior-point
 iterate, each a step of an active-set method on the guess before it
-(`cascade`; the last two only when needed, `polish_more`), and wraps what is needed only when the others fail as
-branches that the generated C skips (`cascade_function`): a CasADi
+(`cascade`; the last two only when needed, `polish_more`), and wraps
+what is needed only when the others fail as branches that the
+generated C skips (`cascade_function`): a CasADi
 ``Function.if_else`` whose other branch passes its arguments through
 (`passing`).
 """
@@ -56,7 +57,7 @@ def cascade(kern: dict, lay: Any, tree: Any, dims: tuple,
             more: Callable[..., list], point: list, data: list,
             kkt_ref: Any
             ) -> tuple[list, Any]:
-    """``(polished point, its residual)``: the best of up to three polishes
+    """``(polished point, its residual)``: the best of up to four polishes
     from the interior-point iterate ``point``.
 
     The first on the boxes with λ > s. The second: when the first met
@@ -126,8 +127,8 @@ def polish_more(kern: dict, lay: Any, tree: Any, dims: tuple,
     misses `POLISH_ACCEPT` (it still breaks a box, or a box it added
     came out with the wrong sign: on a tree of 17 scenarios a cruise at
     the rate bound took two steps), the better of the two and its
-    residual; otherwise ``point`` and an infinite
-    residual (the generated C skips both). The step is one Function,
+    residual; otherwise ``point`` and an infinite residual (the
+    generated C skips both). The step is one Function,
     built once per solve and called twice, in the caller's own graph
     (its code is in the C once, and no Function level more reserves the
     QP's data in the work vector).
