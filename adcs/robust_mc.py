@@ -30,6 +30,7 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 
 from adcs_common.exceptions import AdcsError, InvalidValueError
+from adcs_common.validation import as_finite_scalar
 from allocation import WheelArray, tilted_axes
 
 if TYPE_CHECKING:
@@ -122,8 +123,7 @@ def draw_plant(inertia: Any, wheels: WheelArray, seed: int, draw: int, *,
                 f"{name} must be a non-negative int, got {v!r}")
     for name, v in (("spread", spread), ("products", products),
                     ("misalignment", misalignment)):
-        if not 0.0 <= float(v) < 1.0:
-            raise InvalidValueError(f"{name} must be in [0, 1), got {v!r}")
+        _fraction(v, name)
     J = check_inertia(inertia)
     rng = np.random.default_rng(
         np.random.SeedSequence(int(seed), spawn_key=(int(draw),)))
@@ -139,6 +139,22 @@ def draw_plant(inertia: Any, wheels: WheelArray, seed: int, draw: int, *,
     Jd = check_inertia(Jd + off + off.T, "drawn inertia")
     axes = tilted_axes(np.array(wheels.axes), ta, tb)
     return PlantDraw(Jd, wheels.with_axes(axes), factors, prods, ta, tb)
+
+
+def _fraction(value: Any, name: str) -> float:
+    """``value`` as a float in [0, 1), else `InvalidValueError`."""
+    v = as_finite_scalar(value, name)
+    if not 0.0 <= v < 1.0:
+        raise InvalidValueError(f"{name} must be in [0, 1), got {value!r}")
+    return v
+
+
+def rate_excess(w: np.ndarray, rate_max: float) -> float:
+    """Largest excess of the body rates ``w`` (K, 3) [rad/s] over
+    ``rate_max`` [rad/s] (0 below it, or without a bound: 0)."""
+    if rate_max <= 0.0:
+        return 0.0
+    return max(float(np.abs(w).max()) - rate_max, 0.0)
 
 
 @functools.lru_cache(maxsize=8)
@@ -177,7 +193,8 @@ def robust_scenarios(inertia: Any, spread: float = INERTIA_SPREAD,
     from ocp.mpc import inertia_corners, scenario_grid
 
     corners = inertia_corners(inertia, spread)
-    if tree_products <= 0.0:
+    tree_products = _fraction(tree_products, "tree_products")
+    if tree_products == 0.0:
         return corners
     return corners[:1] + scenario_grid(
         inertia, inertia_scale=(1.0 - spread, 1.0 + spread),
@@ -196,13 +213,11 @@ def _fly(name: str, mpc: Any, plant: Any, qf: np.ndarray, t_final: float,
     except AdcsError:
         out[f"{name}_failed"] = 1.0
         return out
-    w = np.abs(r.trajectory.w).max()
     out.update({
         f"{name}_failed": 0.0,
         f"{name}_momentum_violation": r.momentum_violation,
         f"{name}_torque_violation": r.torque_violation,
-        f"{name}_rate_violation": (max(float(w) - rate_max, 0.0)
-                                   if rate_max > 0.0 else 0.0),
+        f"{name}_rate_violation": rate_excess(r.trajectory.w, rate_max),
         f"{name}_settle_time": r.settle_time,
         f"{name}_final_error": r.final_error,
         f"{name}_energy": r.energy,
@@ -314,12 +329,8 @@ def robust_mc_params(draws: int, *, seed: int = 0,
     if not rate_max >= 0:
         raise InvalidValueError(
             f"rate_max must be >= 0 rad/s (0: none), got {rate_max!r}")
-    if not 0.0 <= rate_margin < 1.0:
-        raise InvalidValueError(
-            f"rate_margin must be in [0, 1), got {rate_margin!r}")
-    if not 0.0 <= tree_products < 1.0:
-        raise InvalidValueError(
-            f"tree_products must be in [0, 1), got {tree_products!r}")
+    rate_margin = _fraction(rate_margin, "rate_margin")
+    tree_products = _fraction(tree_products, "tree_products")
     return [{"spacecraft": spacecraft, "seed": int(seed), "draw": k,
              "t_final": float(t_final), "rate_max": float(rate_max),
              "spread": float(spread), "angle_deg": float(angle_deg),

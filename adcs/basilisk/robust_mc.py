@@ -101,6 +101,17 @@ def _basilisk_run(mpc: Any, inertia: np.ndarray, wheels: WheelArray,
     return q, omega, h, u, ctl
 
 
+def _loop_figures(q: np.ndarray, h: np.ndarray, u: np.ndarray,
+                  qf: np.ndarray, wheels: WheelArray, dt: float) -> tuple:
+    """``(error (K+1,) [rad], momentum excess [N·m·s], torque excess
+    [N·m], energy [N²·m²·s])`` of a Basilisk loop (`_basilisk_run`'s
+    samples; an excess <= 0 is none)."""
+    return (np.array([_angle(x, qf) for x in q]),
+            float(np.max(np.abs(h) - wheels.h_max)),
+            float(np.max(np.abs(u) - wheels.m_max)),
+            float(np.sum(u ** 2) * dt))
+
+
 def fly_in_basilisk(draw: int, controller: str, mpc: Any, *, seed: int = 0,
                     angle: float = np.deg2rad(90.0), t_final: float = 30.0,
                     dt_dynamics: float = 0.1, Js: float = 1e-3
@@ -135,9 +146,9 @@ def fly_in_basilisk(draw: int, controller: str, mpc: Any, *, seed: int = 0,
                         plant=rigid_spacecraft(d.inertia, d.wheels))
     q, _, h, u, ctl = _basilisk_run(mpc, d.inertia, d.wheels, qf, t_final,
                                     dt_dynamics, Js)
-    err_b = np.array([_angle(x, qf) for x in q])
+    err_b, h_excess, m_excess, energy = _loop_figures(q, h, u, qf,
+                                                      model.wheels, mpc.dt)
     err_o = ours.trajectory.error_angle()
-    wh = model.wheels
     return BasiliskDraw(
         draw=int(draw), controller=controller,
         final_error_basilisk=float(err_b[-1]),
@@ -145,10 +156,8 @@ def fly_in_basilisk(draw: int, controller: str, mpc: Any, *, seed: int = 0,
         max_error_difference=float(np.abs(err_b - err_o).max()),
         max_torque_difference=float(np.abs(
             u - ours.trajectory.wheel_torque).max()),
-        momentum_excess=float(np.max(np.abs(h) - wh.h_max)),
-        torque_excess=float(np.max(np.abs(u) - wh.m_max)),
-        energy_basilisk=float(np.sum(u ** 2) * mpc.dt),
-        faults=int(ctl.faults))
+        momentum_excess=h_excess, torque_excess=m_excess,
+        energy_basilisk=energy, faults=int(ctl.faults))
 
 
 def basilisk_robust_mc(draws: int = 3, *, seed: int = 0,
@@ -181,24 +190,23 @@ def _fly_basilisk(name: str, mpc: Any, d: Any, qf: np.ndarray,
     """One loop in Basilisk: `adcs.robust_mc`'s metrics, prefixed."""
     from ocp.mpc.closed_loop import settle_time
 
+    from adcs.robust_mc import rate_excess
+
     q, w, h, u, ctl = _basilisk_run(mpc, d.inertia, d.wheels, qf, t_final,
                                     dt_dynamics, Js)
-    wh = mpc.model.wheels
-    err = np.array([_angle(x, qf) for x in q])
+    err, h_excess, m_excess, energy = _loop_figures(q, h, u, qf,
+                                                    mpc.model.wheels, mpc.dt)
     solve = [s.solve_time for s in ctl.steps]
     return {
         f"{name}_failed": float(ctl.faults > 0),
         f"{name}_faults": float(ctl.faults),
-        f"{name}_momentum_violation": max(
-            float(np.max(np.abs(h) - wh.h_max)), 0.0),
-        f"{name}_torque_violation": max(
-            float(np.max(np.abs(u) - wh.m_max)), 0.0),
-        f"{name}_rate_violation": (max(float(np.abs(w).max()) - rate_max,
-                                       0.0) if rate_max > 0.0 else 0.0),
+        f"{name}_momentum_violation": max(h_excess, 0.0),
+        f"{name}_torque_violation": max(m_excess, 0.0),
+        f"{name}_rate_violation": rate_excess(w, rate_max),
         f"{name}_settle_time": settle_time(
             mpc.dt * np.arange(len(err)), err, float(np.deg2rad(0.1))),
         f"{name}_final_error": float(err[-1]),
-        f"{name}_energy": float(np.sum(u ** 2) * mpc.dt),
+        f"{name}_energy": energy,
         f"{name}_step_time": (float(np.median(solve)) if solve
                               else float("nan"))}
 

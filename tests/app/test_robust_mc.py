@@ -182,6 +182,11 @@ def test_the_robust_tree_spans_the_products_when_asked():
             for s in wide[1:]}
     assert diag == {(a, b, c) for a in (0.8, 1.2) for b in (0.8, 1.2)
                     for c in (0.8, 1.2)}
+    for bad in (-0.05, 1.0, float("nan"), "wide", None):
+        with pytest.raises(InvalidValueError, match="tree_products"):
+            robust_scenarios(J, 0.2, bad)
+    with pytest.raises(InvalidValueError, match="spread"):
+        draw_plant(J, WHEELS, 0, 0, spread="wide")
 
 
 def test_cli_sweep_robust_refuses_a_bad_margin(tmp_path, capsys):
