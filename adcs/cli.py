@@ -244,7 +244,8 @@ def _sweep(args: argparse.Namespace) -> int:
                          spacecraft=args.spacecraft, t_fail=args.t_fail,
                          rate_max=args.rate_max,
                          rate_margin=args.rate_margin,
-                         tree_products=args.tree_products)
+                         tree_products=args.tree_products,
+                         keep_out_deg=args.keep_out_deg)
     with _dask_client(args, local=not args.sync) as client, \
             warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", SweepCacheWarning)
@@ -310,6 +311,10 @@ def _add_sweep(sub) -> None:
                      help="robust: the robust MPC's tree also spans these "
                      "products of inertia, ± of the largest moment (17 "
                      "scenarios; default 0: the 9 corners)")
+    swp.add_argument("--keep-out-deg", type=float, default=0.0,
+                     help="robust: half-angle of a keep-out cone across the "
+                     "slew [deg], held by both MPCs and counted (default 0: "
+                     "none)")
     swp.add_argument("--spacecraft", default="demo", help=SPACECRAFT_HELP)
     swp.add_argument("--t-fail", type=float, default=None,
                      help="failures: when the wheel fails [s] (default 10, "

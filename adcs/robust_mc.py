@@ -13,8 +13,10 @@ nominal inertia and the 8 corners of ``1 ± spread``
 Per draw and controller: whether the loop broke (the MPC raised: no
 plan met its bounds from the measured state, or its QP failed its
 certificate), the largest excess of the wheel momentum, wheel torque and
-body rate over their bounds, the settling time, the final error and
-the energy. Draw ``k`` of seed ``s`` uses the random stream
+body rate over their bounds, the entry into a keep-out cone (with
+``keep_out_deg``: a cone across the slew, `slew_keep_out`, held by both
+MPCs; the path between samples checked, `ocp.mpc.keep_out_margin`), the
+settling time, the final error and the energy. Draw ``k`` of seed ``s`` uses the random stream
 ``SeedSequence(s, spawn_key=(k,))`` alone, so a draw is the same
 whatever the chunking or the worker that flies it; `run_robust_mc`
 runs the draws on a Dask client (`adcs.sweep.run_sweep`) or serially.
@@ -59,8 +61,12 @@ VIOLATION_TOL = 1e-6
 CONTROLLERS = ("nominal", "robust")
 #: Per-controller outputs of `robust_mc_case` (prefixed by the name).
 METRICS = ("failed", "momentum_violation", "torque_violation",
-           "rate_violation", "settle_time", "final_error", "energy",
-           "step_time")
+           "rate_violation", "keep_out_violation", "settle_time",
+           "final_error", "energy", "step_time")
+#: How far the keep-out cone's direction lies off the slew's path, toward
+#: the slew axis [rad] (`slew_keep_out`): a cone centred on the path
+#: leaves the MPC a saddle to pass it by.
+KEEP_OUT_OFFSET = float(np.deg2rad(5.0))
 
 
 @dataclass(frozen=True)
@@ -149,6 +155,32 @@ def _fraction(value: Any, name: str) -> float:
     return v
 
 
+def slew_keep_out(angle: float, half_angle: float) -> Any:
+    """A keep-out cone across the Monte Carlo's slew (`ocp.KeepOut`).
+
+    The slew turns ``angle`` [rad] about (1, 1, 0) from rest at the
+    identity; the boresight (1, −1, 0)/√2, normal to that axis, sweeps a
+    great circle. The cone of ``half_angle`` [rad] is centred at the
+    boresight's direction half-way, moved `KEEP_OUT_OFFSET` toward the
+    axis: without a keep-out the slew passes through it.
+    """
+    from ocp import KeepOut
+
+    a = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0)
+    b = np.array([1.0, -1.0, 0.0]) / np.sqrt(2.0)
+    half = 0.5 * float(angle)
+    mid = np.cos(half) * b + np.sin(half) * np.cross(a, b)
+    s = np.cos(KEEP_OUT_OFFSET) * mid + np.sin(KEEP_OUT_OFFSET) * a
+    return KeepOut(b, s, float(half_angle))
+
+
+def _slew_cones(angle_deg: float, keep_out_deg: float) -> tuple:
+    """The Monte Carlo's cones: none, or `slew_keep_out`'s."""
+    if keep_out_deg == 0.0:
+        return ()
+    return (slew_keep_out(np.deg2rad(angle_deg), np.deg2rad(keep_out_deg)),)
+
+
 def rate_excess(w: np.ndarray, rate_max: float) -> float:
     """Largest excess of the body rates ``w`` (K, 3) [rad/s] over
     ``rate_max`` [rad/s] (0 below it, or without a bound: 0)."""
@@ -160,7 +192,7 @@ def rate_excess(w: np.ndarray, rate_max: float) -> float:
 @functools.lru_cache(maxsize=8)
 def _controllers(text: str, source: str, horizon: int, dt: float,
                  rate_max: float, spread: float, thread: int,
-                 tree_products: float = 0.0) -> tuple:
+                 tree_products: float = 0.0, cones: tuple = ()) -> tuple:
     """(craft, nominal MPC, robust MPC), built once per worker thread.
 
     ``text`` (the craft's TOML) keys the cache, so an edited file gets
@@ -176,10 +208,11 @@ def _controllers(text: str, source: str, horizon: int, dt: float,
     model = rigid_spacecraft(sc.inertia, sc.wheels)
     rate = None if rate_max <= 0.0 else rate_max
     nominal = AttitudeMPC(model, horizon=horizon, dt=dt, solver="stagewise",
-                          rti=True, rate_max=rate)
+                          rti=True, rate_max=rate, keep_out=cones)
     robust = RobustMPC(model, robust_scenarios(sc.inertia, spread,
                                                tree_products),
-                       horizon=horizon, dt=dt, rti=True, rate_max=rate)
+                       horizon=horizon, dt=dt, rti=True, rate_max=rate,
+                       keep_out=cones)
     return sc, nominal, robust
 
 
@@ -204,7 +237,7 @@ def robust_scenarios(inertia: Any, spread: float = INERTIA_SPREAD,
 def _fly(name: str, mpc: Any, plant: Any, qf: np.ndarray, t_final: float,
          rate_max: float) -> dict:
     """One closed loop from rest: the metrics, prefixed by ``name``."""
-    from ocp.mpc import simulate_mpc
+    from ocp.mpc import keep_out_margin, simulate_mpc
 
     out = {f"{name}_{k}": float("nan") for k in METRICS}
     try:
@@ -218,6 +251,8 @@ def _fly(name: str, mpc: Any, plant: Any, qf: np.ndarray, t_final: float,
         f"{name}_momentum_violation": r.momentum_violation,
         f"{name}_torque_violation": r.torque_violation,
         f"{name}_rate_violation": rate_excess(r.trajectory.w, rate_max),
+        f"{name}_keep_out_violation": max(0.0, -keep_out_margin(
+            r, mpc.keep_out, plant)) if mpc.keep_out else 0.0,
         f"{name}_settle_time": r.settle_time,
         f"{name}_final_error": r.final_error,
         f"{name}_energy": r.energy,
@@ -229,7 +264,8 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
                    rate_max: float, spread: float, angle_deg: float,
                    horizon: int = 20, dt: float = 0.5,
                    rate_margin: float = 0.0,
-                   tree_products: float = 0.0) -> dict:
+                   tree_products: float = 0.0,
+                   keep_out_deg: float = 0.0) -> dict:
     """Fly draw ``draw`` by the nominal and the robust MPC.
 
     Parameters
@@ -254,6 +290,9 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
     tree_products : float
         The robust MPC's tree also spans the products of inertia
         ``±tree_products`` of the largest moment (`robust_scenarios`) [1].
+    keep_out_deg : float
+        Half-angle of a keep-out cone across the slew (`slew_keep_out`),
+        held by both MPCs [deg]; 0: none.
 
     Returns
     -------
@@ -261,7 +300,9 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
         The drawn factors, products and largest tilt [rad], then for
         ``nominal`` and ``robust``: ``failed`` (1: the loop broke),
         ``momentum_violation`` [N·m·s], ``torque_violation`` [N·m],
-        ``rate_violation`` [rad/s], ``settle_time`` [s],
+        ``rate_violation`` [rad/s], ``keep_out_violation`` (how deep
+        the path, sampled 8 times per sample, entered the cone) [rad],
+        ``settle_time`` [s],
         ``final_error`` [rad], ``energy`` [N²·m²·s], ``step_time``
         (median, [s]; the only output that varies between runs).
     """
@@ -269,7 +310,7 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
 
     pair, d, qf, out = draw_case(spacecraft, seed, draw, rate_max, spread,
                                  angle_deg, horizon, dt, rate_margin,
-                                 tree_products)
+                                 tree_products, keep_out_deg)
     plant = rigid_spacecraft(d.inertia, d.wheels)
     for name, mpc in zip(CONTROLLERS, pair):
         out.update(_fly(name, mpc, plant, qf, t_final, float(rate_max)))
@@ -278,7 +319,8 @@ def robust_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
 
 def draw_case(spacecraft: str, seed: int, draw: int, rate_max: float,
               spread: float, angle_deg: float, horizon: int, dt: float,
-              rate_margin: float, tree_products: float = 0.0) -> tuple:
+              rate_margin: float, tree_products: float = 0.0,
+              keep_out_deg: float = 0.0) -> tuple:
     """What a case of the Monte Carlo flies (`robust_mc_case`'s inputs).
 
     Returns ``((nominal, robust), draw, qf, outputs)``: the two MPCs of
@@ -293,7 +335,8 @@ def draw_case(spacecraft: str, seed: int, draw: int, rate_max: float,
     sc, nominal, robust = _controllers(
         text, str(spacecraft), int(horizon), float(dt),
         float(rate_max) * (1.0 - float(rate_margin)), float(spread),
-        threading.get_ident(), float(tree_products))
+        threading.get_ident(), float(tree_products),
+        _slew_cones(float(angle_deg), float(keep_out_deg)))
     d = draw_plant(sc.inertia, sc.wheels, seed, draw)
     qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(angle_deg))
     out = {f"factor_{i + 1}": float(f) for i, f in enumerate(d.factors)}
@@ -318,7 +361,8 @@ def robust_mc_params(draws: int, *, seed: int = 0,
                      spread: float = INERTIA_SPREAD,
                      angle_deg: float = 90.0, horizon: int = 20,
                      dt: float = 0.5, rate_margin: float = 0.0,
-                     tree_products: float = 0.0) -> list[dict]:
+                     tree_products: float = 0.0,
+                     keep_out_deg: float = 0.0) -> list[dict]:
     """One parameter row per draw (`robust_mc_case`'s arguments)."""
     if isinstance(draws, bool) or not isinstance(draws, (int, np.integer)) \
             or draws < 1:
@@ -331,12 +375,25 @@ def robust_mc_params(draws: int, *, seed: int = 0,
             f"rate_max must be >= 0 rad/s (0: none), got {rate_max!r}")
     rate_margin = _fraction(rate_margin, "rate_margin")
     tree_products = _fraction(tree_products, "tree_products")
+    keep_out_deg = as_finite_scalar(keep_out_deg, "keep_out_deg")
+    if keep_out_deg < 0.0:
+        raise InvalidValueError(
+            f"keep_out_deg must be >= 0 (0: none), got {keep_out_deg!r}")
+    from ocp import quat_from_axis_angle
+
+    for cone in _slew_cones(float(angle_deg), keep_out_deg):
+        qf = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(angle_deg))
+        if min(cone.margin([1.0, 0.0, 0.0, 0.0]), cone.margin(qf)) <= 0.0:
+            raise InvalidValueError(
+                f"a keep-out cone of {keep_out_deg:g}° covers the slew's "
+                "start or end: take a smaller half-angle")
     return [{"spacecraft": spacecraft, "seed": int(seed), "draw": k,
              "t_final": float(t_final), "rate_max": float(rate_max),
              "spread": float(spread), "angle_deg": float(angle_deg),
              "horizon": int(horizon), "dt": float(dt),
              "rate_margin": float(rate_margin),
-             "tree_products": float(tree_products)}
+             "tree_products": float(tree_products),
+             "keep_out_deg": float(keep_out_deg)}
             for k in range(int(draws))]
 
 
@@ -399,6 +456,9 @@ class ControllerSummary:
     rate_over_median, rate_over_max : float
         Median and largest rate overshoot over the loops that ran, as a
         fraction of the rate bound [1] (0 without a bound).
+    keep_out : int
+        Loops whose path entered the keep-out cone by more than
+        ``VIOLATION_TOL`` of its half-angle (0 without a cone).
     """
 
     controller: str
@@ -415,6 +475,7 @@ class ControllerSummary:
     step_time_median: float
     rate_over_median: float = 0.0
     rate_over_max: float = 0.0
+    keep_out: int = 0
 
 
 def _nan_stat(f: Any, v: np.ndarray) -> float:
@@ -432,6 +493,8 @@ def summarise(ds: Any, wheels: WheelArray | None = None
     h_max = 0.2 if wheels is None else float(np.min(wheels.h_max))
     m_max = 0.05 if wheels is None else float(np.min(wheels.m_max))
     rate = np.asarray(ds["rate_max"], float)
+    cone = np.deg2rad(np.asarray(ds["keep_out_deg"], float)
+                      if "keep_out_deg" in ds else np.zeros_like(rate))
     out = []
     for c in CONTROLLERS:
         def col(k: str) -> np.ndarray:
@@ -441,6 +504,9 @@ def summarise(ds: Any, wheels: WheelArray | None = None
         settle = col("settle_time")[ran]
         scaled_rate = np.where(rate > 0, col("rate_violation")
                                / np.where(rate > 0, rate, 1.0), 0.0)
+        keep = (np.where(cone > 0, col("keep_out_violation")
+                         / np.where(cone > 0, cone, 1.0), 0.0)
+                if f"{c}_keep_out_violation" in ds else np.zeros_like(rate))
         out.append(ControllerSummary(
             controller=c, draws=int(col("failed").size),
             failed=int(np.sum(~ran)),
@@ -456,14 +522,16 @@ def summarise(ds: Any, wheels: WheelArray | None = None
             energy_median=_nan_stat(np.median, col("energy")[ran]),
             step_time_median=_nan_stat(np.median, col("step_time")[ran]),
             rate_over_median=_nan_stat(np.median, scaled_rate[ran]),
-            rate_over_max=_nan_stat(np.max, scaled_rate[ran])))
+            rate_over_max=_nan_stat(np.max, scaled_rate[ran]),
+            keep_out=int(np.sum(keep[ran] > VIOLATION_TOL))))
     return out
 
 
 def robust_mc_table(ds: Any, wheels: WheelArray | None = None) -> str:
     """Markdown table: nominal and robust side by side, with ratios.
 
-    Rows: draws, loops broken, momentum / torque / rate violations,
+    Rows: draws, loops broken, momentum / torque / rate / keep-out
+    violations,
     the rate overshoot's median and largest [% of the bound], settled
     loops, settling time median and worst [s], largest final
     error [deg], median energy [N²·m²·s], median step time [ms]; the
@@ -474,6 +542,7 @@ def robust_mc_table(ds: Any, wheels: WheelArray | None = None) -> str:
             ("momentum violations", "momentum", "{:d}"),
             ("torque violations", "torque", "{:d}"),
             ("rate violations", "rate", "{:d}"),
+            ("keep-out violations", "keep_out", "{:d}"),
             ("rate overshoot, median [% of bound]", "rate_over_median",
              "{:.3f}"),
             ("rate overshoot, largest [% of bound]", "rate_over_max",

@@ -77,15 +77,18 @@ def _basilisk_run(mpc: Any, inertia: np.ndarray, wheels: WheelArray,
     """Fly ``mpc`` on the plant in Basilisk.
 
     Returns ``(q (K+1, 4), ω (K+1, 3) [rad/s], H_w (K+1, N) true rotor
-    momenta, commands (K, N), the module)``, sampled at the MPC's period.
+    momenta, commands (K, N), the module, q_path)``, sampled at the MPC's
+    period; ``q_path`` the hub's attitude at every dynamics step.
     """
     from Basilisk.utilities import SimulationBaseClass, macros
 
     from .scenarios import run_recorded, spacecraft_task
 
     sim = SimulationBaseClass.SimBaseClass()
-    _, rw, nav = spacecraft_task(sim, inertia, wheels, Js, dt_dynamics)
+    hub, rw, nav = spacecraft_task(sim, inertia, wheels, Js, dt_dynamics)
     ctl = mpc_task(sim, mpc, qf, Js, nav, rw)
+    path = hub.scStateOutMsg.recorder(macros.sec2nano(dt_dynamics))
+    sim.AddModelToTask("dyn", path)
     recs = run_recorded(sim, [nav.attOutMsg, rw.rwSpeedOutMsg,
                               ctl.rwMotorTorqueOutMsg],
                         macros.sec2nano(mpc.dt), t_final)
@@ -98,7 +101,9 @@ def _basilisk_run(mpc: Any, inertia: np.ndarray, wheels: WheelArray,
     q = np.array([mrp_to_quaternion(s) for s in sigma])
     h = np.array([rotor_momenta(wheels, Js, sp, w)
                   for sp, w in zip(speeds, omega)])
-    return q, omega, h, u, ctl
+    q_path = np.array([mrp_to_quaternion(s)
+                       for s in np.asarray(path.sigma_BN)])
+    return q, omega, h, u, ctl, q_path
 
 
 def _loop_figures(q: np.ndarray, h: np.ndarray, u: np.ndarray,
@@ -144,7 +149,7 @@ def fly_in_basilisk(draw: int, controller: str, mpc: Any, *, seed: int = 0,
     qf = quat_from_axis_angle([1.0, 1.0, 0.0], angle)
     ours = simulate_mpc(mpc, [1.0, 0.0, 0.0, 0.0], qf, t_final=t_final,
                         plant=rigid_spacecraft(d.inertia, d.wheels))
-    q, _, h, u, ctl = _basilisk_run(mpc, d.inertia, d.wheels, qf, t_final,
+    q, _, h, u, ctl, _ = _basilisk_run(mpc, d.inertia, d.wheels, qf, t_final,
                                     dt_dynamics, Js)
     err_b, h_excess, m_excess, energy = _loop_figures(q, h, u, qf,
                                                       model.wheels, mpc.dt)
@@ -192,8 +197,8 @@ def _fly_basilisk(name: str, mpc: Any, d: Any, qf: np.ndarray,
 
     from adcs.robust_mc import rate_excess
 
-    q, w, h, u, ctl = _basilisk_run(mpc, d.inertia, d.wheels, qf, t_final,
-                                    dt_dynamics, Js)
+    q, w, h, u, ctl, q_path = _basilisk_run(mpc, d.inertia, d.wheels, qf,
+                                            t_final, dt_dynamics, Js)
     err, h_excess, m_excess, energy = _loop_figures(q, h, u, qf,
                                                     mpc.model.wheels, mpc.dt)
     solve = [s.solve_time for s in ctl.steps]
@@ -203,6 +208,9 @@ def _fly_basilisk(name: str, mpc: Any, d: Any, qf: np.ndarray,
         f"{name}_momentum_violation": max(h_excess, 0.0),
         f"{name}_torque_violation": max(m_excess, 0.0),
         f"{name}_rate_violation": rate_excess(w, rate_max),
+        f"{name}_keep_out_violation": max(0.0, -float(min(
+            np.min(c.margin(q_path)) for c in mpc.keep_out)))
+        if mpc.keep_out else 0.0,
         f"{name}_settle_time": settle_time(
             mpc.dt * np.arange(len(err)), err, float(np.deg2rad(0.1))),
         f"{name}_final_error": float(err[-1]),
@@ -215,7 +223,8 @@ def basilisk_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
                      rate_max: float, spread: float, angle_deg: float,
                      horizon: int = 20, dt: float = 0.5,
                      rate_margin: float = 0.0, tree_products: float = 0.0,
-                     dt_dynamics: float = 0.1, Js: float = 1e-3) -> dict:
+                     keep_out_deg: float = 0.0, dt_dynamics: float = 0.1,
+                     Js: float = 1e-3) -> dict:
     """`adcs.robust_mc.robust_mc_case` flown in Basilisk.
 
     The same draw, controllers and outputs (so `adcs.robust_mc.summarise`
@@ -225,7 +234,8 @@ def basilisk_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
     it commands zero torques for a refused step and counts it, so
     ``failed`` is 1 when the loop had a fault (``faults``: how many); the
     rate is Basilisk's navigation rate at the MPC's samples, the momenta
-    the true rotor momenta on the tilted axes; ``step_time`` is the
+    the true rotor momenta on the tilted axes, the keep-out cone's entry
+    from the hub's attitude at every dynamics step; ``step_time`` is the
     median of the module's steps' ``solve_time`` [s].
     """
     require_basilisk()
@@ -233,7 +243,7 @@ def basilisk_mc_case(spacecraft: str, seed: int, draw: int, t_final: float,
 
     pair, d, qf, out = draw_case(spacecraft, seed, draw, rate_max, spread,
                                  angle_deg, horizon, dt, rate_margin,
-                                 tree_products)
+                                 tree_products, keep_out_deg)
     for name, mpc in zip(CONTROLLERS, pair):
         out.update(_fly_basilisk(name, mpc, d, qf, float(t_final),
                                  float(rate_max), float(dt_dynamics),

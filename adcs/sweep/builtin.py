@@ -215,14 +215,14 @@ def _failures(quick: bool, spacecraft: str = "demo",
 def _robust(quick: bool, samples: int | None = None,
             spacecraft: str = "demo", rate_max: float = 0.0,
             rate_margin: float = 0.0, tree_products: float = 0.0,
-            **_) -> list[dict]:
+            keep_out_deg: float = 0.0, **_) -> list[dict]:
     # draws of the robust-MPC Monte Carlo (adcs.robust_mc): 200, quick 8;
     # a rate bound's loops run 60 s (the slew is slower)
     return robust_mc_params(
         samples or (8 if quick else 200), spacecraft=spacecraft,
         t_final=30.0 if quick else (60.0 if rate_max > 0 else 50.0),
         rate_max=rate_max, rate_margin=rate_margin,
-        tree_products=tree_products)
+        tree_products=tree_products, keep_out_deg=keep_out_deg)
 
 
 # the engine hashes a case's inputs through this hook (`chunk_inputs`)

@@ -63,6 +63,8 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "rate_margin": ("1", "both MPCs plan rate_max·(1 − rate_margin)"),
     "tree_products": ("1", "robust MPC's tree also spans these products "
                       "of inertia (± of the largest moment; 0: none)"),
+    "keep_out_deg": ("deg", "half-angle of the keep-out cone across the "
+                     "slew, held by both MPCs (0: none)"),
     "spread": ("1", "robust MPC's inertia corners 1 ± spread"),
     "horizon": ("1", "MPC horizon (stages)"),
     "dt": ("s", "MPC sample time"),
@@ -88,6 +90,8 @@ for _c in ("nominal", "robust"):
                                    "|m_i| over m_max"),
         f"{_c}_rate_violation": ("rad/s", f"{_c} MPC: largest excess of "
                                  "|ω_i| over rate_max"),
+        f"{_c}_keep_out_violation": ("rad", f"{_c} MPC: how deep the "
+                                     "path entered the keep-out cone"),
         f"{_c}_settle_time": ("s", f"{_c} MPC: time to settle within "
                               "0.1°"),
         f"{_c}_final_error": ("rad", f"{_c} MPC: attitude error at the "

@@ -275,3 +275,12 @@ def driver_verdict(times: dict[str, dict], plan: dict[str, Any] | None
         return True, ("driver checks: every call returned 0, every closed "
                       "loop reached its target")
     return False, "driver checks FAILED: " + "; ".join(failed)
+
+
+def plan_length(f: Any, loop: dict[str, Any]) -> int:
+    """Reals in one plan of the MPC step ``f`` (the driver's cold start):
+    ``(N + 1) n_x + N n_u``, N ``loop["horizon"]``; a robust step's z
+    holds one plan per scenario. The whole z when it is not a multiple."""
+    nx, nu, N = f.nnz_in(0), f.nnz_out(0), int(loop["horizon"])
+    n = (N + 1) * nx + N * nu
+    return n if f.nnz_in(3) % n == 0 else int(f.nnz_in(3))

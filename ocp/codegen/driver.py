@@ -8,7 +8,7 @@ from importlib import resources
 import casadi as ca
 import numpy as np
 from ocp.models.rigid import SpacecraftModel
-from .checks import loop_plan
+from .checks import loop_plan, plan_length
 from .loop_starts import loop_start_source
 from .precision import README_SINGLE
 from .result import OPT_FLAGS, SOURCE
@@ -114,7 +114,8 @@ def _driver_source(fns: dict[str, ca.Function],
                 f"  bad |= closed_loop(\"{name}\", {name}, {name}_work, "
                 f"{name}_checkout, {name}_release, {name}_in0, {name}_in1,"
                 f" {f.nnz_in(0)}, {f.nnz_in(3)}, {f.nnz_in(5)}, "
-                f"{f.nnz_out(0)}, {loop['dt']!r}, {steps}, "
+                f"{f.nnz_out(0)}, {plan_length(f, loop)}, {loop['dt']!r}, "
+                f"{steps}, "
                 f"{math.degrees(loop['final_error_tol'])!r}, "
                 f"{float(loop['violation_tol'])!r});")
     main = ("int main(void) {\n  int bad = 0;\n  driver_init();\n"

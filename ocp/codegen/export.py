@@ -82,7 +82,7 @@ from .precision import (DAQP_SINGLE_FLAG,
                         duty_qp_options, patch_qrqp_failure, to_single,
                         wheel_qp_options)
 from .mpc_variants import MPC_VARIANTS, check_variants as _check_variants
-from .mpc_variants import mpc_functions
+from .mpc_variants import check_variant_options, mpc_functions
 from .qrqp_patch import patch_qrqp
 from .result import ExportResult, OPT_FLAGS, SOURCE
 from .linux_target import LINUX_TARGETS
@@ -198,7 +198,7 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                       condensed_qp_plugin: str | None = None,
                       precision: str = "double",
                       mpc_move_blocks: Any = None,
-                      mpc_scenarios: Any = None
+                      mpc_scenarios: Any = None, mpc_keep_out: Any = None
                       ) -> tuple[dict[str, ca.Function],
                                  dict[str, list[np.ndarray]],
                                  SpacecraftModel]:
@@ -272,7 +272,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
             model, mpc_variants, horizon=horizon, dt=dt,
             max_iter=mpc_max_iter, rate_max=rate_max,
             condensed_plugin=condensed, precision=precision,
-            move_blocks=mpc_move_blocks, scenarios=mpc_scenarios)
+            move_blocks=mpc_move_blocks, scenarios=mpc_scenarios,
+            keep_out=mpc_keep_out)
         fns.update({k: _renamed(f, k) for k, f in mpc_fns.items()})
         samples.update(mpc_samples)
     return fns, samples, model
@@ -385,7 +386,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              mpc_variants: ArrayLike = ("mpc_step", "mpc_rti_step",
                                           "mpc_cond_rti_step"),
              mpc_move_blocks: Any = None,
-             mpc_scenarios: Any = None,
+             mpc_scenarios: Any = None, mpc_keep_out: Any = None,
              wheel_qp_plugin: str | None = None,
              wheel_qp_fast_path: bool = True,
              duty_qp_plugin: str | None = None,
@@ -428,6 +429,9 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     mpc_scenarios : sequence of Scenario, optional
         Scenarios of the robust steps (`ocp.mpc.RobustMPC`); default the
         nominal craft and the 8 corners of ±20 % principal inertia.
+    mpc_keep_out : KeepOut or sequence of KeepOut, optional
+        Keep-out cones of the stage-wise and robust steps (`AttitudeMPC`
+        ``keep_out``).
     mpc_variants : sequence of str
         MPC steps to export (`MPC_VARIANTS`): ``"mpc_step"`` (sqpmethod +
         qrqp to convergence), ``"mpc_rti_step"`` (one SQP step per
@@ -522,21 +526,13 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     condensed = _resolve_wheel_qp_plugin(condensed, "condensed_qp_plugin")
     check_single(check_precision(precision), {
         "condensed_qp_plugin": condensed}, mpc_variants)
-    if mpc_move_blocks is not None and not any("_sw_" in v
-                                               for v in mpc_variants):
-        raise InvalidValueError(
-            "mpc_move_blocks applies to the stage-wise MPC steps "
-            "(mpc_sw_step, mpc_sw_rti_step): export one of them")
-    if mpc_scenarios is not None and not any("robust" in v
-                                             for v in mpc_variants):
-        raise InvalidValueError(
-            "mpc_scenarios applies to the robust MPC steps "
-            "(mpc_robust_step, mpc_robust_rti_step): export one of them")
+    check_variant_options(mpc_variants, move_blocks=mpc_move_blocks,
+                          scenarios=mpc_scenarios, keep_out=mpc_keep_out)
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
         mpc_max_iter=mpc_max_iter, mpc_move_blocks=mpc_move_blocks,
-        mpc_scenarios=mpc_scenarios,
+        mpc_scenarios=mpc_scenarios, mpc_keep_out=mpc_keep_out,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
         rate_max=rate_max, condensed_qp_plugin=condensed,

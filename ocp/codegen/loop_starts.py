@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from adcs_common.exceptions import InvalidValueError
-from .checks import check_loop_steps
+from .checks import check_loop_steps, plan_length
 from .result import ExportResult
 
 __all__ = ["loop_key", "loop_start_source", "write_loop_starts"]
@@ -96,7 +96,8 @@ def loop_start_source(fns: dict[str, ca.Function], starts: np.ndarray,
             f"    bad |= closed_loop({name}_loop_names[s], {name}, "
             f"{name}_work, {name}_checkout, {name}_release, loop_starts + "
             f"s * {nx}, loop_target, {f.nnz_in(0)}, {f.nnz_in(3)}, "
-            f"{f.nnz_in(5)}, {f.nnz_out(0)}, {loop['dt']!r}, "
+            f"{f.nnz_in(5)}, {f.nnz_out(0)}, {plan_length(f, loop)}, "
+            f"{loop['dt']!r}, "
             f"{loop['steps']}, {math.degrees(loop['final_error_tol'])!r}, "
             f"{float(loop['violation_tol'])!r}); }}")
     return "\n".join(decl), "\n".join(calls)

@@ -41,11 +41,27 @@ def check_variants(variants: Any) -> tuple[str, ...]:
     return tuple(variants)
 
 
+def check_variant_options(variants: Sequence[str], *, move_blocks: Any,
+                          scenarios: Any, keep_out: Any) -> None:
+    """Refuse an MPC option that no exported variant takes."""
+    sw, robust = (any(k in v for v in variants) for k in ("_sw_", "robust"))
+    for name, value, ok, which in (
+            ("mpc_move_blocks", move_blocks, sw,
+             "stage-wise MPC steps (mpc_sw_step, mpc_sw_rti_step)"),
+            ("mpc_scenarios", scenarios, robust,
+             "robust MPC steps (mpc_robust_step, mpc_robust_rti_step)"),
+            ("mpc_keep_out", keep_out, sw or robust,
+             "stage-wise and robust MPC steps")):
+        if value is not None and not ok:
+            raise InvalidValueError(
+                f"{name} applies to the {which}: export one of them")
+
+
 def mpc_functions(model: SpacecraftModel, variants: Sequence[str], *,
                   horizon: int, dt: float, max_iter: int,
                   rate_max: float | None, condensed_plugin: str,
                   precision: str, move_blocks: Any = None,
-                  scenarios: Any = None
+                  scenarios: Any = None, keep_out: Any = None
                   ) -> tuple[dict[str, ca.Function],
                              dict[str, list[np.ndarray]]]:
     """``(functions, samples)`` of the MPC variants asked for.
@@ -68,12 +84,13 @@ def mpc_functions(model: SpacecraftModel, variants: Sequence[str], *,
         if "robust" in name:
             ctl: Any = RobustMPC(model, list(scenarios) if scenarios
                                  else inertia_corners(model.inertia, 0.2),
-                                 **common)
+                                 keep_out=keep_out, **common)
         else:
             kw = ({"solver": "condensed", "qp_solver": condensed_plugin,
                    "solver_options": condensed_options(precision)}
                   if "cond" in name else
-                  {"solver": "stagewise", "move_blocks": move_blocks}
+                  {"solver": "stagewise", "move_blocks": move_blocks,
+                   "keep_out": keep_out}
                   if "_sw_" in name else
                   {"solver": "sqpmethod", "expand": False})
             ctl = AttitudeMPC(model, **common, **kw)

@@ -5,6 +5,7 @@ from .closed_loop import (
     closed_loop_table,
     closed_loop_frame,
     compare_slew,
+    keep_out_margin,
     simulate_mpc,
 )
 from .controller import (
@@ -32,6 +33,7 @@ __all__ = [
     "closed_loop_frame",
     "compare_slew",
     "inertia_corners",
+    "keep_out_margin",
     "scenario_grid",
     "simulate_mpc",
 ]

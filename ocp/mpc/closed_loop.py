@@ -29,6 +29,7 @@ __all__ = [
     "ClosedLoopResult",
     "closed_loop_table",
     "compare_slew",
+    "keep_out_margin",
     "settle_time",
     "simulate_mpc",
 ]
@@ -260,6 +261,56 @@ def simulate_mpc(mpc: AttitudeMPC, q0: ArrayLike, qf: ArrayLike, *,
     return _result_from_trajectory(
         f"MPC {mpc.name}", traj, mpc.wheels, settle_angle, hold, times,
         loop)
+
+
+def keep_out_margin(result: ClosedLoopResult, keep_out: Any,
+                    plant: SpacecraftModel, substeps: int = 8,
+                    disturbance: ArrayLike | None = None) -> float:
+    """Smallest angle [rad] of a closed loop's path from its keep-out cones.
+
+    The path between the samples of ``result`` (`simulate_mpc`) is
+    integrated again on ``plant`` (the plant the loop flew, CVODES) with
+    each sample's command held, at ``substeps`` points per sample; the
+    margin is `ocp.KeepOut.margin`'s over those points and the samples
+    (negative: the boresight entered a cone). ``disturbance`` (3,) [N·m]
+    is the constant torque the loop flew with (default none).
+    """
+    from .keepout import as_keep_out
+
+    cones = as_keep_out(keep_out)
+    if not cones:
+        raise InvalidValueError("keep_out names no cone")
+    if not isinstance(result, ClosedLoopResult):
+        raise InvalidValueError(
+            f"result must be a ClosedLoopResult, got {type(result).__name__}")
+    if not isinstance(plant, SpacecraftModel):
+        raise InvalidValueError(
+            f"plant must be a SpacecraftModel, got {type(plant).__name__}")
+    if isinstance(substeps, bool) or not isinstance(
+            substeps, (int, np.integer)) or substeps < 1:
+        raise InvalidValueError(
+            f"substeps must be a positive int, got {substeps!r}")
+    tau = np.zeros(3) if disturbance is None else as_vector(
+        disturbance, 3, "disturbance")
+    tr = result.trajectory
+    if tr.wheel_torque is None or tr.wheel_momentum is None:
+        raise InvalidValueError("keep_out_margin needs a wheeled loop")
+    U = np.asarray(tr.wheel_torque, dtype=float)
+    if "duty" in tr.extras:
+        U = np.c_[U, tr.extras["duty"]]
+    if U.shape[1] != plant.nu or len(tr.t) < 2:
+        raise InvalidValueError(
+            "plant must have the loop's controls, and the loop a sample")
+    F = plant.integrator(float(tr.t[1] - tr.t[0]) / int(substeps))
+    X = np.c_[tr.q, tr.w, tr.wheel_momentum]
+    qs = [tr.q]
+    for k in range(len(U)):
+        x = X[k]
+        for _ in range(int(substeps) - 1):
+            x = np.asarray(F(x0=x, p=np.r_[U[k], tau])["xf"]).ravel()
+            qs.append(x[None, :4])
+    q = np.concatenate(qs)
+    return float(min(np.min(c.margin(q)) for c in cones))
 
 
 def compare_slew(model: SpacecraftModel, q0: ArrayLike, qf: ArrayLike, *,

@@ -71,6 +71,7 @@ from .condensed import (check_condensed_options, condensed_qp_plugin,
                         condensed_step_functions)
 from .stagewise import (block_lengths, check_stagewise_options,
                         stagewise_step_functions)
+from .keepout import KEEP_OUT_BACKOFF, as_keep_out
 from .nlp_step import build_nlp_step
 from .plan import (check_function, plan_bounds, residual_function,
                    shift_function)
@@ -175,6 +176,10 @@ class AttitudeMPC:
         ones first) or the given block lengths (summing to the horizon).
         The number of free controls falls from N to M; the work per stage
         stays (`ocp.mpc.stagewise`).
+    keep_out : KeepOut or sequence of KeepOut, optional
+        Keep-out cones held at every planned state (``"stagewise"``
+        only), linearised per SQP step as states of the QP
+        (`ocp.mpc.keepout`), planned ``KEEP_OUT_BACKOFF`` inside.
 
     Raises
     ------
@@ -192,7 +197,8 @@ class AttitudeMPC:
                  rate_max: float | None = None, max_iter: int = 50,
                  expand: bool = True,
                  solver_options: dict | None = None,
-                 move_blocks: int | Sequence[int] | None = None) -> None:
+                 move_blocks: int | Sequence[int] | None = None,
+                 keep_out: Any = None) -> None:
         self._lock = new_lock()
         self._owner: int | None = None
         if isinstance(model, Spacecraft):
@@ -259,6 +265,11 @@ class AttitudeMPC:
         self.fallback_max_iter = int(max_iter)
         #: Lengths of the move blocks (stages per held control), or None.
         self.move_blocks = block_lengths(move_blocks, self.horizon, solver)
+        self.keep_out = as_keep_out(keep_out)
+        self.keep_out_backoff = KEEP_OUT_BACKOFF
+        if self.keep_out and solver != "stagewise":
+            raise InvalidValueError(
+                f"keep_out needs solver='stagewise', got {solver!r}")
         self.expand = bool(expand)
         #: Levenberg–Marquardt term added to the Gauss–Newton Hessian: the
         #: GN Hessian is singular (no cost on ``|q|`` or on x_0), and qrqp

@@ -7,6 +7,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from .keepout import cone_function, plan_cone_violation
 from .problem import (dynamics_sign, momentum_residual,
                       pointing_residuals, torque_residual)
 
@@ -108,7 +109,8 @@ def check_function(mpc: Any, p: ca.MX) -> ca.Function:
     """``check(z, p) -> (cost, violation, first_violation, defect)``.
 
     ``mpc`` is the `AttitudeMPC` (its bounds, their scale, the residuals);
-    the violations are scaled by each bound [1], ``first_violation`` over
+    the violations are scaled by each bound [1] (a keep-out cone's in cos
+    units, `ocp.mpc.keepout`), ``first_violation`` over
     the applied command and the state after it; ``defect`` is the largest
     dynamics defect of the plan [state units]. A plan with a NaN or an
     infinity has NaN violations and defect (`nan_unless_finite`).
@@ -121,6 +123,12 @@ def check_function(mpc: Any, p: ca.MX) -> ca.Function:
     viol_first = bound_violation(zs, mpc.lbz, mpc.ubz, mpc._bound_scale,
                                  first)
     defect = ca.mmax(ca.fabs(gs))
+    if mpc.keep_out:
+        cones = cone_function(mpc.keep_out, mpc.model.nx)
+        viol = ca.fmax(viol, plan_cone_violation(
+            cones, ca.horzcat(*[zs[s] for s in mpc._xs[1:]])))
+        viol_first = ca.fmax(viol_first, plan_cone_violation(
+            cones, zs[mpc._xs[1]]))
     viol, viol_first, defect = nan_unless_finite(zs, viol, viol_first,
                                                  defect)
     return ca.Function(

@@ -5,7 +5,7 @@
 starts from the measured state and applies the same first command (the
 tree branches at the first stage: robust horizon 1), its cost is the
 weighted sum of the scenarios' costs, and every bound (torque, momentum,
-rate) holds in every scenario. The step is the stage-wise SQP on the
+rate, keep-out cones) holds in every scenario. The step is the stage-wise SQP on the
 scenario tree (`ocp.mpc.robust_qp`); with one scenario, the nominal
 craft, it is the nominal stage-wise MPC (a test holds them equal).
 """
@@ -22,6 +22,7 @@ from ocp.models.rigid import SpacecraftModel
 from ocp.spacecraft.definition import Spacecraft
 from .condensed import ANDERSON_MEMORY, STEP_TOL, sqp_step_functions
 from .controller import AttitudeMPC
+from .keepout import cone_function, plan_cone_violation
 from .plan import (bound_violation, nan_unless_finite, plan_bounds,
                    shift_function)
 from .robust_qp import (param_rk4, per_stage, plan_stages,
@@ -47,8 +48,8 @@ class RobustMPC(AttitudeMPC):
         The plants to plan for (`ocp.mpc.scenario_grid`,
         `ocp.mpc.inertia_corners`); their wheel axes, when given, must
         have the model's number of wheels.
-    horizon, dt, rti, weights, rate_max, max_iter
-        As `AttitudeMPC`.
+    horizon, dt, rti, weights, rate_max, max_iter, keep_out
+        As `AttitudeMPC`; the keep-out cones hold in every scenario.
     solver_options : dict, optional
         ``step_tol``, ``anderson``, ``ipm_tol``, ``ipm_max_iter`` (as the
         stage-wise solver's).
@@ -63,7 +64,8 @@ class RobustMPC(AttitudeMPC):
                  scenarios: Sequence[Scenario], *, horizon: int = 20,
                  dt: float = 0.5, rti: bool = False, weights: Any = None,
                  rate_max: float | None = None, max_iter: int = 50,
-                 solver_options: dict | None = None) -> None:
+                 solver_options: dict | None = None,
+                 keep_out: Any = None) -> None:
         if isinstance(scenarios, Scenario) or not isinstance(
                 scenarios, (list, tuple)) or not scenarios:
             raise InvalidValueError(
@@ -74,7 +76,8 @@ class RobustMPC(AttitudeMPC):
         self.scenarios = tuple(scenarios)
         super().__init__(model, horizon=horizon, dt=dt, solver="stagewise",
                          rti=rti, weights=weights, rate_max=rate_max,
-                         max_iter=max_iter, solver_options=solver_options)
+                         max_iter=max_iter, solver_options=solver_options,
+                         keep_out=keep_out)
 
     @property
     def name(self) -> str:
@@ -174,6 +177,11 @@ def _robust_check(mpc: RobustMPC, cost: ca.Function) -> ca.Function:
     Xall, _, X, U, X1 = plan_stages(mpc, z, (sel0, sel1))
     tau = ca.repmat(p[nx + 4:], 1, S) + ca.DM(
         np.array([s.tau for s in mpc.scenarios]).T)
+    if mpc.keep_out:
+        cones = cone_function(mpc.keep_out, nx)
+        viol = ca.fmax(viol, plan_cone_violation(cones, X1))
+        viol1 = ca.fmax(viol1, plan_cone_violation(
+            cones, X1[:, list(range(0, N * S, N))]))
     F = param_rk4(mpc).map(N).map(S)(
         X, U, per_stage(tau, N),
         per_stage(ca.DM(scenario_parameters(mpc)), N))

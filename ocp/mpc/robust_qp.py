@@ -26,7 +26,9 @@ import numpy as np
 
 from adcs_common.quaternion import quat_rate
 from .condensed import _kernels
-from .stagewise import _bound_values, _diag, box_layout
+from .keepout import (augmented_linearisation, cone_function, pad_cost,
+                      planning_cones)
+from .stagewise import _diag, box_layout, state_box_sides
 from .stagewise_ipm import IPM_MAX_ITER, IPM_TOL, Tree, ipm_solve
 from .stagewise_kernels import nz_of, stage_kernels
 
@@ -92,12 +94,23 @@ class _RobustParts:
         th = ca.SX.sym("th", rk4.size1_in(3))
         F = rk4(x, u, tau, th)
         Aj, Bj = ca.jacobian(F, x), ca.jacobian(F, u)
-        self.lin = ca.Function("rb_lin", [x, u, tau, th],
-                               [F, nz_of(Aj), nz_of(Bj)])
+        self.cones = (cone_function(planning_cones(mpc), nx) if mpc.keep_out
+                      else None)
+        self.nq = nx + len(mpc.keep_out)     # the QP's state
+        if self.cones is None:
+            self.lin = ca.Function("rb_lin", [x, u, tau, th],
+                                   [F, nz_of(Aj), nz_of(Bj)])
+        else:
+            x1 = ca.SX.sym("x_next", nx)
+            d, Aj, Bj = augmented_linearisation(F, Aj, Bj, x1, self.cones)
+            self.lin = ca.Function("rb_lin", [x, u, tau, th, x1],
+                                   [d, nz_of(Aj), nz_of(Bj)])
         self.rk4 = rk4
         kern = _kernels(mpc)
         qf, a, c = ca.SX.sym("qf", 4), ca.SX.sym("a"), ca.SX.sym("c")
         Q, q, cost = kern["stage"](x, qf, a, c)
+        if self.cones is not None:
+            Q, q = pad_cost(Q, q, len(mpc.keep_out))
         self.stage = ca.Function("rb_stage", [x, qf, a, c],
                                  [nz_of(Q), q])
         self.m_max = np.asarray(wh.m_max, dtype=float)
@@ -113,7 +126,7 @@ class _RobustParts:
         # every stage is an unblocked Riccati step; the first stages'
         # factors give the root its terms (`Tree.root_factor`)
         self.flags = np.ones(N * S)
-        self.ipm = ipm_solve(self.kern, self.lay, self.tree, nx, nu,
+        self.ipm = ipm_solve(self.kern, self.lay, self.tree, self.nq, nu,
                              max_iter, tol, self.flags)
         wts = np.array([sc.weight for sc in mpc.scenarios], float)
         self.weights = wts / wts.sum()
@@ -121,8 +134,9 @@ class _RobustParts:
         self.tau = ca.DM(np.array([sc.tau for sc in mpc.scenarios]).T)
         # column selections of the (N + 1)·S states: k < N, k ≥ 1
         self.sel0, self.sel1 = stage_selections(N, S)
-        rows = [i for i in range(self.lay.nbu) for _ in range(1, S)]
-        cols_ = [s_ * N for _ in range(self.lay.nbu) for s_ in range(1, S)]
+        shared = list(range(self.lay.nbu))
+        rows = [i for i in shared for _ in range(1, S)]
+        cols_ = [s_ * N for _ in shared for s_ in range(1, S)]
         self.unbox = ca.DM(ca.Sparsity.triplet(self.lay.nb, N * S, rows,
                                                cols_), UNBOX)
         # the root's start: every scenario's u_0 from scenario 0's
@@ -210,8 +224,12 @@ def _qp_data(mpc: Any, parts: _RobustParts, z, p) -> tuple:
     Xall, Uall, X, U, X1 = plan_stages(mpc, z, (parts.sel0, parts.sel1))
     # one column per stage, scenario-major: a (·, S) argument would be
     # tiled by the map, stage k of scenario s getting scenario (sN+k) mod S
-    F, An, Bn = parts.lin.map(N).map(S)(X, U, per_stage(tau, N),
-                                        per_stage(parts.theta, N))
+    args = [X, U, per_stage(tau, N), per_stage(parts.theta, N)]
+    if parts.cones is None:
+        F, An, Bn = parts.lin.map(N).map(S)(*args)
+        D = F - X1
+    else:
+        D, An, Bn = parts.lin.map(N).map(S)(*args, X1)
     a = ca.DM([[1.0] * (N - 1) + [0.0]])
     c = ca.DM([[1.0] * (N - 1) + [w.terminal]])
     Qn, q = parts.stage.map(N).map(S)(X1, qf, a, c)
@@ -222,17 +240,16 @@ def _qp_data(mpc: Any, parts: _RobustParts, z, p) -> tuple:
     r = ca.mtimes(ca.repmat(ca.DM(parts.r_diag), 1, N * S), wcol)
     u_lo, u_hi = (ca.repmat(ca.DM(v), 1, N * S)
                   for v in model.control_bounds())
-    x_lo, x_hi = (ca.repmat(ca.DM(_bound_values(mpc, s)), 1, N * S)
-                  for s in (-1.0, 1.0))
+    x_lo, x_hi = state_box_sides(mpc, X1, parts.cones)
     # the shared u_0 is boxed once, in scenario 0: the other scenarios'
     # copies of its box are moved far out (duplicate rows are degenerate)
-    lo = lay.values(u_lo - U, x_lo - X1) - parts.unbox
-    hi = lay.values(u_hi - U, x_hi - X1) + parts.unbox
+    lo = lay.values(u_lo - U, x_lo) - parts.unbox
+    hi = lay.values(u_hi - U, x_hi) + parts.unbox
     fixed = _diag((~parts.free).astype(float))
     dU0 = (ca.mtimes(fixed, u_lo - U) + ca.mtimes(
         _diag(parts.free.astype(float)), ca.mtimes(U, parts.share) - U))
     roll = parts.tree.sweep(parts.kern["roll"], "rb_roll_N", 1)
-    dX0 = roll(ca.DM.zeros(nx), An, Bn, dU0, F - X1)
+    dX0 = roll(ca.DM.zeros(parts.nq), An, Bn, dU0, D)
     return Xall, Uall, (dU0, dX0, An, Bn, Qn, q, g, r, lo, hi)
 
 
@@ -258,10 +275,12 @@ def robust_iteration(mpc: Any, tol: float = IPM_TOL,
     p = ca.MX.sym("p", mpc.model.nx + 7)
     Xall, Uall, data = _qp_data(mpc, parts, z, p)
     dU, dX, lam, _, kkt = parts.ipm(*data)
+    nx = mpc.model.nx
+    dX = dX[:nx, :]                         # the cones' states dropped
     z_new = join_plan(mpc, Xall + ca.mtimes(dX, parts.sel1.T),
                       Uall + ca.mtimes(dU, parts.sel0.T))
     lam_u = ca.densify(ca.mtimes(lay.Eu.T, lam))
-    lam_xs = ca.densify(ca.mtimes(lay.Ex.T, lam))
+    lam_xs = ca.densify(ca.mtimes(lay.Ex.T, lam))[:nx, :]
     lam_z = join_plan(mpc, ca.densify(ca.mtimes(lam_xs, parts.sel1.T)),
                       ca.densify(ca.mtimes(lam_u, parts.sel0.T)))
     step = ca.mmax(ca.mtimes(_diag(1.0 / parts.m_max), ca.fabs(dU)))

@@ -25,34 +25,52 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError
 from .condensed import (ANDERSON_MEMORY, STEP_TOL, _kernels,
                         sqp_step_functions)
+from .keepout import (CONE_FLOOR, CONE_WIDTH, augmented_linearisation,
+                      cone_function, pad_cost, planning_cones)
 from .stagewise_boxes import BoxLayout
 from .stagewise_ipm import (IPM_MAX_ITER, IPM_TOL, Tree,
                             ipm_solve)
 from .stagewise_kernels import nz_of, stage_kernels
 
 
-def _nz_kernels(kern: dict, nx: int, nu: int) -> tuple:
-    """The linearisation and the stage cost with matrices as nonzeros."""
+def _nz_kernels(kern: dict, nx: int, nu: int,
+                cones: ca.Function | None = None) -> tuple:
+    """The linearisation and the stage cost with matrices as nonzeros.
+
+    Without ``cones``: ``sw_lin(x, u, τ) -> (F, A, B)``. With them (the
+    keep-out cones' values, `ocp.mpc.keepout`), the cones are states of
+    the QP: ``sw_lin(x, u, τ, x_next) -> (d, A, B)`` with the defect d
+    and the augmented matrices, and the stage cost padded with zeros.
+    """
     x, u, tau = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("tau", 3)
     F, A, B = kern["lin"](x, u, tau)
-    lin = ca.Function("sw_lin", [x, u, tau], [F, nz_of(A), nz_of(B)])
     qf, a, c = ca.SX.sym("qf", 4), ca.SX.sym("a"), ca.SX.sym("c")
     Q, q, _ = kern["stage"](x, qf, a, c)
+    if cones is None:
+        lin = ca.Function("sw_lin", [x, u, tau], [F, nz_of(A), nz_of(B)])
+    else:
+        x1 = ca.SX.sym("x_next", nx)
+        d, A, B = augmented_linearisation(F, A, B, x1, cones)
+        lin = ca.Function("sw_lin", [x, u, tau, x1], [d, nz_of(A), nz_of(B)])
+        Q, q = pad_cost(Q, q, cones.size1_out(0))
     stage = ca.Function("sw_stage", [x, qf, a, c], [nz_of(Q), q])
     return lin, stage, A.sparsity(), B.sparsity(), Q.sparsity()
 
 
 def box_layout(mpc: Any) -> BoxLayout:
-    """The boxes of the stage-wise QP: torques, momenta (and rates)."""
+    """The boxes of the stage-wise QP: torques, momenta (and rates, and
+    the keep-out cones' states, `ocp.mpc.keepout`)."""
     model, wh = mpc.model, mpc.wheels
     lo, hi = model.control_bounds()
-    nw = wh.n_wheels
+    nw, nx, nc = wh.n_wheels, model.nx, len(mpc.keep_out)
     bx = list(range(7, 7 + nw))
     wx = 2.0 * np.asarray(wh.h_max, dtype=float)
     if mpc.rate_max is not None:
         bx = [4, 5, 6] + bx
         wx = np.r_[np.full(3, 2.0 * mpc.rate_max), wx]
-    return BoxLayout(model.nx, model.nu, hi > lo, hi - lo, bx, wx)
+    bx += list(range(nx, nx + nc))
+    wx = np.r_[wx, np.full(nc, CONE_WIDTH)]
+    return BoxLayout(nx + nc, model.nu, hi > lo, hi - lo, bx, wx)
 
 
 def _bound_values(mpc: Any, side: float) -> np.ndarray:
@@ -62,6 +80,20 @@ def _bound_values(mpc: Any, side: float) -> np.ndarray:
     if mpc.rate_max is not None:
         x[4:7] = side * mpc.rate_max
     return x
+
+
+def state_box_sides(mpc: Any, X1: Any, cones: ca.Function | None) -> tuple:
+    """``(lo, hi)`` of the QP's states from the planned next states X1
+    (n_x × C): the bounds minus X1, then each cone's ``(CONE_FLOOR,
+    −backoff) − c(X1)`` (`ocp.mpc.keepout`)."""
+    C = X1.shape[1]
+    lo, hi = (ca.repmat(ca.DM(_bound_values(mpc, s)), 1, C) - X1
+              for s in (-1.0, 1.0))
+    if cones is None:
+        return lo, hi
+    c = cones.map(C)(X1)
+    return (ca.vertcat(lo, CONE_FLOOR - c),
+            ca.vertcat(hi, -mpc.keep_out_backoff - c))
 
 
 def block_lengths(blocks: Any, horizon: int, solver: str
@@ -118,7 +150,11 @@ class _Parts:
         model, wh, w = mpc.model, mpc.wheels, mpc.weights
         nx, nu = model.nx, model.nu
         kern = _kernels(mpc)
-        self.lin, self.stage, sp_a, sp_b, sp_q = _nz_kernels(kern, nx, nu)
+        self.cones = (cone_function(planning_cones(mpc), nx) if mpc.keep_out
+                      else None)
+        self.lin, self.stage, sp_a, sp_b, sp_q = _nz_kernels(
+            kern, nx, nu, self.cones)
+        self.nq = nx + len(mpc.keep_out)     # the QP's state
         self.m_max = np.asarray(wh.m_max, dtype=float)
         self.r_diag = 2.0 * w.torque / self.m_max ** 2 + mpc.regularization
         self.lay = box_layout(mpc)
@@ -129,8 +165,8 @@ class _Parts:
         self.kern = stage_kernels(sp_a, sp_b, sp_q, self.free,
                                   self.lay.bu, self.lay.bx,
                                   blocked=blocks is not None)
-        self.ipm = ipm_solve(self.kern, self.lay, Tree(mpc.horizon), nx,
-                             nu, max_iter, tol, self.flags)
+        self.ipm = ipm_solve(self.kern, self.lay, Tree(mpc.horizon),
+                             self.nq, nu, max_iter, tol, self.flags)
 
 
 def _qp_data(mpc: Any, parts: _Parts, z: ca.MX, p: ca.MX) -> tuple:
@@ -149,16 +185,19 @@ def _qp_data(mpc: Any, parts: _Parts, z: ca.MX, p: ca.MX) -> tuple:
     Z = ca.reshape(z[:n_stage], nx + nu, N)
     X, U, xN = Z[:nx, :], Z[nx:, :], z[n_stage:]
     X1 = ca.horzcat(X[:, 1:], xN)
-    F, An, Bn = parts.lin.map(N)(X, U, tau)
+    if parts.cones is None:
+        F, An, Bn = parts.lin.map(N)(X, U, tau)
+        D = F - X1
+    else:
+        D, An, Bn = parts.lin.map(N)(X, U, tau, X1)
     a = ca.DM([[1.0] * (N - 1) + [0.0]])
     c = ca.DM([[1.0] * (N - 1) + [w.terminal]])
     Qn, q = parts.stage.map(N)(X1, qf, a, c)
     g = ca.mtimes(_diag(2.0 * w.torque / parts.m_max ** 2), U)
     u_lo, u_hi = (ca.repmat(ca.DM(v), 1, N) for v in model.control_bounds())
-    x_lo, x_hi = (ca.repmat(ca.DM(_bound_values(mpc, s)), 1, N)
-                  for s in (-1.0, 1.0))
-    lo = lay.values(u_lo - U, x_lo - X1)
-    hi = lay.values(u_hi - U, x_hi - X1)
+    x_lo, x_hi = state_box_sides(mpc, X1, parts.cones)
+    lo = lay.values(u_lo - U, x_lo)
+    hi = lay.values(u_hi - U, x_hi)
     # the start holds the blocks: each stage takes its block's first
     # control (a product with the constant 0/1 holder matrix)
     first = np.maximum.accumulate(np.where(parts.flags > 0,
@@ -169,7 +208,7 @@ def _qp_data(mpc: Any, parts: _Parts, z: ca.MX, p: ca.MX) -> tuple:
            + ca.mtimes(_diag(parts.free.astype(float)),
                        ca.mtimes(U, hold) - U))
     dX0 = parts.kern["roll"].mapaccum("sw_roll_N", N, 1)(
-        ca.DM.zeros(nx), An, Bn, dU0, F - X1)
+        ca.DM.zeros(parts.nq), An, Bn, dU0, D)
     r = ca.repmat(ca.DM(parts.r_diag), 1, N)
     return X, U, xN, (dU0, dX0, An, Bn, Qn, q, g, r, lo, hi)
 
@@ -209,11 +248,12 @@ def stagewise_iteration(mpc: Any, tol: float = IPM_TOL,
     p = ca.MX.sym("p", nx + 7)
     X, U, xN, data = _qp_data(mpc, parts, z, p)
     dU, dX, lam, _, kkt = parts.ipm(*data)
+    dX = dX[:nx, :]                         # the cones' states dropped
     z_new = ca.vertcat(
         ca.vec(ca.vertcat(X + ca.horzcat(ca.DM.zeros(nx, 1), dX[:, :N - 1]),
                           U + dU)), xN + dX[:, N - 1])
     lam_u = ca.densify(ca.mtimes(lay.Eu.T, lam))
-    lam_xs = ca.densify(ca.mtimes(lay.Ex.T, lam))
+    lam_xs = ca.densify(ca.mtimes(lay.Ex.T, lam))[:nx, :]
     lam_z = ca.vertcat(
         ca.vec(ca.vertcat(ca.horzcat(ca.DM.zeros(nx, 1),
                                      lam_xs[:, :N - 1]), lam_u)),

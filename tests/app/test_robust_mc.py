@@ -15,7 +15,7 @@ distributed = pytest.importorskip(
 from adcs.cli import main  # noqa: E402
 from adcs.robust_mc import (CONTROLLERS, MISALIGNMENT, draw_plant,  # noqa
                             robust_mc_case, robust_mc_params, robust_mc_table,
-                            run_robust_mc, summarise)
+                            run_robust_mc, slew_keep_out, summarise)
 from adcs.sweep import SWEEPS  # noqa: E402
 from adcs_common.exceptions import InvalidValueError  # noqa: E402
 from allocation import WheelArray  # noqa: E402
@@ -129,6 +129,37 @@ def test_the_summary_scales_the_rate_overshoot_by_the_bound(serial):
     table = robust_mc_table(ds)
     assert "| rate overshoot, largest [% of bound] | 5.000 | 0.050 | 0.01 |" \
         in table
+
+
+def test_a_keep_out_cone_across_the_slew_is_held_and_counted(serial):
+    """With ``keep_out_deg`` both MPCs hold a cone that the slew would
+    cross (`slew_keep_out`): neither loop's path, sampled 8 times per
+    sample, enters it, and both still end on target. The summary counts
+    a loop that entered by more than 1e-6 of the half-angle."""
+    rows = robust_mc_params(1, seed=1, t_final=45.0, rate_max=0.04,
+                            rate_margin=0.05, keep_out_deg=20.0)
+    assert rows[0]["keep_out_deg"] == 20.0
+    out = robust_mc_case(**rows[0])
+    for c in CONTROLLERS:
+        assert out[f"{c}_failed"] == 0.0
+        assert out[f"{c}_keep_out_violation"] == 0.0
+        assert out[f"{c}_final_error"] < 1e-3       # settling at 45 s
+    cone = slew_keep_out(np.pi / 2, np.deg2rad(20.0))
+    free = simulate_mpc(AttitudeMPC(rigid_spacecraft(J, WHEELS),
+                                    solver="stagewise", rti=True,
+                                    rate_max=0.038),
+                        [1, 0, 0, 0], quat_from_axis_angle(
+                            [1, 1, 0], np.pi / 2), t_final=30.0)
+    assert cone.margin(free.trajectory.q).min() < -np.deg2rad(10.0)
+    ds = serial.copy(deep=True)
+    ds["keep_out_deg"] = ("case", np.full(4, 20.0))
+    ds["nominal_keep_out_violation"][:] = [0.0, 1e-9, 1e-3, 0.02]
+    nom, rob = summarise(ds)
+    assert (nom.keep_out, rob.keep_out) == (2, 0)
+    assert "| keep-out violations | 2 | 0 | – |" in robust_mc_table(ds)
+    for bad in (-1.0, 50.0, float("nan")):
+        with pytest.raises(InvalidValueError, match="keep_out_deg|keep-out"):
+            robust_mc_params(1, keep_out_deg=bad)
 
 
 def test_a_rate_margin_plans_below_the_bound_and_counts_against_it():

@@ -11,8 +11,9 @@ static casadi_real cl_x[ADCS_LOOP_N], cl_xn[ADCS_LOOP_N], cl_z[ADCS_LOOP_N],
 static int closed_loop(const char* name, eval_t f, work_t work,
                        checkout_t checkout, release_t release,
                        const casadi_real* x0, const casadi_real* qf,
-                       int nx, int nz, int ng, int nu, double dt,
-                       int steps, double tol_deg, double tol_viol) {
+                       int nx, int nz, int ng, int nu, int nplan,
+                       double dt, int steps, double tol_deg,
+                       double tol_viol) {
   casadi_real tau[3] = {0, 0, 0}, h = dt, cost, viol, viol1, defect;
   int k, i, mem, pmem, flag = 0, finite = 1, ok;
   double worst = 0.0, dot = 0.0, nq = 0.0, err, tmax = 0.0, twarm = 0.0;
@@ -27,8 +28,11 @@ static int closed_loop(const char* name, eval_t f, work_t work,
   memset(cl_lg, 0, sizeof cl_lg);
   memset(cl_u, 0, sizeof cl_u);
   memcpy(cl_x, x0, sizeof(casadi_real) * nx);
-  for (k = 0; k + nx <= nz; k += nx + nu)  /* cold start: x0 everywhere */
-    memcpy(cl_z + k, x0, sizeof(casadi_real) * nx);
+  /* cold start: x0 at every stage of every plan of nplan reals (a robust
+   * step's z holds one plan per scenario) */
+  for (i = 0; i + nplan <= nz; i += nplan)
+    for (k = 0; k + nx <= nplan; k += nx + nu)
+      memcpy(cl_z + i + k, x0, sizeof(casadi_real) * nx);
   for (k = 0; k < ADCS_SZ_RES; ++k) drv_res[k] = 0;  /* outputs not asked */
   for (k = 0; k < ADCS_SZ_ARG; ++k) drv_arg[k] = 0;
   for (k = 0; k < steps; ++k) {
