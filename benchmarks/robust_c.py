@@ -2,7 +2,7 @@
 
 Run from the repository root::
 
-    python -m benchmarks.robust_c [--runs 3] [--horizon 20]
+    python -m benchmarks.robust_c [--runs 3] [--horizon 20] [--keep-out-deg 20]
 
 Exports, for the demo craft's wheels (dt 0.5 s), the nominal stage-wise
 RTI step (`mpc_sw_rti_step`) and the robust RTI step on 9 scenarios (the
@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from adcs.robust_mc import slew_keep_out
 from allocation import WheelArray
 from ocp.codegen.export import export_c, run_driver
 from ocp.mpc import inertia_corners, scenario_grid
@@ -32,21 +33,31 @@ WHEELS = WheelArray.pyramid(h_max=0.2, m_max=0.05)
 INERTIA = np.diag([3.0, 2.5, 3.5])
 
 
-def run(horizon: int = 20, runs: int = 3) -> list[dict]:
-    """Rows: variant label, scenarios, median and worst step [ms]."""
-    cases = [("nominal stage-wise RTI", "mpc_sw_rti_step", 1, None),
+def run(horizon: int = 20, runs: int = 3,
+        keep_out_deg: float = 0.0) -> list[dict]:
+    """Rows: variant label, scenarios, median and worst step [ms]; with
+    ``keep_out_deg`` > 0 the nominal and 9-scenario steps again, holding
+    a keep-out cone of that half-angle across the slew [deg]."""
+    corners = inertia_corners(INERTIA, 0.2)
+    cases = [("nominal stage-wise RTI", "mpc_sw_rti_step", 1, None, None),
              ("robust RTI, 9 scenarios", "mpc_robust_rti_step", 9,
-              inertia_corners(INERTIA, 0.2)),
+              corners, None),
              ("robust RTI, 27 scenarios", "mpc_robust_rti_step", 27,
-              scenario_grid(INERTIA, inertia_scale=(0.8, 1.0, 1.2)))]
+              scenario_grid(INERTIA, inertia_scale=(0.8, 1.0, 1.2)), None)]
+    if keep_out_deg > 0:
+        cone = slew_keep_out(np.pi / 2, np.deg2rad(keep_out_deg))
+        cases += [(f"nominal stage-wise RTI, {keep_out_deg:g}° keep-out",
+                   "mpc_sw_rti_step", 1, None, cone),
+                  (f"robust RTI, 9 scenarios, {keep_out_deg:g}° keep-out",
+                   "mpc_robust_rti_step", 9, corners, cone)]
     rows = []
     with tempfile.TemporaryDirectory(prefix="adcs_robust_") as tmp:
         built = []
-        for label, name, S, scen in cases:
-            res = export_c(Path(tmp) / f"{name}_{S}", wheels=WHEELS,
+        for i, (label, name, S, scen, cone) in enumerate(cases):
+            res = export_c(Path(tmp) / f"{name}_{i}", wheels=WHEELS,
                            inertia=INERTIA, horizon=horizon, build=True,
                            repeats=20, mpc_variants=(name,),
-                           mpc_scenarios=scen)
+                           mpc_scenarios=scen, mpc_keep_out=cone)
             built.append((label, name, S, res, []))
         for _ in range(runs):
             for label, name, S, res, recs in built:
@@ -81,8 +92,12 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--horizon", type=int, default=20)
+    ap.add_argument("--keep-out-deg", type=float, default=0.0,
+                    help="also time the nominal and 9-scenario steps "
+                    "holding a keep-out cone of this half-angle across the "
+                    "slew [deg]")
     args = ap.parse_args(argv)
-    print(format_rows(run(args.horizon, args.runs)))
+    print(format_rows(run(args.horizon, args.runs, args.keep_out_deg)))
 
 
 if __name__ == "__main__":

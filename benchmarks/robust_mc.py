@@ -33,7 +33,7 @@ from adcs.sweep import close, connect
 def run(draws: int = 200, workers: int = 2, t_final: float = 50.0,
         rate_max: float = 0.0, seed: int = 0,
         rate_margin: float = 0.0, basilisk: bool = False,
-        tree_products: float = 0.0) -> str:
+        tree_products: float = 0.0, keep_out_deg: float = 0.0) -> str:
     """Fly the draws on ``workers`` local workers; the Markdown table."""
     mc = run_robust_mc
     if basilisk:
@@ -43,7 +43,7 @@ def run(draws: int = 200, workers: int = 2, t_final: float = 50.0,
         t0 = time.perf_counter()
         ds = mc(draws, client=client, progress=True, seed=seed,
                 t_final=t_final, rate_max=rate_max, rate_margin=rate_margin,
-                tree_products=tree_products)
+                tree_products=tree_products, keep_out_deg=keep_out_deg)
         wall = time.perf_counter() - t0
     finally:
         close(client, cluster)
@@ -54,7 +54,9 @@ def run(draws: int = 200, workers: int = 2, t_final: float = 50.0,
             + (f" (planned {100 * rate_margin:g} % below it)"
                if rate_max > 0 and rate_margin > 0 else "")
             + (f", the robust tree spanning products ±{tree_products:g}"
-               if tree_products > 0 else "") + ", "
+               if tree_products > 0 else "")
+            + (f", a {keep_out_deg:g}° keep-out cone across the slew"
+               if keep_out_deg > 0 else "") + ", "
             f"{workers} workers: {wall:.0f} s wall; {failed} draws "
             "raised outside the loops")
     return head + "\n\n" + robust_mc_table(ds)
@@ -77,9 +79,12 @@ def main() -> None:
     ap.add_argument("--tree-products", type=float, default=0.0,
                     help="the robust tree also spans these products of "
                     "inertia, ± of the largest moment (17 scenarios)")
+    ap.add_argument("--keep-out-deg", type=float, default=0.0,
+                    help="half-angle of a keep-out cone across the slew, "
+                    "held by both MPCs [deg] (0: none)")
     a = ap.parse_args()
     print(run(a.draws, a.workers, a.t_final, a.rate_max, a.seed,
-              a.rate_margin, a.basilisk, a.tree_products))
+              a.rate_margin, a.basilisk, a.tree_products, a.keep_out_deg))
 
 
 if __name__ == "__main__":

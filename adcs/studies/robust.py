@@ -6,7 +6,8 @@ largest moment, wheel axes tilted within ±0.5°), each flown, a 90° slew
 and the hold after it, by the nominal stage-wise MPC and by the robust
 multi-stage MPC over the nominal inertia and its 8 corners. The counts
 of bound violations and broken loops, and the rate overshoot under a
-body-rate bound, say what robustness buys; the settling time, the
+body-rate bound (with a keep-out cone across the slew), say what
+robustness buys; the settling time, the
 energy and the step time what it costs.
 """
 
@@ -21,6 +22,9 @@ TITLE = "What does robustness cost, and what does it buy?"
 #: Body-rate bound of the study's second Monte Carlo [rad/s] (below the
 #: demo slew's unbounded peak rate).
 RATE_BOUND = 0.04
+#: Half-angle of the keep-out cone across the slew in the second Monte
+#: Carlo [deg] (`adcs.robust_mc.slew_keep_out`).
+KEEP_OUT_DEG = 20.0
 
 
 def _figure(ds):
@@ -55,6 +59,7 @@ def _table(ds, rate_max: float = 0.0) -> Table:
                                             "momentum", 1),
             ("torque violations", "torque", 1),
             ("rate violations", "rate", 1),
+            ("keep-out violations", "keep_out", 1),
             ("rate overshoot, median [% of bound]", "rate_over_median",
              100.0),
             ("rate overshoot, largest [% of bound]", "rate_over_max",
@@ -71,13 +76,16 @@ def _table(ds, rate_max: float = 0.0) -> Table:
                  else float("nan"))
         rows.append([label, a, b, "—" if np.isnan(ratio) else ratio])
     bound = (f"both bound the body rate at {rate_max:g} rad/s, and a rate "
-             "violation is the plant's rate at a sample above it"
+             "violation is the plant's rate at a sample above it; both hold "
+             f"a {KEEP_OUT_DEG:g}° keep-out cone across the slew, checked "
+             "on the path between the samples"
              if rate_max > 0 else
              "no rate bound is set (dH/dt = m, so the wheel momentum and "
              "torque of every plant stay in the plans' bounds)")
     return Table(
         f"{nom.draws} draws, nominal against robust MPC"
-        + (f", rate bound {rate_max:g} rad/s" if rate_max > 0 else ""),
+        + (f", rate bound {rate_max:g} rad/s, keep-out cone"
+           if rate_max > 0 else ""),
         ["", "nominal MPC", "robust MPC", "robust / nominal"], rows,
         "Both stage-wise RTI, horizon 20, 0.5 s, on the nominal craft; "
         "the robust MPC over the nominal inertia and the 8 corners of "
@@ -109,7 +117,9 @@ def run(ctx: StudyContext) -> Section:
         f"rest and holding, {t_final:g} s, by both controllers. Without a "
         "rate bound no plant can break the wheel bounds; the second table "
         f"bounds the body rate at {RATE_BOUND:g} rad/s, where a plant "
-        "lighter than planned turns faster than its plan.",
+        "lighter than planned turns faster than its plan, and both "
+        f"controllers hold a {KEEP_OUT_DEG:g}° keep-out cone (a star "
+        "tracker's Sun cone) that the unconstrained slew crosses.",
         [_table(ds), _table(ds_rate, RATE_BOUND)],
         [Figure(name, "Energy (distribution over the draws) and settling "
                 "time of each draw")])
@@ -124,7 +134,8 @@ def run(ctx: StudyContext) -> Section:
         f"{rob_r.rate}, median overshoot "
         f"{100 * nom_r.rate_over_median:.2f} % / "
         f"{100 * rob_r.rate_over_median:.2f} % of the bound, broken loops "
-        f"{nom_r.failed} / {rob_r.failed} (nominal / robust)"]
+        f"{nom_r.failed} / {rob_r.failed}, loops into the keep-out cone "
+        f"{nom_r.keep_out} / {rob_r.keep_out} (nominal / robust)"]
     return section
 
 
@@ -132,5 +143,6 @@ def _case_and_params(draws: int, t_final: float,
                      rate_max: float = 0.0) -> tuple:
     from adcs.robust_mc import robust_mc_case
 
-    return robust_mc_case, robust_mc_params(draws, t_final=t_final,
-                                            rate_max=rate_max)
+    return robust_mc_case, robust_mc_params(
+        draws, t_final=t_final, rate_max=rate_max,
+        keep_out_deg=KEEP_OUT_DEG if rate_max > 0 else 0.0)

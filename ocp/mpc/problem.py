@@ -195,7 +195,8 @@ def pointing_residuals(x, qf, weights: MPCWeights, factor=1.0):
 
 
 def check_reachable(mpc: Any, x: np.ndarray) -> None:
-    """Raise `InfeasibleError` when x_1 cannot meet the state bounds.
+    """Raise `InfeasibleError` when x_1 cannot meet the state bounds
+    (or x lies inside one of the MPC's keep-out cones).
 
     ``mpc`` is the `AttitudeMPC` (its wheels, dt, rate bound and model).
     """
@@ -224,4 +225,12 @@ def check_reachable(mpc: Any, x: np.ndarray) -> None:
                 f"x: body rate {np.max(np.abs(x[4:7])):.4g} rad/s "
                 f"exceeds rate_max = {mpc.rate_max:.4g} rad/s by more "
                 f"than one step can remove ({dmax:.3g} rad/s): the MPC "
+                "horizon is infeasible", problem=x)
+    for i, cone in enumerate(getattr(mpc, "keep_out", ())):
+        margin = float(cone.margin(x[:4]))
+        if margin < 0.0:
+            raise InfeasibleError(
+                f"x: the boresight lies {np.rad2deg(-margin):.3g}° inside "
+                f"keep_out[{i}] (a cone of {np.rad2deg(cone.half_angle):.3g}"
+                "°): the attitude one step ahead cannot leave it, the MPC "
                 "horizon is infeasible", problem=x)

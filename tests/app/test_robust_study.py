@@ -30,10 +30,14 @@ def test_robust_study_table_is_the_monte_carlo(tmp_path):
     assert "robust / nominal: energy" in section.summary[1]
     # the second Monte Carlo bounds the rate: its overshoot rows are the
     # summary's, in percent of the bound
-    nom_r, rob_r = summarise(run_robust_mc(4, t_final=30.0,
-                                           rate_max=study.RATE_BOUND))
+    # and both hold a keep-out cone across the slew
+    nom_r, rob_r = summarise(run_robust_mc(
+        4, t_final=30.0, rate_max=study.RATE_BOUND,
+        keep_out_deg=study.KEEP_OUT_DEG))
     rows = {r[0]: r[1:] for r in rated.rows}
     assert rows["rate overshoot, largest [% of bound]"][:2] == [
         100.0 * nom_r.rate_over_max, 100.0 * rob_r.rate_over_max]
     assert nom_r.rate_over_max > rob_r.rate_over_max
+    assert rows["keep-out violations"][:2] == [0, 0]
     assert "rate bound 0.04 rad/s" in section.summary[2]
+    assert "keep-out cone 0 / 0" in section.summary[2]

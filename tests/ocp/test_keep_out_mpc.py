@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from adcs.robust_mc import draw_plant, robust_scenarios, slew_keep_out
-from adcs_common.exceptions import InvalidValueError
+from adcs_common.exceptions import InfeasibleError, InvalidValueError
 from allocation import WheelArray
 from ocp import KeepOut, quat_from_axis_angle, rigid_spacecraft
 from ocp.mpc import (AttitudeMPC, RobustMPC, Scenario, keep_out_margin,
@@ -141,6 +141,16 @@ def _attitude_on_axis(cone: KeepOut) -> np.ndarray:
     b, s = np.array(cone.boresight), np.array(cone.direction)
     axis = np.cross(b, s)
     return quat_from_axis_angle(axis, float(np.arccos(b @ s)))
+
+
+def test_a_state_inside_a_cone_is_refused_as_infeasible():
+    """No plan can take the attitude one step ahead out of a cone: the
+    step says so, not a failed certificate."""
+    b, s = np.array(CONE.boresight), np.array(CONE.direction)
+    q_in = quat_from_axis_angle(np.cross(b, s), float(np.arccos(b @ s))
+                                - 0.1)
+    with pytest.raises(InfeasibleError, match=r"inside keep_out\[0\]"):
+        _nominal(keep_out=CONE).step(MODEL.state(q_in), QF)
 
 
 def test_bad_keep_out_gets_the_toolbox_error():
