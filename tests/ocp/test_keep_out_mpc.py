@@ -221,3 +221,33 @@ def test_export_refuses_a_cone_without_a_stagewise_step(tmp_path):
         export_c(tmp_path / "c", wheels=WHEELS,
                  mpc_variants=("mpc_cond_rti_step",), mpc_keep_out=CONE)
 
+
+def test_a_solve_left_near_its_tolerance_resumes(monkeypatch):
+    """`stagewise_ipm.IPM_RESUME`: on a tree QP whose interior point stops
+    on its carried residual with the recomputed one at 1.2e-6 (draw 140
+    of seed 1 with the cone's box scaled by 0.1, step 7: the rate boxes of
+    nine scenarios active over many stages), more iterations to a tighter
+    tolerance and the polish again certify it; without the resume the
+    step would be refused."""
+    import ocp.mpc.stagewise as sw
+    import ocp.mpc.stagewise_ipm as ipm
+    from adcs.robust_mc import draw_case
+    from ocp.mpc.robust_qp import _RobustParts, robust_qp_function
+
+    monkeypatch.setattr(sw, "CONE_WIDTH", 0.1)
+    mpc = RobustMPC(MODEL, robust_scenarios(MODEL.inertia), horizon=20,
+                    dt=0.5, rti=True, rate_max=0.038, keep_out=CONE)
+    _, d, _, _ = draw_case("demo", 1, 140, 0.04, 0.2, 90.0, 20, 0.5, 0.05,
+                           0.0, 20.0)
+    F = rigid_spacecraft(d.inertia, d.wheels).integrator(0.5)
+    x = MODEL.state([1.0, 0.0, 0.0, 0.0])
+    for _ in range(7):
+        x = np.asarray(F(x0=x, p=np.r_[mpc.step(x, QF).u, 0, 0, 0])[
+            "xf"]).ravel()
+    z0 = np.array(mpc.shift_function(x, mpc._plan, mpc._lam_x,
+                                     mpc._lam_g)[0]).ravel()
+    data = robust_qp_function(mpc)(z0, np.r_[x, QF, np.zeros(3)])
+    kkt = float(_RobustParts(mpc, 1e-9, 40).ipm(*data)[4])
+    monkeypatch.setattr(ipm, "IPM_RESUME", np.inf)
+    stopped = float(_RobustParts(mpc, 1e-9, 40).ipm(*data)[4])
+    assert stopped > 1e-6 and kkt < 1e-8
