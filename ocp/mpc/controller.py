@@ -265,11 +265,8 @@ class AttitudeMPC:
         self.fallback_max_iter = int(max_iter)
         #: Lengths of the move blocks (stages per held control), or None.
         self.move_blocks = block_lengths(move_blocks, self.horizon, solver)
-        self.keep_out = as_keep_out(keep_out)
+        self.keep_out = as_keep_out(keep_out, solver)
         self.keep_out_backoff = KEEP_OUT_BACKOFF
-        if self.keep_out and solver != "stagewise":
-            raise InvalidValueError(
-                f"keep_out needs solver='stagewise', got {solver!r}")
         self.expand = bool(expand)
         #: Levenberg–Marquardt term added to the Gauss–Newton Hessian: the
         #: GN Hessian is singular (no cost on ``|q|`` or on x_0), and qrqp

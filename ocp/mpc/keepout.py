@@ -58,10 +58,15 @@ CONE_FLOOR = -4.0
 CONE_WIDTH = 1.0
 
 
-def as_keep_out(keep_out: Any) -> tuple[KeepOut, ...]:
-    """The cones as a tuple (None: none); anything else is refused."""
+def as_keep_out(keep_out: Any, solver: str = "stagewise"
+                ) -> tuple[KeepOut, ...]:
+    """The cones as a tuple (None: none); anything else is refused, and
+    cones for a ``solver`` other than ``"stagewise"``."""
     if keep_out is None:
         return ()
+    if solver != "stagewise":
+        raise InvalidValueError(
+            f"keep_out needs solver='stagewise', got {solver!r}")
     if isinstance(keep_out, KeepOut):
         return (keep_out,)
     if not isinstance(keep_out, (list, tuple)):
