@@ -134,9 +134,8 @@ class _RobustParts:
         self.tau = ca.DM(np.array([sc.tau for sc in mpc.scenarios]).T)
         # column selections of the (N + 1)·S states: k < N, k ≥ 1
         self.sel0, self.sel1 = stage_selections(N, S)
-        shared = list(range(self.lay.nbu))
-        rows = [i for i in shared for _ in range(1, S)]
-        cols_ = [s_ * N for _ in shared for s_ in range(1, S)]
+        rows = [i for i in range(self.lay.nbu) for _ in range(1, S)]
+        cols_ = [s_ * N for _ in range(self.lay.nbu) for s_ in range(1, S)]
         self.unbox = ca.DM(ca.Sparsity.triplet(self.lay.nb, N * S, rows,
                                                cols_), UNBOX)
         # the root's start: every scenario's u_0 from scenario 0's
