@@ -173,6 +173,46 @@ def pad_cost(Q: Any, q: Any, nc: int) -> tuple:
     return ca.diagcat(Q, ca.SX(nc, nc)), ca.vertcat(q, ca.SX.zeros(nc))
 
 
+def qp_stage_functions(prefix: str, ins: list, F: Any, A: Any, B: Any,
+                       stage_ins: list, Q: Any, q: Any,
+                       cones: ca.Function | None
+                       ) -> tuple[ca.Function, ca.Function,
+                                  tuple[ca.Sparsity, ca.Sparsity,
+                                        ca.Sparsity]]:
+    """``(lin, stage, (sp_A, sp_B, sp_Q))``: a stage-wise QP's kernels.
+
+    ``lin = <prefix>_lin(ins…) -> (F, A, B)`` (the stage's next state and
+    Jacobians, matrices as nonzeros) without ``cones``; with them
+    ``<prefix>_lin(ins…, x_next) -> (d, A, B)``, the defect and the
+    matrices with the cones as states (`augmented_linearisation`).
+    ``stage = <prefix>_stage(stage_ins…) -> (Q, q)``, padded for the
+    cones (`pad_cost`). `stage_defects` reads ``lin``'s first output.
+    """
+    from .stagewise_kernels import nz_of
+
+    if cones is None:
+        lin = ca.Function(prefix + "_lin", ins, [F, nz_of(A), nz_of(B)])
+    else:
+        x1 = ca.SX.sym("x_next", F.shape[0])
+        d, A, B = augmented_linearisation(F, A, B, x1, cones)
+        lin = ca.Function(prefix + "_lin", [*ins, x1],
+                          [d, nz_of(A), nz_of(B)])
+        Q, q = pad_cost(Q, q, cones.size1_out(0))
+    stage = ca.Function(prefix + "_stage", stage_ins, [nz_of(Q), q])
+    return lin, stage, (A.sparsity(), B.sparsity(), Q.sparsity())
+
+
+def stage_defects(lin_map: ca.Function, args: list, X1: Any,
+                  cones: ca.Function | None) -> tuple:
+    """``(D, A, B)`` of the mapped ``lin`` of `qp_stage_functions` over
+    the stages: the defects ``F − X1`` (with cones, ``lin`` returns
+    them, the cones' rows included) and the stages' matrices."""
+    if cones is None:
+        F, A, B = lin_map(*args)
+        return F - X1, A, B
+    return lin_map(*args, X1)
+
+
 def plan_cone_violation(cones: ca.Function, X: Any) -> ca.MX:
     """Largest ``max(0, c)`` over the states X (n_x × K) [cos units]."""
     return ca.fmax(0.0, ca.mmax(cones.map(X.shape[1])(X)))

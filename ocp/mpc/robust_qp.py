@@ -26,11 +26,11 @@ import numpy as np
 
 from adcs_common.quaternion import quat_rate
 from .condensed import _kernels
-from .keepout import (augmented_linearisation, cone_function, pad_cost,
-                      planning_cones)
+from .keepout import (cone_function, planning_cones, qp_stage_functions,
+                      stage_defects)
 from .stagewise import _diag, box_layout, state_box_sides
 from .stagewise_ipm import IPM_MAX_ITER, IPM_TOL, Tree, ipm_solve
-from .stagewise_kernels import nz_of, stage_kernels
+from .stagewise_kernels import stage_kernels
 
 
 #: How far [scaled, 1] the copies of the shared control's box are moved
@@ -97,29 +97,19 @@ class _RobustParts:
         self.cones = (cone_function(planning_cones(mpc), nx) if mpc.keep_out
                       else None)
         self.nq = nx + len(mpc.keep_out)     # the QP's state
-        if self.cones is None:
-            self.lin = ca.Function("rb_lin", [x, u, tau, th],
-                                   [F, nz_of(Aj), nz_of(Bj)])
-        else:
-            x1 = ca.SX.sym("x_next", nx)
-            d, Aj, Bj = augmented_linearisation(F, Aj, Bj, x1, self.cones)
-            self.lin = ca.Function("rb_lin", [x, u, tau, th, x1],
-                                   [d, nz_of(Aj), nz_of(Bj)])
-        self.rk4 = rk4
         kern = _kernels(mpc)
         qf, a, c = ca.SX.sym("qf", 4), ca.SX.sym("a"), ca.SX.sym("c")
-        Q, q, cost = kern["stage"](x, qf, a, c)
-        if self.cones is not None:
-            Q, q = pad_cost(Q, q, len(mpc.keep_out))
-        self.stage = ca.Function("rb_stage", [x, qf, a, c],
-                                 [nz_of(Q), q])
+        Q, q, _ = kern["stage"](x, qf, a, c)
+        #: patterns of A_k, B_k and Q_k (their nonzeros cross the kernels)
+        self.lin, self.stage, self.sparsity = qp_stage_functions(
+            "rb", [x, u, tau, th], F, Aj, Bj, [x, qf, a, c], Q, q,
+            self.cones)
+        self.rk4 = rk4
         self.m_max = np.asarray(wh.m_max, dtype=float)
         self.r_diag = 2.0 * w.torque / self.m_max ** 2 + mpc.regularization
         self.lay = box_layout(mpc)
         lo, hi = model.control_bounds()
         self.free = np.asarray(hi > lo)
-        #: Patterns of A_k, B_k and Q_k (their nonzeros cross the kernels)
-        self.sparsity = (Aj.sparsity(), Bj.sparsity(), Q.sparsity())
         self.kern = stage_kernels(*self.sparsity, self.free, self.lay.bu,
                                   self.lay.bx)
         self.tree = Tree(N, S, root=True)
@@ -224,11 +214,8 @@ def _qp_data(mpc: Any, parts: _RobustParts, z, p) -> tuple:
     # one column per stage, scenario-major: a (·, S) argument would be
     # tiled by the map, stage k of scenario s getting scenario (sN+k) mod S
     args = [X, U, per_stage(tau, N), per_stage(parts.theta, N)]
-    if parts.cones is None:
-        F, An, Bn = parts.lin.map(N).map(S)(*args)
-        D = F - X1
-    else:
-        D, An, Bn = parts.lin.map(N).map(S)(*args, X1)
+    D, An, Bn = stage_defects(parts.lin.map(N).map(S), args, X1,
+                              parts.cones)
     a = ca.DM([[1.0] * (N - 1) + [0.0]])
     c = ca.DM([[1.0] * (N - 1) + [w.terminal]])
     Qn, q = parts.stage.map(N).map(S)(X1, qf, a, c)

@@ -25,12 +25,12 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError
 from .condensed import (ANDERSON_MEMORY, STEP_TOL, _kernels,
                         sqp_step_functions)
-from .keepout import (CONE_FLOOR, CONE_WIDTH, augmented_linearisation,
-                      cone_function, pad_cost, planning_cones)
+from .keepout import (CONE_FLOOR, CONE_WIDTH, cone_function, planning_cones,
+                      qp_stage_functions, stage_defects)
 from .stagewise_boxes import BoxLayout
 from .stagewise_ipm import (IPM_MAX_ITER, IPM_TOL, Tree,
                             ipm_solve)
-from .stagewise_kernels import nz_of, stage_kernels
+from .stagewise_kernels import stage_kernels
 
 
 def _nz_kernels(kern: dict, nx: int, nu: int,
@@ -46,15 +46,9 @@ def _nz_kernels(kern: dict, nx: int, nu: int,
     F, A, B = kern["lin"](x, u, tau)
     qf, a, c = ca.SX.sym("qf", 4), ca.SX.sym("a"), ca.SX.sym("c")
     Q, q, _ = kern["stage"](x, qf, a, c)
-    if cones is None:
-        lin = ca.Function("sw_lin", [x, u, tau], [F, nz_of(A), nz_of(B)])
-    else:
-        x1 = ca.SX.sym("x_next", nx)
-        d, A, B = augmented_linearisation(F, A, B, x1, cones)
-        lin = ca.Function("sw_lin", [x, u, tau, x1], [d, nz_of(A), nz_of(B)])
-        Q, q = pad_cost(Q, q, cones.size1_out(0))
-    stage = ca.Function("sw_stage", [x, qf, a, c], [nz_of(Q), q])
-    return lin, stage, A.sparsity(), B.sparsity(), Q.sparsity()
+    lin, stage, sp = qp_stage_functions("sw", [x, u, tau], F, A, B,
+                                        [x, qf, a, c], Q, q, cones)
+    return (lin, stage, *sp)
 
 
 def box_layout(mpc: Any) -> BoxLayout:
@@ -185,11 +179,8 @@ def _qp_data(mpc: Any, parts: _Parts, z: ca.MX, p: ca.MX) -> tuple:
     Z = ca.reshape(z[:n_stage], nx + nu, N)
     X, U, xN = Z[:nx, :], Z[nx:, :], z[n_stage:]
     X1 = ca.horzcat(X[:, 1:], xN)
-    if parts.cones is None:
-        F, An, Bn = parts.lin.map(N)(X, U, tau)
-        D = F - X1
-    else:
-        D, An, Bn = parts.lin.map(N)(X, U, tau, X1)
+    D, An, Bn = stage_defects(parts.lin.map(N), [X, U, tau], X1,
+                              parts.cones)
     a = ca.DM([[1.0] * (N - 1) + [0.0]])
     c = ca.DM([[1.0] * (N - 1) + [w.terminal]])
     Qn, q = parts.stage.map(N)(X1, qf, a, c)
