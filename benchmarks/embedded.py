@@ -2,7 +2,7 @@
 
 Run from the repository root: ``python -m benchmarks.embedded [--target
 cortex-m7] [--mpc mpc_cond_rti_step] [--precision single]
-[--quick]``. Exports the demo craft
+[--horizon 20] [--quick]``. Exports the demo craft
 (`ocp.codegen.export_c`, horizon 20, dt 0.5 s; DAQP's C sources travel
 in the export, its workspace static) for the target, cross-compiles it
 (arm-none-eabi-gcc -O3, -Wall -Wextra -Werror) and runs the bare-metal
@@ -38,6 +38,8 @@ def main() -> None:
     ap.add_argument("--precision", default="double",
                     choices=("double", "single"),
                     help="C arithmetic of the export (single: float)")
+    ap.add_argument("--horizon", type=int, default=20,
+                    help="MPC horizon N of the export (stages)")
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
     reason = toolchain_missing()
@@ -47,13 +49,14 @@ def main() -> None:
         v.strip() for v in args.mpc.split(",") if v.strip())
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
-        res = export_c(out, "demo", horizon=20, dt=0.5, mpc_variants=mpc,
+        res = export_c(out, "demo", horizon=args.horizon, dt=0.5,
+                       mpc_variants=mpc,
                        target=args.target, precision=args.precision,
                        build=True)
         t1 = time.perf_counter()
         times = run_target(res, timeout=3600)
         t2 = time.perf_counter()
-    print(f"demo craft, horizon 20, {args.target}, {args.precision} "
+    print(f"demo craft, horizon {args.horizon}, {args.target}, {args.precision} "
           f"({' '.join(res.extras['memory']['core'])}), -O3; "
           f"export+build {t1 - t0:.0f} s, emulation {t2 - t1:.0f} s")
     print(format_counts(times, args.target))

@@ -4,12 +4,13 @@ Run from the repository root::
 
     python -m benchmarks.mpc_worst_case [--loops 200] [--steps 120]
                                         [--max-iter 8] [--seed 0]
+                                        [--horizon 20]
     python -m benchmarks.mpc_worst_case --target cortex-m7
                                         [--draws-on-target 20]
 
 Exports the condensed MPC steps (`mpc_cond_rti_step`, and
 `mpc_cond_step` with at most ``--max-iter`` SQP iterations) for the demo
-craft (horizon 20, dt 0.5 s), builds them on the host and flies closed
+craft (horizon 20 or ``--horizon``, dt 0.5 s), builds them on the host and flies closed
 loops from random attitudes (uniform on the sphere of rotations) and
 random body rates (each component uniform in ±0.02 rad/s, wheels at
 rest) to the identity, the plant integrated by RK4 in Python. Each call
@@ -78,7 +79,7 @@ def fly(f: ca.Function, model, x0: np.ndarray, steps: int,
     qf = np.array([1.0, 0.0, 0.0, 0.0])
     z = np.zeros(f.nnz_in(3))
     nx, nu = model.nx, model.nu
-    for k in range(21):
+    for k in range((z.size - nx) // (nx + nu) + 1):
         z[k * (nx + nu):k * (nx + nu) + nx] = x
     lx, lg = np.zeros(f.nnz_in(4)), np.zeros(f.nnz_in(5))
     times, kkts, iters, viols = [], [], [], []
@@ -98,7 +99,8 @@ def fly(f: ca.Function, model, x0: np.ndarray, steps: int,
             "final_error": float(quat_error_angle(x[:4], qf))}
 
 
-def run(loops: int, steps: int, max_iter: int, seed: int = 0) -> list:
+def run(loops: int, steps: int, max_iter: int, seed: int = 0,
+        horizon: int = 20) -> list:
     """Rows ``(variant, summary dict)`` of the Monte Carlo."""
     sc = load_spacecraft("demo")
     model = rigid_spacecraft(sc.inertia, sc.wheels)
@@ -106,7 +108,8 @@ def run(loops: int, steps: int, max_iter: int, seed: int = 0) -> list:
     starts = random_states(model, loops, rng)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        res = export_c(tmp, sc, horizon=20, dt=0.5, mpc_max_iter=max_iter,
+        res = export_c(tmp, sc, horizon=horizon, dt=0.5,
+                       mpc_max_iter=max_iter,
                        mpc_variants=VARIANTS, build=True)
         for name in VARIANTS:
             f = ca.external(name, str(res.shared_library))
@@ -168,11 +171,12 @@ def pool_loops(loops: list) -> dict:
 def run_target_draws(draws: int, steps: int, seed: int = 0,
                      target: str = "cortex-m7",
                      name: str = "mpc_cond_rti_step",
-                     precision: str = "double") -> dict:
+                     precision: str = "double",
+                     horizon: int = 20) -> dict:
     """The first ``draws`` states of `run`'s Monte Carlo flown by ``name``
     on the emulated ``target`` and on the host.
 
-    One export of the demo craft (horizon 20, dt 0.5 s) for ``target``,
+    One export of the demo craft (``horizon``, dt 0.5 s) for ``target``,
     its drivers rewritten to fly a loop per start to the identity
     (`ocp.codegen.loop_starts.write_loop_starts`); the ELF run on qemu
     (instructions per step), the host driver built from the same folder
@@ -205,7 +209,8 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
                                     np.random.default_rng(seed)))
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        res = export_c(tmp, sc, horizon=20, dt=0.5, mpc_variants=(name,),
+        res = export_c(tmp, sc, horizon=horizon, dt=0.5,
+                       mpc_variants=(name,),
                        target=target, repeats=10, precision=precision)
         res = write_loop_starts(res, starts, steps=steps)
         elf = build_target(res)
@@ -216,7 +221,7 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
         host = run_driver(host_res, timeout=600, check=False)
         # the Python loop loads a host export: a Cortex-M export's
         # casadi_int is int, which casadi.external cannot load
-        lib = export_c(Path(tmp) / "host", sc, horizon=20, dt=0.5,
+        lib = export_c(Path(tmp) / "host", sc, horizon=horizon, dt=0.5,
                        mpc_variants=(name,), build=True).shared_library
         f = ca.external(name, str(lib))
         py = [fly(f, model, x0, steps, 0.5) for x0 in starts]
@@ -245,6 +250,7 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
               for key, src, unit in (("all", emu, "steps"),
                                      ("host_all", host, "steps_us"))}
     return {"target": target, "name": name, "draws": draws,
+            "horizon": horizon,
             "precision": precision,
             "steps": steps, "seed": seed, "loops": loops, **pooled,
             "ok": all(r["ok"] for r in loops),
@@ -257,7 +263,8 @@ def format_target(out: dict, rows_max: int = 20) -> str:
     (instructions on the target, µs on the host) and the draws of the
     worst steps."""
     rows = [f"`{out['name']}` on the emulated {out['target']} "
-            f"in {out.get('precision', 'double')} precision "
+            f"in {out.get('precision', 'double')} precision, horizon "
+            f"{out.get('horizon', 20)} "
             f"(instructions per step, qemu -icount) and on the host (C "
             f"driver, µs): draws 0–{out['draws'] - 1} of seed "
             f"{out['seed']}, {out['steps']} steps of 0.5 s each; build "
@@ -306,6 +313,8 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=120)
     ap.add_argument("--max-iter", type=int, default=8)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--horizon", type=int, default=20,
+                    help="MPC horizon N of the export (stages)")
     ap.add_argument("--target", default="host",
                     choices=("host", "cortex-m7", "cortex-m4f"))
     ap.add_argument("--draws-on-target", type=int, default=20,
@@ -319,14 +328,15 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     if args.target == "host":
         print(format_rows(run(args.loops, args.steps, args.max_iter,
-                              args.seed)))
+                              args.seed, args.horizon)))
         return
     from ocp.codegen.target import toolchain_missing
 
     if (reason := toolchain_missing()) is not None:
         raise SystemExit(f"benchmarks.mpc_worst_case: {reason}")
     out = run_target_draws(args.draws_on_target, args.steps, args.seed,
-                           args.target, precision=args.precision)
+                           args.target, precision=args.precision,
+                           horizon=args.horizon)
     print(format_target(out))
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))

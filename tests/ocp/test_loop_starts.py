@@ -68,6 +68,29 @@ def test_host_driver_flies_one_loop_per_start(m7_export, host_times):
     assert np.abs(a - b).max() > 1e-9
 
 
+def test_python_loop_flies_the_export_horizon(tmp_path, host_times):
+    """`benchmarks.mpc_worst_case.fly` starts its plan at the horizon of
+    the export it flies (here 5, not the benchmark's default 20) and ends
+    where the C driver's loop from the same start ends."""
+    import casadi as ca
+
+    from benchmarks.mpc_worst_case import fly
+
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    lib = export_c(tmp_path, sc, horizon=HORIZON, dt=0.5,
+                   mpc_variants=(NAME,), build=True).shared_library
+    f = ca.external(NAME, str(lib))
+    assert f.nnz_in(3) == (HORIZON + 1) * model.nx + HORIZON * model.nu
+    for k, x0 in enumerate(_starts()):
+        loop = fly(f, model, x0, STEPS, 0.5)
+        assert loop["times"].shape == (STEPS,)
+        assert loop["kkt"].max() < 1e-6 and loop["violation"] < 1e-10
+        c = host_times[loop_key(NAME, k)]["loop_final_error_deg"]
+        assert np.rad2deg(loop["final_error"]) == pytest.approx(
+            c, rel=1e-6, abs=1e-12)
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(toolchain_missing() is not None,
                     reason=str(toolchain_missing()))
