@@ -21,6 +21,7 @@ import numpy as np
 from adcs_common.quaternion import quat_from_axis_angle
 from adcs_common.results import ResultMixin
 from allocation import WheelArray
+from ocp.mpc.keepout import smallest_cone_margin
 
 from . import require_basilisk
 from .convert import mrp_to_quaternion, rotor_momenta
@@ -208,9 +209,8 @@ def _fly_basilisk(name: str, mpc: Any, d: Any, qf: np.ndarray,
         f"{name}_momentum_violation": max(h_excess, 0.0),
         f"{name}_torque_violation": max(m_excess, 0.0),
         f"{name}_rate_violation": rate_excess(w, rate_max),
-        f"{name}_keep_out_violation": max(0.0, -float(min(
-            np.min(c.margin(q_path)) for c in mpc.keep_out)))
-        if mpc.keep_out else 0.0,
+        f"{name}_keep_out_violation": max(
+            0.0, -smallest_cone_margin(mpc.keep_out, q_path)),
         f"{name}_settle_time": settle_time(
             mpc.dt * np.arange(len(err)), err, float(np.deg2rad(0.1))),
         f"{name}_final_error": float(err[-1]),

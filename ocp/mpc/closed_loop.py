@@ -275,7 +275,7 @@ def keep_out_margin(result: ClosedLoopResult, keep_out: Any,
     (negative: the boresight entered a cone). ``disturbance`` (3,) [N·m]
     is the constant torque the loop flew with (default none).
     """
-    from .keepout import as_keep_out
+    from .keepout import as_keep_out, smallest_cone_margin
 
     cones = as_keep_out(keep_out)
     if not cones:
@@ -310,7 +310,7 @@ def keep_out_margin(result: ClosedLoopResult, keep_out: Any,
             x = np.asarray(F(x0=x, p=np.r_[U[k], tau])["xf"]).ravel()
             qs.append(x[None, :4])
     q = np.concatenate(qs)
-    return float(min(np.min(c.margin(q)) for c in cones))
+    return smallest_cone_margin(cones, q)
 
 
 def compare_slew(model: SpacecraftModel, q0: ArrayLike, qf: ArrayLike, *,

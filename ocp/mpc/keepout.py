@@ -213,6 +213,12 @@ def stage_defects(lin_map: ca.Function, args: list, X1: Any,
     return lin_map(*args, X1)
 
 
+def smallest_cone_margin(cones: Sequence[KeepOut], q: Any) -> float:
+    """Smallest angle [rad] of the attitudes ``q`` (K, 4) from the cones
+    (`ocp.KeepOut.margin`; negative inside one, +inf with no cone)."""
+    return float(min((np.min(c.margin(q)) for c in cones), default=np.inf))
+
+
 def plan_cone_violation(cones: ca.Function, X: Any) -> ca.MX:
     """Largest ``max(0, c)`` over the states X (n_x × K) [cos units]."""
     return ca.fmax(0.0, ca.mmax(cones.map(X.shape[1])(X)))

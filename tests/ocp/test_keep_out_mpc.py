@@ -20,7 +20,7 @@ from ocp import KeepOut, quat_from_axis_angle, rigid_spacecraft
 from ocp.mpc import (AttitudeMPC, RobustMPC, Scenario, keep_out_margin,
                      simulate_mpc)
 from ocp.mpc.keepout import (KEEP_OUT_BACKOFF, cone_function, cone_values,
-                             planning_cones)
+                             planning_cones, smallest_cone_margin)
 
 WHEELS = WheelArray.pyramid(h_max=0.2, m_max=0.05)
 MODEL = rigid_spacecraft(np.diag([3.0, 2.5, 3.5]), WHEELS)
@@ -251,3 +251,17 @@ def test_a_solve_left_near_its_tolerance_resumes(monkeypatch):
     monkeypatch.setattr(ipm, "IPM_RESUME", np.inf)
     stopped = float(_RobustParts(mpc, 1e-9, 40).ipm(*data)[4])
     assert stopped > 1e-6 and kkt < 1e-8
+
+
+def test_smallest_cone_margin_over_cones_and_attitudes():
+    """The smallest margin over every cone and attitude (the loop's and
+    Basilisk's keep-out figure): by hand, 10° − 30° at the second
+    attitude in the first cone; +inf with no cone."""
+    a = KeepOut((1, 0, 0), (0, 1, 0), np.deg2rad(30.0))
+    b = KeepOut((1, 0, 0), (0, 0, 1), np.deg2rad(5.0))
+    q = np.array([[1.0, 0.0, 0.0, 0.0],
+                  quat_from_axis_angle([0, 0, 1], np.deg2rad(80.0))])
+    assert smallest_cone_margin([a, b], q) == pytest.approx(
+        np.deg2rad(-20.0), abs=1e-12)
+    assert smallest_cone_margin([b], q) == pytest.approx(np.deg2rad(85.0))
+    assert smallest_cone_margin([], q) == np.inf
