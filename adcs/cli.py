@@ -231,7 +231,6 @@ def _sweep(args: argparse.Namespace) -> int:
 
     study, make_params, _ = SWEEPS[args.name]
     load_spacecraft(args.spacecraft)          # a bad name fails here
-    out = output_folder(args.out, "out")
     if args.samples is not None and args.samples < 1:
         raise InvalidValueError(f"--samples must be >= 1, got {args.samples}")
     if args.t_fail is not None and not args.t_fail > 0:
@@ -246,6 +245,7 @@ def _sweep(args: argparse.Namespace) -> int:
                          rate_margin=args.rate_margin,
                          tree_products=args.tree_products,
                          keep_out_deg=args.keep_out_deg)
+    out = output_folder(args.out, "out")      # once every input passed
     with _dask_client(args, local=not args.sync) as client, \
             warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", SweepCacheWarning)

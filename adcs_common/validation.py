@@ -49,7 +49,9 @@ def as_finite_array(value: ArrayLike, name: str,
             raise ShapeError(
                 f"{name} must have shape {want}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise InvalidValueError(f"{name} must be finite, got {arr!r}")
+        got = float(arr) if arr.ndim == 0 else np.array2string(
+            arr, threshold=12)
+        raise InvalidValueError(f"{name} must be finite, got {got}")
     return arr
 
 

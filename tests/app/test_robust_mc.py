@@ -162,6 +162,19 @@ def test_a_keep_out_cone_across_the_slew_is_held_and_counted(serial):
             robust_mc_params(1, keep_out_deg=bad)
 
 
+def test_cli_refuses_a_nan_keep_out_in_one_line(tmp_path, capsys):
+    """``adcs sweep robust --keep-out-deg nan``: one line naming the
+    value as the user typed it, exit status 2, nothing written."""
+    from adcs.cli import main
+
+    out = tmp_path / "o"
+    assert main(["sweep", "robust", "--keep-out-deg", "nan", "--samples",
+                 "1", "--out", str(out)]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "adcs: error: keep_out_deg must be finite, got nan"]
+    assert not out.exists()
+
+
 def test_a_rate_margin_plans_below_the_bound_and_counts_against_it():
     """With ``rate_margin`` both MPCs plan the rate bound that fraction
     below it, and the violations are counted against the bound itself:
