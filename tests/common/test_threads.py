@@ -5,6 +5,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pytest
 
+from adcs.robust_mc import slew_keep_out
 from adcs_common.exceptions import ThreadOwnershipError
 
 from allocation import QPAllocator, WheelArray
@@ -73,7 +74,11 @@ def _run(mpc, model, n=15):
     return np.array(us)
 
 
-MPC_KINDS = [{"rti": True}, {"solver": "condensed"}]
+#: the stage-wise MPC with a keep-out cone across the slew (the cones
+#: add kernels, no state the threads could share)
+MPC_KINDS = [{"rti": True}, {"solver": "condensed"},
+             {"solver": "stagewise",
+              "keep_out": (slew_keep_out(0.5, np.deg2rad(10.0)),)}]
 
 
 @pytest.mark.parametrize("kw", MPC_KINDS)
