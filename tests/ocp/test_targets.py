@@ -275,3 +275,34 @@ def test_m4f_single_condensed_closed_loop(tmp_path):
                                    rtol=0, atol=atol)
     # the float duty_qp is certified where the double one is: same status
     assert times["duty_qp"]["outputs"][3][0] == float(ref[3])
+
+
+#: The flight-code goals (docs/benchmarks.md, "The horizon against the
+#: flight-code goals"), per step of the closed loop and for the flight
+#: set linked together [instructions, bytes].
+GOAL_MEDIAN, GOAL_WORST = 400_000, 2_000_000
+GOAL_FLASH, GOAL_RAM = 256 * 1024, 64 * 1024
+
+
+def test_m4f_single_horizon_7_meets_every_flight_goal(tmp_path):
+    """In float on the emulated Cortex-M4F at horizon 7 the condensed RTI
+    step and its flight set meet every figure of the goal table: the
+    closed loop's median and worst step, cold included (measured 139,200,
+    655,440 and 432,160 instructions), the flight set's flash and RAM
+    (179,128 and 57,076 bytes), wheel_qp and duty_qp a call, no heap."""
+    res = export_c(tmp_path / "n7", "demo", horizon=7, precision="single",
+                   mpc_variants=("mpc_cond_rti_step",), target="cortex-m4f",
+                   build=True, repeats=10)
+    times = run_target(res, timeout=600)
+    loop = times["closed_loop:mpc_cond_rti_step"]
+    steps = np.asarray(loop["steps"])
+    assert np.median(steps) <= GOAL_MEDIAN, np.median(steps)
+    assert steps.max() <= GOAL_WORST, steps.max()
+    assert np.deg2rad(loop["final_error_deg"]) <= M4F_SINGLE_FINAL_ERROR_RAD
+    mem = res.extras["memory"]["functions"]
+    flight = mem["wheel_qp+duty_qp+mpc_cond_rti_step"]
+    assert flight["flash"] <= GOAL_FLASH, flight
+    assert flight["ram"] <= GOAL_RAM, flight
+    assert not any(mem[n]["heap"] for n in res.functions)
+    assert times["wheel_qp"]["max"] <= WHEEL_QP_INSTRUCTIONS
+    assert times["duty_qp"]["median"] <= DUTY_QP_INSTRUCTIONS
