@@ -16,7 +16,8 @@ certificate), the largest excess of the wheel momentum, wheel torque and
 body rate over their bounds, the entry into a keep-out cone (with
 ``keep_out_deg``: a cone across the slew, `slew_keep_out`, held by both
 MPCs; the path between samples checked, `ocp.mpc.keep_out_margin`), the
-settling time, the final error and the energy. Draw ``k`` of seed ``s`` uses the random stream
+settling time, the final error and the energy. Draw ``k`` of seed ``s``
+uses the random stream
 ``SeedSequence(s, spawn_key=(k,))`` alone, so a draw is the same
 whatever the chunking or the worker that flies it; `run_robust_mc`
 runs the draws on a Dask client (`adcs.sweep.run_sweep`) or serially.

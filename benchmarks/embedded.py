@@ -56,7 +56,8 @@ def main() -> None:
         t1 = time.perf_counter()
         times = run_target(res, timeout=3600)
         t2 = time.perf_counter()
-    print(f"demo craft, horizon {args.horizon}, {args.target}, {args.precision} "
+    print(f"demo craft, horizon {args.horizon}, {args.target}, "
+          f"{args.precision} "
           f"({' '.join(res.extras['memory']['core'])}), -O3; "
           f"export+build {t1 - t0:.0f} s, emulation {t2 - t1:.0f} s")
     print(format_counts(times, args.target))

@@ -10,8 +10,9 @@ Run from the repository root::
 
 Exports the condensed MPC steps (`mpc_cond_rti_step`, and
 `mpc_cond_step` with at most ``--max-iter`` SQP iterations) for the demo
-craft (horizon 20 or ``--horizon``, dt 0.5 s), builds them on the host and flies closed
-loops from random attitudes (uniform on the sphere of rotations) and
+craft (horizon 20 or ``--horizon``, dt 0.5 s), builds them on the host
+and flies closed loops from random attitudes (uniform on the sphere of
+rotations) and
 random body rates (each component uniform in ±0.02 rad/s, wheels at
 rest) to the identity, the plant integrated by RK4 in Python. Each call
 of the compiled Function is timed (wall time of one buffered call, so a

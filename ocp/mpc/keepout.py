@@ -37,9 +37,11 @@ from adcs_common.exceptions import InvalidValueError
 from adcs_common.quaternion import quat_to_dcm
 from ocp.slews.setup import KeepOut
 
-__all__ = ["CONE_FLOOR", "CONE_WIDTH", "KEEP_OUT_BACKOFF", "as_keep_out", "cone_function", "cone_values",
-           "augmented_linearisation", "pad_cost", "plan_cone_violation",
-           "planning_cones"]
+__all__ = ["CONE_FLOOR", "CONE_WIDTH", "KEEP_OUT_BACKOFF",
+           "augmented_linearisation", "as_keep_out", "cone_function",
+           "cone_values", "pad_cost", "plan_cone_violation",
+           "planning_cone_function", "planning_cones", "qp_stage_functions",
+           "smallest_cone_margin", "stage_defects"]
 
 #: How far inside each cone's boundary the MPC plans [cos units]
 #: (module doc).
@@ -119,6 +121,14 @@ def planning_cones(mpc: Any) -> tuple[KeepOut, ...]:
                 "the sphere: shorten dt or lower rate_max")
         out.append(KeepOut(k.boresight, k.direction, k.half_angle + pad))
     return tuple(out)
+
+
+def planning_cone_function(mpc: Any) -> ca.Function | None:
+    """`cone_function` of the cones the MPC plans with (`planning_cones`),
+    the stage-wise and robust QPs' extra states; None without a cone."""
+    if not mpc.keep_out:
+        return None
+    return cone_function(planning_cones(mpc), mpc.model.nx)
 
 
 def cone_values(cones: Sequence[KeepOut], q: Any) -> np.ndarray:

@@ -5,8 +5,8 @@
 starts from the measured state and applies the same first command (the
 tree branches at the first stage: robust horizon 1), its cost is the
 weighted sum of the scenarios' costs, and every bound (torque, momentum,
-rate, keep-out cones) holds in every scenario. The step is the stage-wise SQP on the
-scenario tree (`ocp.mpc.robust_qp`); with one scenario, the nominal
+rate, keep-out cones) holds in every scenario. The step is the
+stage-wise SQP on the scenario tree (`ocp.mpc.robust_qp`); with one scenario, the nominal
 craft, it is the nominal stage-wise MPC (a test holds them equal).
 """
 

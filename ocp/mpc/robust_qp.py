@@ -26,7 +26,7 @@ import numpy as np
 
 from adcs_common.quaternion import quat_rate
 from .condensed import _kernels
-from .keepout import (cone_function, planning_cones, qp_stage_functions,
+from .keepout import (planning_cone_function, qp_stage_functions,
                       stage_defects)
 from .stagewise import _diag, box_layout, state_box_sides
 from .stagewise_ipm import IPM_MAX_ITER, IPM_TOL, Tree, ipm_solve
@@ -94,8 +94,7 @@ class _RobustParts:
         th = ca.SX.sym("th", rk4.size1_in(3))
         F = rk4(x, u, tau, th)
         Aj, Bj = ca.jacobian(F, x), ca.jacobian(F, u)
-        self.cones = (cone_function(planning_cones(mpc), nx) if mpc.keep_out
-                      else None)
+        self.cones = planning_cone_function(mpc)
         self.nq = nx + len(mpc.keep_out)     # the QP's state
         kern = _kernels(mpc)
         qf, a, c = ca.SX.sym("qf", 4), ca.SX.sym("a"), ca.SX.sym("c")

@@ -25,7 +25,7 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError
 from .condensed import (ANDERSON_MEMORY, STEP_TOL, _kernels,
                         sqp_step_functions)
-from .keepout import (CONE_FLOOR, CONE_WIDTH, cone_function, planning_cones,
+from .keepout import (CONE_FLOOR, CONE_WIDTH, planning_cone_function,
                       qp_stage_functions, stage_defects)
 from .stagewise_boxes import BoxLayout
 from .stagewise_ipm import (IPM_MAX_ITER, IPM_TOL, Tree,
@@ -144,8 +144,7 @@ class _Parts:
         model, wh, w = mpc.model, mpc.wheels, mpc.weights
         nx, nu = model.nx, model.nu
         kern = _kernels(mpc)
-        self.cones = (cone_function(planning_cones(mpc), nx) if mpc.keep_out
-                      else None)
+        self.cones = planning_cone_function(mpc)
         self.lin, self.stage, sp_a, sp_b, sp_q = _nz_kernels(
             kern, nx, nu, self.cones)
         self.nq = nx + len(mpc.keep_out)     # the QP's state
