@@ -114,6 +114,27 @@ def _kernels(mpc: Any) -> dict[str, ca.Function]:
     return {"lin": lin, "stage": stage}
 
 
+def _qp_bounds(mpc: Any, at: "_Layout", z: Any, e: list) -> tuple:
+    """``(Xe, u_bar, lbu, ubu, lba, uba)`` of the QP in δu at the plan
+    ``z``: its states 1…N plus the defects ``e`` carried along
+    (stage-major, each pick one strided copy in C), its torques, the
+    bounds on δu and those of the rows (momenta, then rates) on their
+    deviations."""
+    model, N = mpc.model, mpc.horizon
+    h_max = np.asarray(mpc.wheels.h_max, dtype=float)
+    Xe = z[at.states()] + ca.vertcat(*e[1:])
+    h_now = Xe[at.rows(7, model.nx)]
+    lba, uba = [-np.tile(h_max, N) - h_now], [np.tile(h_max, N) - h_now]
+    if mpc.rate_max is not None:
+        w_now = Xe[at.rows(4, 7)]
+        lba.append(-mpc.rate_max - w_now)
+        uba.append(mpc.rate_max - w_now)
+    u_lo, u_hi = model.control_bounds()
+    u_bar = z[at.controls()]
+    return (Xe, u_bar, np.tile(u_lo, N) - u_bar, np.tile(u_hi, N) - u_bar,
+            ca.vertcat(*lba), ca.vertcat(*uba))
+
+
 def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     """``cond_iter(z, lam_x, p) -> (z_new, lam_x, step, qp_kkt)``: one SQP
     step and its QP's optimality certificate (`condensed_qp.kkt_residual`).
@@ -135,19 +156,8 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     rk = sk["rk"]
     A, B, e, K, Lit, gy, _ = linearise(mpc, sk, kern, z, qf, tau)
     rate_rows = mpc.rate_max is not None
-    h_max = np.asarray(wh.h_max, dtype=float)
-    # stage-major vectors of the states 1…N: the plan's plus the defects
-    # carried along (each pick one strided copy in C)
     at = _Layout(mpc)
-    Xe = z[at.states()] + ca.vertcat(*e[1:])
-    h_now = Xe[at.rows(7, nx)]
-    lba, uba = [-np.tile(h_max, N) - h_now], [np.tile(h_max, N) - h_now]
-    if rate_rows:
-        w_now = Xe[at.rows(4, 7)]
-        lba.append(-mpc.rate_max - w_now)
-        uba.append(mpc.rate_max - w_now)
-    u_lo, u_hi = model.control_bounds()
-    u_bar = z[at.controls()]
+    Xe, u_bar, lbu, ubu, lba, uba = _qp_bounds(mpc, at, z, e)
     lam_a0 = ca.vertcat(lx0[at.states(7, nx)], *(
         [lx0[at.states(4, 7)]] if rate_rows else []))
     # the QP in y has the Hessian I: its unconstrained optimum is -W⁻ᵀg,
@@ -155,14 +165,12 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     # row; W⁻¹ (O(N²) sweeps) and the conic only otherwise
     du0, dx0 = closed_loop(rk, A, B, K, Lit, -gy)
     rows0 = _rows_of(dx0, rate_rows)
-    lbu, ubu = np.tile(u_lo, N) - u_bar, np.tile(u_hi, N) - u_bar
-    lba_, uba_ = ca.vertcat(*lba), ca.vertcat(*uba)
-    excess = ca.mmax(ca.vertcat(du0 - ubu, lbu - du0, rows0 - uba_,
-                                lba_ - rows0))
+    excess = ca.mmax(ca.vertcat(du0 - ubu, lbu - du0, rows0 - uba,
+                                lba - rows0))
     inside = excess <= 0
     # the stages' matrices enter one by one (no copies into one matrix
     # on the unconstrained path; `_QP_TAIL` names the rest)
-    qp_in = [*A, *B, *K, *Lit, *dx0, gy, du0, rows0, lbu, ubu, lba_, uba_,
+    qp_in = [*A, *B, *K, *Lit, *dx0, gy, du0, rows0, lbu, ubu, lba, uba,
              lx0[at.controls()], lam_a0, excess]
     qp = ca.Function.if_else(
         "cond_qp_first", _free_qp(qp_in, N),
@@ -171,6 +179,7 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     # the commanded torques projected onto their box: a float QP point
     # can sit outside it by its rounding, amplified by W⁻¹ (2.6e-6 N·m
     # measured on the M4F); the certificate is the QP point's
+    u_lo, u_hi = model.control_bounds()
     u_new = ca.fmin(ca.fmax(u_bar + du, np.tile(u_lo, N)), np.tile(u_hi, N))
     # the new plan: the states z's plus δx_k = e_k + dx_k (the defects
     # carried along plus the closed loop's response to δu: the dynamics
@@ -272,26 +281,33 @@ def _rows_of(dx: list, rate_rows: bool) -> ca.MX:
 
 
 def qp_factor_function(mpc: Any) -> ca.Function:
-    """``cond_factor(z, p) -> (Winv, rows, g)`` of one condensed QP.
+    """``cond_factor(z, p) -> (Winv, rows, g, lbu, ubu, lba, uba)``: one
+    condensed QP, as the RTI step poses it.
 
-    For checks and studies: at the plan ``z`` (x_0 the measured state)
-    and parameters ``p = (x, q_f, τ)``, the QP in δu has the Hessian
-    ``H = W⁻ᵀW⁻¹`` and the gradient ``g`` (N·n_u,); ``rows @ y`` are the
-    momentum (and rate) deviations of the states 1…N for δu = W⁻¹y.
+    For checks and studies: at the plan ``z`` (x_0 the measured state;
+    the step's is the previous plan shifted) and parameters ``p = (x,
+    q_f, τ)``, the QP in δu (N·n_u,) has the Hessian ``H = W⁻ᵀW⁻¹`` and
+    the gradient ``g``; with δu = W⁻¹y it is the QP in y of the Hessian
+    I and the gradient W⁻ᵀg. Its bounds: ``lbu ≤ W⁻¹y ≤ ubu`` (torques,
+    N·m) and ``lba ≤ rows @ y ≤ uba``, the deviations of the momenta
+    (N·m·s) and then, with a rate bound, of the rates (rad/s) of the
+    states 1…N, stage-major.
     """
     kern = _kernels(mpc)
     nx = mpc.model.nx
     z = ca.MX.sym("z", mpc.nz)
     p = ca.MX.sym("p", nx + 7)
     sk = sweep_kernels(mpc, kern)
-    A, B, _, K, Lit, _, g = linearise(mpc, sk, kern, z, p[nx:nx + 4],
+    A, B, e, K, Lit, _, g = linearise(mpc, sk, kern, z, p[nx:nx + 4],
                                       p[nx + 4:])
     winv, G = factor_rows(sk["rk"], A, B, K, Lit, mpc.rate_max is not None)
     N, nu, nw = mpc.horizon, mpc.model.nu, mpc.wheels.n_wheels
     at = RowLayout(N, nu, nw, G.shape[0] // N)
     rows = G[[i for idx in at.parts for i in idx], :]
-    return ca.Function("cond_factor", [z, p], [winv, rows, g],
-                       ["z", "p"], ["Winv", "rows", "g"])
+    _, _, lbu, ubu, lba, uba = _qp_bounds(mpc, _Layout(mpc), z, e)
+    return ca.Function("cond_factor", [z, p],
+                       [winv, rows, g, lbu, ubu, lba, uba], ["z", "p"],
+                       ["Winv", "rows", "g", "lbu", "ubu", "lba", "uba"])
 
 
 #: Names of the step Functions' inputs and outputs (`AttitudeMPC`'s, plus

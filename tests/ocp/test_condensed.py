@@ -102,15 +102,20 @@ def test_one_condensed_step_equals_the_dense_numpy_qp():
 
 
 def test_riccati_factor_is_the_condensed_hessians():
-    """W⁻ᵀ H W⁻¹ = I, the same gradient, momentum rows = A_mom W⁻¹."""
+    """W⁻ᵀ H W⁻¹ = I, the same gradient, momentum rows = A_mom W⁻¹, the
+    same bounds."""
     mpc, cases = _slew_states(3)
     f = qp_factor_function(mpc)
     for x, z_prev in cases:
         p = np.r_[x, QF, np.zeros(3)]
         z0 = np.array(mpc.shift_function(x, z_prev, np.zeros(mpc.nz),
                                          np.zeros(mpc.ng))[0]).ravel()
-        H, g, A = _dense_qp(mpc, z0, p)[:3]
-        winv, rows, gc = (np.array(v) for v in f(z0, p))
+        H, g, A, lba, uba, lbu, ubu = _dense_qp(mpc, z0, p)[:7]
+        winv, rows, gc, *bounds = (np.array(v).ravel() if i > 2
+                                   else np.array(v)
+                                   for i, v in enumerate(f(z0, p)))
+        for got, want in zip(bounds, (lbu, ubu, lba, uba)):
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
         n = H.shape[0]
         np.testing.assert_allclose(winv.T @ H @ winv, np.eye(n), atol=1e-9)
         np.testing.assert_allclose(gc.ravel(), g, rtol=1e-10,

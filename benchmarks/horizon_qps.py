@@ -1,0 +1,262 @@
+"""What the condensed RTI step's QPs ask of a QP method, by horizon.
+
+Run from the repository root::
+
+    python -m benchmarks.horizon_qps [--horizon 20] [--draws 20]
+                                     [--steps 120] [--seed 0]
+                                     [--admm-caps 25,50,100,200]
+
+Flies the condensed RTI step (`AttitudeMPC`, ``solver="condensed"``,
+``rti=True``; the demo craft, dt 0.5 s) in Python from the random starts
+of `benchmarks.mpc_worst_case` (same seed, same states; the craft's rate
+bound if it has one, as `adcs export` poses the step) and keeps every
+step's QP as the step poses it (`ocp.mpc.condensed.qp_factor_function`:
+the QP in y, Hessian I, gradient W⁻ᵀg, rows ``[W⁻¹; momenta]`` of
+8·N, and the rates' 3·N with a rate bound). Each QP is solved again by:
+
+* DAQP (dual active set, the step's own solver), cold and warm-started
+  from the last QP's working set moved one stage ahead;
+* OSQP (ADMM, its Ruiz scaling, σ 1e-6, α 1.6, no polish) to 1e-6,
+  warm-started at δu = 0 (the last plan moved one stage ahead, as the
+  step starts) with the last multipliers moved one stage ahead: with its
+  adaptive ρ, and with ρ fixed (one factorisation a QP, as flight ADMM
+  solvers such as TinyMPC keep it);
+* the same fixed-ρ ADMM stopped after a fixed number of iterations
+  (``--admm-caps``): how far its answer is from the step's.
+
+Prints what the QPs hold at their optimum (DAQP's: active bounds and
+rows, and how many of them change from the last QP's active set moved
+one stage ahead, which no active-set method started there can undercut), iterations per method (median, 99th percentile and worst over
+the QPs with a constraint active) with the largest difference of the
+answer from the step's (δu over the torque bound m_max), and the capped
+ADMM's distance and bound violation (scaled: torques over m_max,
+momenta over h_max, rates over the rate bound).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import daqp
+import numpy as np
+import osqp
+from scipy import sparse
+from tqdm.auto import tqdm
+
+from benchmarks.mpc_worst_case import random_states
+from ocp.models.rigid import rigid_spacecraft
+from ocp.mpc import AttitudeMPC
+from ocp.mpc.condensed import qp_factor_function
+from ocp.spacecraft import load_spacecraft
+
+#: A constraint is active at the optimum within this (scaled).
+ACTIVE_TOL = 1e-7
+OSQP_TOL = 1e-6
+FIXED_RHO = 0.1
+
+
+def collect(horizon: int, draws: int, steps: int, seed: int) -> dict:
+    """The QPs of ``draws`` closed loops of ``steps`` steps, with the
+    step's answer δu, and the scales of their rows."""
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    mpc = AttitudeMPC(model, horizon=horizon, dt=0.5, solver="condensed",
+                      rti=True, rate_max=sc.rate_max)
+    qp = qp_factor_function(mpc)
+    N, nu, nw = horizon, model.nu, sc.wheels.n_wheels
+    rk4 = model.rk4_step(1)
+    qf, tau = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
+    controls = [i for s in mpc._us for i in range(s.start, s.stop)]
+    starts = random_states(model, draws, np.random.default_rng(seed))
+    qps = []
+    for d, x0 in enumerate(tqdm(starts, desc="loops", disable=None,
+                                leave=False)):
+        x = x0.copy()
+        z = mpc.initial_guess(x)
+        lx, lg = np.zeros(mpc.nz), np.zeros(mpc.ng)
+        for s in range(steps):
+            z0 = np.array(mpc.shift_function(x, z, lx, lg)[0]).ravel()
+            data = [np.array(v) for v in qp(z0, np.r_[x, qf, tau])]
+            out = mpc.rti_function(x, qf, tau, z, lx, lg)
+            z, lx, lg = (np.array(v).ravel() for v in out[1:4])
+            winv, rows, g, lbu, ubu, lba, uba = data
+            qps.append({"draw": d, "step": s, "Winv": winv, "rows": rows,
+                        "gy": winv.T @ g.ravel(),
+                        "lo": np.r_[lbu.ravel(), lba.ravel()],
+                        "hi": np.r_[ubu.ravel(), uba.ravel()],
+                        "du": z[controls] - z0[controls]})
+            x = np.asarray(rk4(x, np.array(out[0]).ravel(), tau,
+                               0.5)).ravel()
+    rate = [] if mpc.rate_max is None else [np.full(3 * N, mpc.rate_max)]
+    scale = np.concatenate([np.tile(sc.wheels.m_max, N),
+                            np.tile(sc.wheels.h_max, N), *rate])
+    return {"qps": qps, "scale": scale, "N": N, "nu": nu, "nw": nw,
+            "m_max": np.tile(sc.wheels.m_max, N)}
+
+
+def _shift(v: np.ndarray, parts: list) -> np.ndarray:
+    """A stage-major vector of blocks ``parts`` (each ``(N, width)``),
+    moved one stage ahead, its last stage repeated."""
+    out, top = [], 0
+    for n, w in parts:
+        s = v[top:top + n * w].reshape(n, w)
+        out.append(np.r_[s[1:], s[-1:]].ravel())
+        top += n * w
+    return np.concatenate(out)
+
+
+def _parts(c: dict) -> list:
+    N, nu, nw = c["N"], c["nu"], c["nw"]
+    m = c["qps"][0]["rows"].shape[0]
+    return [(N, nu), (N, nw)] + ([(N, 3)] if m > N * nw else [])
+
+
+def active_sets(c: dict, sides: list) -> np.ndarray:
+    """Per QP, from the side of each row at the optimum (``sides``: −1 at
+    its lower bound, 1 at its upper, 0 between): the active bounds, the
+    active rows, and the changes from the last QP's active set moved one
+    stage ahead (−1 for a loop's first QP), each constraint that joins
+    or leaves one, a row that moves from one bound to the other two.
+    Every active-set method started from that set makes at least that
+    many changes."""
+    parts, n = _parts(c), c["qps"][0]["Winv"].shape[0]
+    out, prev = [], None
+    for q, side in zip(c["qps"], sides):
+        changes = -1
+        if prev is not None and q["step"] > 0:
+            changes = int(np.sum(np.abs(side - _shift(prev, parts))))
+        out.append((int(np.count_nonzero(side[:n])),
+                    int(np.count_nonzero(side[n:])), changes))
+        prev = side
+    return np.array(out)
+
+
+def run_daqp(c: dict) -> dict:
+    """DAQP cold and warm (the last working set one stage ahead); the
+    sides of the rows at its optimum (`active_sets`)."""
+    parts = _parts(c)
+    out: dict = {"cold": [], "warm": [], "sides": [],
+                 "error_cold": 0.0, "error_warm": 0.0}
+    start = None
+    for q in c["qps"]:
+        A = np.vstack([q["Winv"], q["rows"]])
+        cold = np.zeros(A.shape[0], np.int32)
+        warm = cold if start is None or q["step"] == 0 else start
+        for mode, sense in (("cold", cold), ("warm", warm)):
+            y, _, flag, info = daqp.solve(np.eye(A.shape[1]), q["gy"], A,
+                                          q["hi"].copy(), q["lo"].copy(),
+                                          sense.copy())
+            if flag < 1:
+                raise RuntimeError(f"DAQP failed ({flag}) on a QP")
+            out[mode].append(info["iterations"])
+            out["error_" + mode] = max(out["error_" + mode], float(np.max(
+                np.abs(q["Winv"] @ y - q["du"]) / c["m_max"])))
+            if mode == "cold":
+                v, tol = A @ y, ACTIVE_TOL * c["scale"]
+                out["sides"].append(np.where(
+                    np.abs(v - q["lo"]) <= tol, -1,
+                    np.where(np.abs(v - q["hi"]) <= tol, 1, 0)))
+        # DAQP's senses: 3 at the lower bound, 1 at the upper
+        start = _shift(np.choose(out["sides"][-1] + 1, [3, 0, 1]),
+                       parts).astype(np.int32)
+    out["cold"], out["warm"] = np.array(out["cold"]), np.array(out["warm"])
+    return out
+
+
+def run_osqp(c: dict, adaptive: bool, cap: int | None = None) -> dict:
+    """OSQP warm-started at δu = 0 with the last multipliers one stage
+    ahead: iterations to `OSQP_TOL`, or its answer after ``cap`` iterations."""
+    parts = _parts(c)
+    iters, err, viol, prev = [], [], [], None
+    for q in c["qps"]:
+        A = np.vstack([q["Winv"], q["rows"]])
+        n = A.shape[1]
+        solver = osqp.OSQP()
+        solver.setup(sparse.identity(n, format="csc"), q["gy"],
+                     sparse.csc_matrix(A), q["lo"], q["hi"], verbose=False,
+                     rho=FIXED_RHO, adaptive_rho=adaptive, polishing=False,
+                     eps_abs=OSQP_TOL, eps_rel=OSQP_TOL,
+                     max_iter=cap or 20000,
+                     check_termination=0 if cap else 1,
+                     scaled_termination=False)
+        if prev is not None and q["step"] > 0:
+            # the shifted plan is the last answer moved ahead: δu = 0
+            solver.warm_start(x=np.zeros(n), y=_shift(prev, parts))
+        r = solver.solve(raise_error=False)
+        if not cap and r.info.status_val != 1:
+            raise RuntimeError(f"OSQP: {r.info.status} on a QP")
+        prev = r.y
+        iters.append(r.info.iter)
+        err.append(float(np.max(np.abs(q["Winv"] @ r.x - q["du"])
+                                / c["m_max"])))
+        v = A @ r.x
+        viol.append(float(np.max(np.r_[q["lo"] - v, v - q["hi"], 0.0]
+                                 / np.r_[c["scale"], c["scale"], 1.0])))
+    return {"iters": np.array(iters), "error": np.array(err),
+            "violation": np.array(viol)}
+
+
+def _pct(a: np.ndarray) -> tuple:
+    return (float(np.median(a)), float(np.percentile(a, 99)), float(a.max()))
+
+
+def report(c: dict, caps: list[int]) -> str:
+    d = run_daqp(c)
+    act = active_sets(c, d["sides"])
+    con = act[:, :2].sum(axis=1) > 0
+    warm = con & (act[:, 2] >= 0)
+    n = c["qps"][0]["Winv"].shape[0]
+    m = n + c["qps"][0]["rows"].shape[0]
+    lines = [
+        f"horizon {c['N']}: {len(c['qps'])} QPs of {n} variables and "
+        f"{m} rows, {int(con.sum())} with a constraint active at the "
+        "optimum",
+        "active at the answer (constrained QPs): median / p99 / max",
+        "  all   {:.0f} / {:.0f} / {:.0f}".format(
+            *_pct(act[con, :2].sum(1))),
+        "  bounds {:.0f} / {:.0f} / {:.0f}".format(*_pct(act[con, 0])),
+        "  rows  {:.0f} / {:.0f} / {:.0f}".format(*_pct(act[con, 1])),
+        f"  free variables, median {np.median(n - act[con, 0]):.0f}",
+        "changes from the last active set one stage ahead (a floor for "
+        "any active-set method started there): {:.0f} / {:.0f} / {:.0f}"
+        .format(*_pct(act[warm, 2])),
+        "",
+        "| method | iterations, median | p99 | worst | max |δu − step's| "
+        "/ m_max |",
+        "|---|---:|---:|---:|---:|"]
+    for name, mode in (("DAQP, cold", "cold"),
+                       ("DAQP, warm (working set one stage ahead)", "warm")):
+        lines.append("| {} | {:.0f} | {:.0f} | {:.0f} | {:.1e} |".format(
+            name, *_pct(d[mode][con]), d["error_" + mode]))
+    for name, adaptive in (("OSQP to 1e-6, adaptive ρ", True),
+                           (f"OSQP to 1e-6, fixed ρ = {FIXED_RHO}", False)):
+        o = run_osqp(c, adaptive)
+        lines.append("| {} | {:.0f} | {:.0f} | {:.0f} | {:.1e} |".format(
+            name, *_pct(o["iters"][con]), o["error"].max()))
+    lines += ["", f"ADMM (OSQP, fixed ρ = {FIXED_RHO}) stopped after a fixed "
+              "number of iterations, constrained QPs:", "",
+              "| iterations | |δu − step's| / m_max, median | p99 | worst "
+              "| violation (scaled), p99 | worst |",
+              "|---:|---:|---:|---:|---:|---:|"]
+    for cap in caps:
+        o = run_osqp(c, False, cap)
+        e, v = o["error"][con], o["violation"][con]
+        lines.append("| {} | {:.1e} | {:.1e} | {:.1e} | {:.1e} | {:.1e} |"
+                     .format(cap, *_pct(e), *_pct(v)[1:]))
+    return "\n".join(lines)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--horizon", type=int, default=20)
+    ap.add_argument("--draws", type=int, default=20)
+    ap.add_argument("--steps", type=int, default=120)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--admm-caps", default="25,50,100,200")
+    a = ap.parse_args(argv)
+    caps = [int(v) for v in a.admm_caps.split(",") if v]
+    print(report(collect(a.horizon, a.draws, a.steps, a.seed), caps))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,39 @@
+"""The horizon study's QPs are the step's: every way of solving them
+lands on the step's torques (`benchmarks.horizon_qps`)."""
+
+import numpy as np
+import pytest
+
+from benchmarks.horizon_qps import (active_sets, collect, run_daqp,
+                                    run_osqp)
+
+
+@pytest.fixture(scope="module")
+def loop():
+    return collect(horizon=5, draws=1, steps=12, seed=0)
+
+
+def test_daqp_on_the_posed_qps_gives_the_steps_torques(loop):
+    d = run_daqp(loop)
+    assert len(d["cold"]) == 12
+    assert d["error_cold"] <= 1e-9            # 2e-12 seen at N = 20
+    assert d["error_warm"] <= 1e-5            # DAQP's primal tolerance
+
+
+def test_changes_from_the_shifted_set_count_joins_and_leaves(loop):
+    # N = 5: 20 bounds (4 a stage), then 20 momentum rows
+    sides = [np.zeros(40, int) for _ in range(3)]
+    sides[1][[4, 24]] = 1       # stage 1's first bound and momentum row
+    sides[2][[0, 20, 35]] = [1, -1, -1]
+    # step 2 starts from step 1's set one stage ahead: the bound kept at
+    # stage 0, the row moved to its other bound (2), stage 3's row (1)
+    act = active_sets(dict(loop, qps=loop["qps"][:3]), sides)
+    np.testing.assert_array_equal(act, [[0, 0, -1], [1, 1, 2], [1, 2, 3]])
+
+
+def test_osqp_reaches_the_steps_torques_and_a_cap_does_not(loop):
+    full = run_osqp(loop, adaptive=True)
+    assert full["error"].max() <= 1e-3
+    capped = run_osqp(loop, adaptive=False, cap=5)
+    assert np.all(capped["iters"] == 5)
+    assert capped["error"].max() > full["error"].max()
