@@ -14,8 +14,10 @@ step's QP as the step poses it (`ocp.mpc.condensed.qp_factor_function`:
 the QP in y, Hessian I, gradient W⁻ᵀg, rows ``[W⁻¹; momenta]`` of
 8·N, and the rates' 3·N with a rate bound). Each QP is solved again by:
 
-* DAQP (dual active set, the step's own solver), cold and warm-started
-  from the last QP's working set moved one stage ahead;
+* DAQP (dual active set, the step's own solver), cold, and warm-started
+  as the step starts it (the signs of the last QP's multipliers, moved
+  one stage ahead) or from the last QP's active rows (by value) moved
+  one stage ahead;
 * OSQP (ADMM, its Ruiz scaling, σ 1e-6, α 1.6, no polish) to 1e-6,
   warm-started at δu = 0 (the last plan moved one stage ahead, as the
   step starts) with the last multipliers moved one stage ahead: with its
@@ -24,11 +26,12 @@ the QP in y, Hessian I, gradient W⁻ᵀg, rows ``[W⁻¹; momenta]`` of
 * the same fixed-ρ ADMM stopped after a fixed number of iterations
   (``--admm-caps``): how far its answer is from the step's.
 
-Prints what the QPs hold at their optimum (DAQP's: active bounds and
-rows, and how many of them change from the last QP's active set moved
-one stage ahead, which no active-set method started there can undercut), iterations per method (median, 99th percentile and worst over
-the QPs with a constraint active) with the largest difference of the
-answer from the step's (δu over the torque bound m_max), and the capped
+Prints what the QPs hold at their optimum (DAQP's: the active bounds
+and rows, its working set, and that set's distance from the step's warm
+start: the changes a method walking straight there makes), iterations
+per method (median, 99th percentile and worst over the QPs with a
+constraint active) with the largest difference of the answer from the
+step's (δu over the torque bound m_max), and the capped
 ADMM's distance and bound violation (scaled: torques over m_max,
 momenta over h_max, rates over the rate bound).
 """
@@ -111,56 +114,69 @@ def _parts(c: dict) -> list:
     return [(N, nu), (N, nw)] + ([(N, 3)] if m > N * nw else [])
 
 
-def active_sets(c: dict, sides: list) -> np.ndarray:
-    """Per QP, from the side of each row at the optimum (``sides``: −1 at
-    its lower bound, 1 at its upper, 0 between): the active bounds, the
-    active rows, and the changes from the last QP's active set moved one
-    stage ahead (−1 for a loop's first QP), each constraint that joins
-    or leaves one, a row that moves from one bound to the other two.
-    Every active-set method started from that set makes at least that
+def active_sets(c: dict, sides: list, signs: list) -> np.ndarray:
+    """Per QP: the bounds and the rows active at the optimum (``sides``:
+    −1 at a row's lower bound, 1 at its upper, 0 between), its working
+    set's size (``signs``: the signs of DAQP's multipliers, the same
+    convention), and that set's distance from the last QP's moved one
+    stage ahead (−1 for a loop's first QP): the constraints to drop plus
+    those to add, a row that changes bound counting two. A method that
+    walks straight from the step's warm start to the optimum makes that
     many changes."""
     parts, n = _parts(c), c["qps"][0]["Winv"].shape[0]
     out, prev = [], None
-    for q, side in zip(c["qps"], sides):
-        changes = -1
+    for q, side, sign in zip(c["qps"], sides, signs):
+        dist = -1
         if prev is not None and q["step"] > 0:
-            changes = int(np.sum(np.abs(side - _shift(prev, parts))))
+            dist = int(np.sum(np.abs(sign - _shift(prev, parts))))
         out.append((int(np.count_nonzero(side[:n])),
-                    int(np.count_nonzero(side[n:])), changes))
-        prev = side
+                    int(np.count_nonzero(side[n:])),
+                    int(np.count_nonzero(sign)), dist))
+        prev = sign
     return np.array(out)
 
 
+def _senses(side: np.ndarray) -> np.ndarray:
+    """DAQP's warm-start senses of −1/0/1 sides: 3 at the lower bound,
+    1 at the upper, 0 free."""
+    return np.choose(side + 1, [3, 0, 1]).astype(np.int32)
+
+
 def run_daqp(c: dict) -> dict:
-    """DAQP cold and warm (the last working set one stage ahead); the
-    sides of the rows at its optimum (`active_sets`)."""
+    """DAQP cold, and warm from the last QP's multipliers' signs moved one
+    stage ahead (``warm_signs``: the step's warm start) or from its
+    active rows by value (``warm_sides``); the ``sides`` and ``signs``
+    at each optimum (`active_sets`)."""
     parts = _parts(c)
-    out: dict = {"cold": [], "warm": [], "sides": [],
-                 "error_cold": 0.0, "error_warm": 0.0}
-    start = None
+    out: dict = {"cold": [], "warm_sides": [], "warm_signs": [],
+                 "at_optimum": ([], [])}
+    err = {"cold": 0.0, "warm_sides": 0.0, "warm_signs": 0.0}
     for q in c["qps"]:
         A = np.vstack([q["Winv"], q["rows"]])
-        cold = np.zeros(A.shape[0], np.int32)
-        warm = cold if start is None or q["step"] == 0 else start
-        for mode, sense in (("cold", cold), ("warm", warm)):
+        starts = {"cold": np.zeros(A.shape[0], np.int32)}
+        for mode, last in zip(("warm_sides", "warm_signs"),
+                              out["at_optimum"]):
+            starts[mode] = (starts["cold"] if not last or q["step"] == 0
+                            else _senses(_shift(last[-1], parts)))
+        for mode, sense in starts.items():
             y, _, flag, info = daqp.solve(np.eye(A.shape[1]), q["gy"], A,
                                           q["hi"].copy(), q["lo"].copy(),
                                           sense.copy())
             if flag < 1:
                 raise RuntimeError(f"DAQP failed ({flag}) on a QP")
             out[mode].append(info["iterations"])
-            out["error_" + mode] = max(out["error_" + mode], float(np.max(
+            err[mode] = max(err[mode], float(np.max(
                 np.abs(q["Winv"] @ y - q["du"]) / c["m_max"])))
             if mode == "cold":
                 v, tol = A @ y, ACTIVE_TOL * c["scale"]
-                out["sides"].append(np.where(
+                out["at_optimum"][0].append(np.where(
                     np.abs(v - q["lo"]) <= tol, -1,
                     np.where(np.abs(v - q["hi"]) <= tol, 1, 0)))
-        # DAQP's senses: 3 at the lower bound, 1 at the upper
-        start = _shift(np.choose(out["sides"][-1] + 1, [3, 0, 1]),
-                       parts).astype(np.int32)
-    out["cold"], out["warm"] = np.array(out["cold"]), np.array(out["warm"])
-    return out
+                # DAQP's multipliers: positive at an upper bound
+                out["at_optimum"][1].append(
+                    np.sign(info["lam"]).astype(int))
+    return {**{m: np.array(out[m]) for m in err}, "error": err,
+            "sides": out["at_optimum"][0], "signs": out["at_optimum"][1]}
 
 
 def run_osqp(c: dict, adaptive: bool, cap: int | None = None) -> dict:
@@ -202,32 +218,39 @@ def _pct(a: np.ndarray) -> tuple:
 
 def report(c: dict, caps: list[int]) -> str:
     d = run_daqp(c)
-    act = active_sets(c, d["sides"])
+    act = active_sets(c, d["sides"], d["signs"])
     con = act[:, :2].sum(axis=1) > 0
-    warm = con & (act[:, 2] >= 0)
+    warm = con & (act[:, 3] >= 0)
     n = c["qps"][0]["Winv"].shape[0]
     m = n + c["qps"][0]["rows"].shape[0]
     lines = [
         f"horizon {c['N']}: {len(c['qps'])} QPs of {n} variables and "
         f"{m} rows, {int(con.sum())} with a constraint active at the "
         "optimum",
-        "active at the answer (constrained QPs): median / p99 / max",
-        "  all   {:.0f} / {:.0f} / {:.0f}".format(
+        "at the optimum (constrained QPs): median / p99 / max",
+        "  active          {:.0f} / {:.0f} / {:.0f}".format(
             *_pct(act[con, :2].sum(1))),
-        "  bounds {:.0f} / {:.0f} / {:.0f}".format(*_pct(act[con, 0])),
-        "  rows  {:.0f} / {:.0f} / {:.0f}".format(*_pct(act[con, 1])),
+        "  active bounds   {:.0f} / {:.0f} / {:.0f}".format(
+            *_pct(act[con, 0])),
+        "  active rows     {:.0f} / {:.0f} / {:.0f}".format(
+            *_pct(act[con, 1])),
+        "  working set     {:.0f} / {:.0f} / {:.0f}".format(
+            *_pct(act[con, 2])),
         f"  free variables, median {np.median(n - act[con, 0]):.0f}",
-        "changes from the last active set one stage ahead (a floor for "
-        "any active-set method started there): {:.0f} / {:.0f} / {:.0f}"
-        .format(*_pct(act[warm, 2])),
+        "working set's distance from the step's warm start (the last "
+        "one a stage ahead): {:.0f} / {:.0f} / {:.0f}".format(
+            *_pct(act[warm, 3])),
         "",
         "| method | iterations, median | p99 | worst | max |δu − step's| "
         "/ m_max |",
         "|---|---:|---:|---:|---:|"]
-    for name, mode in (("DAQP, cold", "cold"),
-                       ("DAQP, warm (working set one stage ahead)", "warm")):
+    for name, mode in (
+            ("DAQP, cold", "cold"),
+            ("DAQP, warm: last multipliers' signs a stage ahead (the "
+             "step's)", "warm_signs"),
+            ("DAQP, warm: last active rows a stage ahead", "warm_sides")):
         lines.append("| {} | {:.0f} | {:.0f} | {:.0f} | {:.1e} |".format(
-            name, *_pct(d[mode][con]), d["error_" + mode]))
+            name, *_pct(d[mode][con]), d["error"][mode]))
     for name, adaptive in (("OSQP to 1e-6, adaptive ρ", True),
                            (f"OSQP to 1e-6, fixed ρ = {FIXED_RHO}", False)):
         o = run_osqp(c, adaptive)

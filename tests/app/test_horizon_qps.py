@@ -16,19 +16,23 @@ def loop():
 def test_daqp_on_the_posed_qps_gives_the_steps_torques(loop):
     d = run_daqp(loop)
     assert len(d["cold"]) == 12
-    assert d["error_cold"] <= 1e-9            # 2e-12 seen at N = 20
-    assert d["error_warm"] <= 1e-5            # DAQP's primal tolerance
+    assert d["error"]["cold"] <= 1e-9         # 2e-12 seen at N = 20
+    for warm in ("warm_signs", "warm_sides"):           # DAQP's primal tolerance
+        assert d["error"][warm] <= 1e-5
 
 
-def test_changes_from_the_shifted_set_count_joins_and_leaves(loop):
+def test_working_set_distance_counts_drops_and_adds(loop):
     # N = 5: 20 bounds (4 a stage), then 20 momentum rows
-    sides = [np.zeros(40, int) for _ in range(3)]
-    sides[1][[4, 24]] = 1       # stage 1's first bound and momentum row
-    sides[2][[0, 20, 35]] = [1, -1, -1]
+    signs = [np.zeros(40, int) for _ in range(3)]
+    signs[1][[4, 24]] = 1       # stage 1's first bound and momentum row
+    signs[2][[0, 20, 35]] = [1, -1, -1]
+    sides = [np.abs(s) for s in signs]
+    sides[2][39] = 1            # active, not in the working set
     # step 2 starts from step 1's set one stage ahead: the bound kept at
     # stage 0, the row moved to its other bound (2), stage 3's row (1)
-    act = active_sets(dict(loop, qps=loop["qps"][:3]), sides)
-    np.testing.assert_array_equal(act, [[0, 0, -1], [1, 1, 2], [1, 2, 3]])
+    act = active_sets(dict(loop, qps=loop["qps"][:3]), sides, signs)
+    np.testing.assert_array_equal(act, [[0, 0, 0, -1], [1, 1, 2, 2],
+                                        [1, 3, 3, 3]])
 
 
 def test_osqp_reaches_the_steps_torques_and_a_cap_does_not(loop):
