@@ -54,7 +54,9 @@ from ocp.spacecraft import load_spacecraft
 
 #: A constraint is active at the optimum within this (scaled).
 ACTIVE_TOL = 1e-7
+#: OSQP's absolute and relative tolerance.
 OSQP_TOL = 1e-6
+#: ADMM's step size ρ: OSQP's default, kept fixed (or its first, adaptive).
 FIXED_RHO = 0.1
 
 
