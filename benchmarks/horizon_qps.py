@@ -16,8 +16,8 @@ the QP in y, Hessian I, gradient W⁻ᵀg, rows ``[W⁻¹; momenta]`` of
 
 * DAQP (dual active set, the step's own solver), cold, and warm-started
   as the step starts it (the signs of the last QP's multipliers, moved
-  one stage ahead) or from the last QP's active rows (by value) moved
-  one stage ahead;
+  one stage ahead), from those signs where they were (not moved), or
+  from the last QP's active rows (by value) moved one stage ahead;
 * OSQP (ADMM, its Ruiz scaling, σ 1e-6, α 1.6, no polish) to 1e-6,
   warm-started at δu = 0 (the last plan moved one stage ahead, as the
   step starts) with the last multipliers moved one stage ahead: with its
@@ -146,20 +146,23 @@ def _senses(side: np.ndarray) -> np.ndarray:
 
 def run_daqp(c: dict) -> dict:
     """DAQP cold, and warm from the last QP's multipliers' signs moved one
-    stage ahead (``warm_signs``: the step's warm start) or from its
-    active rows by value (``warm_sides``); the ``sides`` and ``signs``
-    at each optimum (`active_sets`)."""
+    stage ahead (``warm_signs``: the step's warm start) or where they
+    were (``warm_unshifted``), or from its active rows by value moved
+    one stage ahead (``warm_sides``); the ``sides`` and ``signs`` at each
+    optimum (`active_sets`)."""
     parts = _parts(c)
     out: dict = {"cold": [], "warm_sides": [], "warm_signs": [],
-                 "at_optimum": ([], [])}
-    err = {"cold": 0.0, "warm_sides": 0.0, "warm_signs": 0.0}
+                 "warm_unshifted": [], "at_optimum": ([], [])}
+    err = {m: 0.0 for m in out if m != "at_optimum"}
     for q in c["qps"]:
         A = np.vstack([q["Winv"], q["rows"]])
         starts = {"cold": np.zeros(A.shape[0], np.int32)}
-        for mode, last in zip(("warm_sides", "warm_signs"),
-                              out["at_optimum"]):
-            starts[mode] = (starts["cold"] if not last or q["step"] == 0
-                            else _senses(_shift(last[-1], parts)))
+        last = out["at_optimum"]
+        first = not last[0] or q["step"] == 0
+        for mode, start in (("warm_sides", lambda: _shift(last[0][-1], parts)),
+                            ("warm_signs", lambda: _shift(last[1][-1], parts)),
+                            ("warm_unshifted", lambda: last[1][-1])):
+            starts[mode] = starts["cold"] if first else _senses(start())
         for mode, sense in starts.items():
             y, _, flag, info = daqp.solve(np.eye(A.shape[1]), q["gy"], A,
                                           q["hi"].copy(), q["lo"].copy(),
@@ -250,6 +253,8 @@ def report(c: dict, caps: list[int]) -> str:
             ("DAQP, cold", "cold"),
             ("DAQP, warm: last multipliers' signs a stage ahead (the "
              "step's)", "warm_signs"),
+            ("DAQP, warm: last multipliers' signs where they were",
+             "warm_unshifted"),
             ("DAQP, warm: last active rows a stage ahead", "warm_sides")):
         lines.append("| {} | {:.0f} | {:.0f} | {:.0f} | {:.1e} |".format(
             name, *_pct(d[mode][con]), d["error"][mode]))
