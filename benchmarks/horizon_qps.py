@@ -46,6 +46,7 @@ import osqp
 from scipy import sparse
 from tqdm.auto import tqdm
 
+from benchmarks import primal_active_set
 from benchmarks.mpc_worst_case import random_states
 from ocp.models.rigid import rigid_spacecraft
 from ocp.mpc import AttitudeMPC
@@ -184,6 +185,54 @@ def run_daqp(c: dict) -> dict:
             "sides": out["at_optimum"][0], "signs": out["at_optimum"][1]}
 
 
+def run_primal(c: dict, signs: list, caps: list[int]) -> dict:
+    """A primal active set (`benchmarks.primal_active_set`) on the QP in
+    δu, started where the step starts: at δu = 0 (the last plan moved
+    one stage ahead) with the last optimum's multipliers' signs moved
+    one stage ahead that hold there (made independent). QPs where δu = 0
+    breaks a bound (a loop's first, or a defect) are left out. Per cap
+    of ``caps`` its point after that many iterations (feasible by
+    construction): the torques' distance from the step's and the share
+    of the step's cost decrease it misses."""
+    parts = _parts(c)
+    out: dict = {"iters": [], "error": 0.0, "infeasible_start": 0,
+                 "kept": [], **{cap: ([], []) for cap in caps}}
+    for i, q in enumerate(c["qps"]):
+        if q["step"] == 0:
+            continue
+        Wm = np.linalg.inv(q["Winv"])
+        H, g = Wm.T @ Wm, Wm.T @ q["gy"]
+        C = np.vstack([np.eye(H.shape[0]), q["rows"] @ Wm])
+        tol = 1e-9 * c["scale"]
+        if np.any(q["lo"] > tol) or np.any(q["hi"] < -tol):
+            out["infeasible_start"] += 1
+            continue
+        start = _shift(signs[i - 1], parts)
+        at = [j for j in np.flatnonzero(start)
+              if abs((q["hi"] if start[j] > 0 else q["lo"])[j]) <= tol[j]]
+        W = {j: int(start[j]) for j in primal_active_set.independent(C, at)}
+        x0 = np.zeros(H.shape[0])
+        r = primal_active_set.solve(H, g, C, q["lo"], q["hi"], x0, W)
+        if not r["optimal"]:
+            raise RuntimeError("the primal active set did not finish a QP")
+        out["kept"].append(i)
+        out["iters"].append(r["iterations"])
+        out["error"] = max(out["error"], float(np.max(
+            np.abs(r["x"] - q["du"]) / c["m_max"])))
+        f_opt = 0.5 * r["x"] @ H @ r["x"] + g @ r["x"]
+        for cap in caps:
+            xc = r["x"] if r["iterations"] <= cap else \
+                primal_active_set.solve(H, g, C, q["lo"], q["hi"], x0, W,
+                                        max_iter=cap)["x"]
+            missed = 0.0 if f_opt >= 0 else float(
+                (0.5 * xc @ H @ xc + g @ xc - f_opt) / -f_opt)
+            out[cap][0].append(float(np.max(np.abs(xc - q["du"])
+                                            / c["m_max"])))
+            out[cap][1].append(missed)
+    out["iters"] = np.array(out["iters"])
+    return out
+
+
 def run_osqp(c: dict, adaptive: bool, cap: int | None = None) -> dict:
     """OSQP warm-started at δu = 0 with the last multipliers one stage
     ahead: iterations to `OSQP_TOL`, or its answer after ``cap`` iterations."""
@@ -221,7 +270,7 @@ def _pct(a: np.ndarray) -> tuple:
     return (float(np.median(a)), float(np.percentile(a, 99)), float(a.max()))
 
 
-def report(c: dict, caps: list[int]) -> str:
+def report(c: dict, admm_caps: list[int], primal_caps: list[int]) -> str:
     d = run_daqp(c)
     act = active_sets(c, d["sides"], d["signs"])
     con = act[:, :2].sum(axis=1) > 0
@@ -258,21 +307,37 @@ def report(c: dict, caps: list[int]) -> str:
             ("DAQP, warm: last active rows a stage ahead", "warm_sides")):
         lines.append("| {} | {:.0f} | {:.0f} | {:.0f} | {:.1e} |".format(
             name, *_pct(d[mode][con]), d["error"][mode]))
+    pas = run_primal(c, d["signs"], primal_caps)
+    kept = np.zeros(len(con), bool)
+    kept[pas["kept"]] = True
+    lines.append("| primal active set from the step's start (δu = 0 and "
+                 "the signs that hold there) | {:.0f} | {:.0f} | {:.0f} | "
+                 "{:.1e} |".format(*_pct(pas["iters"][con[kept]]),
+                                   pas["error"]))
     for name, adaptive in (("OSQP to 1e-6, adaptive ρ", True),
                            (f"OSQP to 1e-6, fixed ρ = {FIXED_RHO}", False)):
         o = run_osqp(c, adaptive)
         lines.append("| {} | {:.0f} | {:.0f} | {:.0f} | {:.1e} |".format(
             name, *_pct(o["iters"][con]), o["error"].max()))
-    lines += ["", f"ADMM (OSQP, fixed ρ = {FIXED_RHO}) stopped after a fixed "
-              "number of iterations, constrained QPs:", "",
-              "| iterations | |δu − step's| / m_max, median | p99 | worst "
-              "| violation (scaled), p99 | worst |",
-              "|---:|---:|---:|---:|---:|---:|"]
-    for cap in caps:
+    lines += ["", f"(the primal active set leaves out {pas['infeasible_start']}"
+              " QPs where δu = 0 breaks a bound, and each loop's first, "
+              "which has no warm start)", "", "Stopped after a fixed number of iterations, "
+              "constrained QPs:", "",
+              "| method, iterations | |δu − step's| / m_max, median | p99 "
+              "| worst | violation (scaled) or cost decrease missed, p99 | "
+              "worst |",
+              "|---|---:|---:|---:|---:|---:|"]
+    for cap in admm_caps:
         o = run_osqp(c, False, cap)
         e, v = o["error"][con], o["violation"][con]
-        lines.append("| {} | {:.1e} | {:.1e} | {:.1e} | {:.1e} | {:.1e} |"
-                     .format(cap, *_pct(e), *_pct(v)[1:]))
+        lines.append("| ADMM, fixed ρ, {} | {:.1e} | {:.1e} | {:.1e} | "
+                     "violation {:.1e} | {:.1e} |".format(
+                         cap, *_pct(e), *_pct(v)[1:]))
+    for cap in primal_caps:
+        e, m = (np.array(v)[con[kept]] for v in pas[cap])
+        lines.append("| primal active set, {} | {:.1e} | {:.1e} | {:.1e} | "
+                     "missed {:.1e} | {:.1e} |".format(
+                         cap, *_pct(e), *_pct(m)[1:]))
     return "\n".join(lines)
 
 
@@ -283,9 +348,11 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=120)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--admm-caps", default="25,50,100,200")
+    ap.add_argument("--primal-caps", default="10,20,40")
     a = ap.parse_args(argv)
-    caps = [int(v) for v in a.admm_caps.split(",") if v]
-    print(report(collect(a.horizon, a.draws, a.steps, a.seed), caps))
+    caps = [[int(v) for v in arg.split(",") if v]
+            for arg in (a.admm_caps, a.primal_caps)]
+    print(report(collect(a.horizon, a.draws, a.steps, a.seed), *caps))
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from benchmarks.horizon_qps import (active_sets, collect, run_daqp,
-                                    run_osqp)
+                                    run_osqp, run_primal)
 
 
 @pytest.fixture(scope="module")
@@ -41,3 +41,13 @@ def test_osqp_reaches_the_steps_torques_and_a_cap_does_not(loop):
     capped = run_osqp(loop, adaptive=False, cap=5)
     assert np.all(capped["iters"] == 5)
     assert capped["error"].max() > full["error"].max()
+
+
+def test_primal_active_set_from_the_steps_start_reaches_its_torques(loop):
+    d = run_daqp(loop)
+    r = run_primal(loop, d["signs"], [1])
+    assert len(r["kept"]) + r["infeasible_start"] == 11   # 12 less the first
+    assert len(r["kept"]) >= 8
+    assert r["error"] <= 1e-5                 # the step's: DAQP's tolerance
+    distance, missed = (np.array(v) for v in r[1])
+    assert np.all((missed >= -1e-12) & (missed <= 1 + 1e-12))
