@@ -5,6 +5,7 @@ Run from the repository root::
     python -m benchmarks.horizon_qps [--horizon 20] [--draws 20]
                                      [--steps 120] [--seed 0]
                                      [--admm-caps 25,50,100,200]
+                                     [--primal-caps 10,20,40]
 
 Flies the condensed RTI step (`AttitudeMPC`, ``solver="condensed"``,
 ``rti=True``; the demo craft, dt 0.5 s) in Python from the random starts
@@ -24,7 +25,14 @@ the QP in y, Hessian I, gradient W⁻ᵀg, rows ``[W⁻¹; momenta]`` of
   adaptive ρ, and with ρ fixed (one factorisation a QP, as flight ADMM
   solvers such as TinyMPC keep it);
 * the same fixed-ρ ADMM stopped after a fixed number of iterations
-  (``--admm-caps``): how far its answer is from the step's.
+  (``--admm-caps``): how far its answer is from the step's;
+* a primal active set (`benchmarks.primal_active_set`) in δu started
+  where the step starts: at δu = 0, the last plan moved one stage ahead
+  (feasible on every QP but a loop's first and those a defect moves),
+  with the shifted signs that hold there; run to its optimum and
+  stopped after ``--primal-caps`` iterations (its point is feasible:
+  how far from the step's, and the share of the step's cost decrease
+  it misses).
 
 Prints what the QPs hold at their optimum (DAQP's: the active bounds
 and rows, its working set, and that set's distance from the step's warm
