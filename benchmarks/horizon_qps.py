@@ -69,14 +69,20 @@ OSQP_TOL = 1e-6
 FIXED_RHO = 0.1
 
 
-def collect(horizon: int, draws: int, steps: int, seed: int) -> dict:
-    """The QPs of ``draws`` closed loops of ``steps`` steps, with the
-    step's answer δu, and the scales of their rows."""
+def _setup(horizon: int) -> tuple:
+    """``(spacecraft, model, mpc, qp)``: the demo craft's condensed RTI
+    MPC and its QP (`qp_factor_function`)."""
     sc = load_spacecraft("demo")
     model = rigid_spacecraft(sc.inertia, sc.wheels)
     mpc = AttitudeMPC(model, horizon=horizon, dt=0.5, solver="condensed",
                       rti=True, rate_max=sc.rate_max)
-    qp = qp_factor_function(mpc)
+    return sc, model, mpc, qp_factor_function(mpc)
+
+
+def collect(horizon: int, draws: int, steps: int, seed: int) -> dict:
+    """The QPs of ``draws`` closed loops of ``steps`` steps, with the
+    step's answer δu, and the scales of their rows."""
+    sc, model, mpc, qp = _setup(horizon)
     N, nu, nw = horizon, model.nu, sc.wheels.n_wheels
     rk4 = model.rk4_step(1)
     qf, tau = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)

@@ -37,8 +37,9 @@ def solve(H: np.ndarray, g: np.ndarray, C: np.ndarray, lo: np.ndarray,
     by a row adds it, a zero step with a wrong-signed multiplier drops
     the most wrong one. Every iterate is feasible, so a solve stopped at
     ``max_iter`` returns a feasible point of lower cost than ``x0``.
-    Returns ``x``, ``iterations``, ``optimal`` and the multipliers
-    ``lam`` (positive at an upper bound, as DAQP's).
+    Returns ``x``, ``iterations``, ``optimal``, the multipliers ``lam``
+    (positive at an upper bound, as DAQP's; zero unless optimal) and the
+    last ``working`` set.
     """
     x = np.array(x0, dtype=float)
     W = dict(working)
@@ -59,7 +60,7 @@ def solve(H: np.ndarray, g: np.ndarray, C: np.ndarray, lo: np.ndarray,
             wrong = [-mult[i] * W[j] for i, j in enumerate(rows)]
             if not rows or max(wrong) <= tol:
                 return {"x": x, "iterations": it, "optimal": True,
-                        "lam": lam}
+                        "lam": lam, "working": W}
             del W[rows[int(np.argmax(wrong))]]
             continue
         Cp, Cx = C @ p, C @ x
@@ -77,4 +78,5 @@ def solve(H: np.ndarray, g: np.ndarray, C: np.ndarray, lo: np.ndarray,
         x = x + alpha * p
         if block is not None:
             W[block] = 1 if Cp[block] > 0 else -1
-    return {"x": x, "iterations": max_iter, "optimal": False, "lam": lam}
+    return {"x": x, "iterations": max_iter, "optimal": False, "lam": lam,
+            "working": W}
