@@ -79,6 +79,33 @@ def _setup(horizon: int) -> tuple:
     return sc, model, mpc, qp_factor_function(mpc)
 
 
+def row_scales(sc, mpc) -> np.ndarray:
+    """The scale of each of the QP's rows: the torque bounds m_max, the
+    momentum bounds h_max and, with a rate bound, the rate bound."""
+    N = mpc.horizon
+    rate = [] if mpc.rate_max is None else [np.full(3 * N, mpc.rate_max)]
+    return np.concatenate([np.tile(sc.wheels.m_max, N),
+                           np.tile(sc.wheels.h_max, N), *rate])
+
+
+def warm_working_set(C: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                     start: np.ndarray, tol: np.ndarray) -> dict[int, int]:
+    """The rows of the signs ``start`` (−1 lower, 1 upper) at their bound
+    at δu = 0 (within ``tol``), made independent: the primal active
+    set's first working set."""
+    at = [int(j) for j in np.flatnonzero(start)
+          if abs((hi if start[j] > 0 else lo)[j]) <= tol[j]]
+    return {j: int(start[j]) for j in primal_active_set.independent(C, at)}
+
+
+def add_loop_arguments(ap: argparse.ArgumentParser) -> None:
+    """The Monte Carlo's options: horizon, draws, steps, seed."""
+    ap.add_argument("--horizon", type=int, default=20)
+    ap.add_argument("--draws", type=int, default=20)
+    ap.add_argument("--steps", type=int, default=120)
+    ap.add_argument("--seed", type=int, default=0)
+
+
 def collect(horizon: int, draws: int, steps: int, seed: int) -> dict:
     """The QPs of ``draws`` closed loops of ``steps`` steps, with the
     step's answer δu, and the scales of their rows."""
@@ -107,10 +134,7 @@ def collect(horizon: int, draws: int, steps: int, seed: int) -> dict:
                         "du": z[controls] - z0[controls]})
             x = np.asarray(rk4(x, np.array(out[0]).ravel(), tau,
                                0.5)).ravel()
-    rate = [] if mpc.rate_max is None else [np.full(3 * N, mpc.rate_max)]
-    scale = np.concatenate([np.tile(sc.wheels.m_max, N),
-                            np.tile(sc.wheels.h_max, N), *rate])
-    return {"qps": qps, "scale": scale, "N": N, "nu": nu, "nw": nw,
+    return {"qps": qps, "scale": row_scales(sc, mpc), "N": N, "nu": nu, "nw": nw,
             "m_max": np.tile(sc.wheels.m_max, N)}
 
 
@@ -221,10 +245,8 @@ def run_primal(c: dict, signs: list, caps: list[int]) -> dict:
         if np.any(q["lo"] > tol) or np.any(q["hi"] < -tol):
             out["infeasible_start"] += 1
             continue
-        start = _shift(signs[i - 1], parts)
-        at = [j for j in np.flatnonzero(start)
-              if abs((q["hi"] if start[j] > 0 else q["lo"])[j]) <= tol[j]]
-        W = {j: int(start[j]) for j in primal_active_set.independent(C, at)}
+        W = warm_working_set(C, q["lo"], q["hi"],
+                             _shift(signs[i - 1], parts), tol)
         x0 = np.zeros(H.shape[0])
         r = primal_active_set.solve(H, g, C, q["lo"], q["hi"], x0, W)
         if not r["optimal"]:
@@ -357,10 +379,7 @@ def report(c: dict, admm_caps: list[int], primal_caps: list[int]) -> str:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--horizon", type=int, default=20)
-    ap.add_argument("--draws", type=int, default=20)
-    ap.add_argument("--steps", type=int, default=120)
-    ap.add_argument("--seed", type=int, default=0)
+    add_loop_arguments(ap)
     ap.add_argument("--admm-caps", default="25,50,100,200")
     ap.add_argument("--primal-caps", default="10,20,40")
     a = ap.parse_args(argv)

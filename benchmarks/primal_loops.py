@@ -31,7 +31,8 @@ from tqdm.auto import tqdm
 
 from adcs_common.quaternion import quat_error_angle
 from benchmarks import primal_active_set
-from benchmarks.horizon_qps import _setup, _shift
+from benchmarks.horizon_qps import (_setup, _shift, add_loop_arguments,
+                                    row_scales, warm_working_set)
 from benchmarks.mpc_worst_case import random_states
 
 #: A loop has settled once its pointing error stays below this [deg].
@@ -44,9 +45,7 @@ def fly(horizon: int, x0: np.ndarray, steps: int, cap: int,
     sc, model, mpc, qp = setup
     N, nu, nw = horizon, model.nu, sc.wheels.n_wheels
     parts = [(N, nu), (N, nw)] + ([(N, 3)] if mpc.rate_max else [])
-    scale = np.concatenate([np.tile(sc.wheels.m_max, N),
-                            np.tile(sc.wheels.h_max, N)] + (
-        [np.full(3 * N, mpc.rate_max)] if mpc.rate_max else []))
+    scale = row_scales(sc, mpc)
     rk4 = model.rk4_step(1)
     qf, tau = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
     x, z = x0.copy(), mpc.initial_guess(x0)
@@ -73,11 +72,7 @@ def fly(horizon: int, x0: np.ndarray, steps: int, cap: int,
             du, daqp_steps = winv @ y, daqp_steps + 1
             signs = np.sign(np.array(info["lam"])).astype(int)
         else:
-            start = _shift(signs, parts)
-            at = [j for j in np.flatnonzero(start)
-                  if abs((hi if start[j] > 0 else lo)[j]) <= tol[j]]
-            W = {j: int(start[j])
-                 for j in primal_active_set.independent(C, at)}
+            W = warm_working_set(C, lo, hi, _shift(signs, parts), tol)
             r = primal_active_set.solve(H, g.ravel(), C, lo, hi,
                                         np.zeros(N * nu), W,
                                         max_iter=cap or 10_000)
@@ -114,10 +109,7 @@ def _rollout(mpc, rk4, x: np.ndarray, u: np.ndarray, tau) -> np.ndarray:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--horizon", type=int, default=20)
-    ap.add_argument("--draws", type=int, default=20)
-    ap.add_argument("--steps", type=int, default=120)
-    ap.add_argument("--seed", type=int, default=0)
+    add_loop_arguments(ap)
     ap.add_argument("--caps", default="10,20,40,0")
     a = ap.parse_args(argv)
     setup = _setup(a.horizon)
