@@ -69,7 +69,7 @@ OSQP_TOL = 1e-6
 FIXED_RHO = 0.1
 
 
-def _setup(horizon: int) -> tuple:
+def demo_setup(horizon: int) -> tuple:
     """``(spacecraft, model, mpc, qp)``: the demo craft's condensed RTI
     MPC and its QP (`qp_factor_function`)."""
     sc = load_spacecraft("demo")
@@ -77,6 +77,24 @@ def _setup(horizon: int) -> tuple:
     mpc = AttitudeMPC(model, horizon=horizon, dt=0.5, solver="condensed",
                       rti=True, rate_max=sc.rate_max)
     return sc, model, mpc, qp_factor_function(mpc)
+
+
+def plan_controls(mpc) -> list[int]:
+    """The controls u_0…u_{N−1} in ``mpc``'s plan (indices)."""
+    return [i for s in mpc._us for i in range(s.start, s.stop)]
+
+
+def stage_parts(N: int, nu: int, nw: int, rate_rows: bool) -> list:
+    """The QP's stage-major blocks ``(N, width)`` in order: torques,
+    momenta and, with a rate bound, rates (`shift_stages`)."""
+    return [(N, nu), (N, nw)] + ([(N, 3)] if rate_rows else [])
+
+
+def du_form(winv: np.ndarray, rows: np.ndarray) -> tuple:
+    """``(W, H, C)`` of the QP in δu: W = (W⁻¹)⁻¹, the Hessian WᵀW and
+    the rows ``[I; rows·W]`` (the gradient in δu is Wᵀ times y's)."""
+    W = np.linalg.inv(winv)
+    return W, W.T @ W, np.vstack([np.eye(W.shape[0]), rows @ W])
 
 
 def row_scales(sc, mpc) -> np.ndarray:
@@ -109,11 +127,11 @@ def add_loop_arguments(ap: argparse.ArgumentParser) -> None:
 def collect(horizon: int, draws: int, steps: int, seed: int) -> dict:
     """The QPs of ``draws`` closed loops of ``steps`` steps, with the
     step's answer δu, and the scales of their rows."""
-    sc, model, mpc, qp = _setup(horizon)
+    sc, model, mpc, qp = demo_setup(horizon)
     N, nu, nw = horizon, model.nu, sc.wheels.n_wheels
     rk4 = model.rk4_step(1)
     qf, tau = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
-    controls = [i for s in mpc._us for i in range(s.start, s.stop)]
+    controls = plan_controls(mpc)
     starts = random_states(model, draws, np.random.default_rng(seed))
     qps = []
     for d, x0 in enumerate(tqdm(starts, desc="loops", disable=None,
@@ -134,11 +152,11 @@ def collect(horizon: int, draws: int, steps: int, seed: int) -> dict:
                         "du": z[controls] - z0[controls]})
             x = np.asarray(rk4(x, np.array(out[0]).ravel(), tau,
                                0.5)).ravel()
-    return {"qps": qps, "scale": row_scales(sc, mpc), "N": N, "nu": nu, "nw": nw,
-            "m_max": np.tile(sc.wheels.m_max, N)}
+    return {"qps": qps, "scale": row_scales(sc, mpc), "N": N, "nu": nu,
+            "nw": nw, "m_max": np.tile(sc.wheels.m_max, N)}
 
 
-def _shift(v: np.ndarray, parts: list) -> np.ndarray:
+def shift_stages(v: np.ndarray, parts: list) -> np.ndarray:
     """A stage-major vector of blocks ``parts`` (each ``(N, width)``),
     moved one stage ahead, its last stage repeated."""
     out, top = [], 0
@@ -150,9 +168,8 @@ def _shift(v: np.ndarray, parts: list) -> np.ndarray:
 
 
 def _parts(c: dict) -> list:
-    N, nu, nw = c["N"], c["nu"], c["nw"]
-    m = c["qps"][0]["rows"].shape[0]
-    return [(N, nu), (N, nw)] + ([(N, 3)] if m > N * nw else [])
+    N, nw = c["N"], c["nw"]
+    return stage_parts(N, c["nu"], nw, c["qps"][0]["rows"].shape[0] > N * nw)
 
 
 def active_sets(c: dict, sides: list, signs: list) -> np.ndarray:
@@ -169,7 +186,7 @@ def active_sets(c: dict, sides: list, signs: list) -> np.ndarray:
     for q, side, sign in zip(c["qps"], sides, signs):
         dist = -1
         if prev is not None and q["step"] > 0:
-            dist = int(np.sum(np.abs(sign - _shift(prev, parts))))
+            dist = int(np.sum(np.abs(sign - shift_stages(prev, parts))))
         out.append((int(np.count_nonzero(side[:n])),
                     int(np.count_nonzero(side[n:])),
                     int(np.count_nonzero(sign)), dist))
@@ -198,8 +215,8 @@ def run_daqp(c: dict) -> dict:
         starts = {"cold": np.zeros(A.shape[0], np.int32)}
         last = out["at_optimum"]
         first = not last[0] or q["step"] == 0
-        for mode, start in (("warm_sides", lambda: _shift(last[0][-1], parts)),
-                            ("warm_signs", lambda: _shift(last[1][-1], parts)),
+        for mode, start in (("warm_sides", lambda: shift_stages(last[0][-1], parts)),
+                            ("warm_signs", lambda: shift_stages(last[1][-1], parts)),
                             ("warm_unshifted", lambda: last[1][-1])):
             starts[mode] = starts["cold"] if first else _senses(start())
         for mode, sense in starts.items():
@@ -238,15 +255,14 @@ def run_primal(c: dict, signs: list, caps: list[int]) -> dict:
     for i, q in enumerate(c["qps"]):
         if q["step"] == 0:
             continue
-        Wm = np.linalg.inv(q["Winv"])
-        H, g = Wm.T @ Wm, Wm.T @ q["gy"]
-        C = np.vstack([np.eye(H.shape[0]), q["rows"] @ Wm])
+        Wm, H, C = du_form(q["Winv"], q["rows"])
+        g = Wm.T @ q["gy"]
         tol = 1e-9 * c["scale"]
         if np.any(q["lo"] > tol) or np.any(q["hi"] < -tol):
             out["infeasible_start"] += 1
             continue
         W = warm_working_set(C, q["lo"], q["hi"],
-                             _shift(signs[i - 1], parts), tol)
+                             shift_stages(signs[i - 1], parts), tol)
         x0 = np.zeros(H.shape[0])
         r = primal_active_set.solve(H, g, C, q["lo"], q["hi"], x0, W)
         if not r["optimal"]:
@@ -257,9 +273,7 @@ def run_primal(c: dict, signs: list, caps: list[int]) -> dict:
             np.abs(r["x"] - q["du"]) / c["m_max"])))
         f_opt = 0.5 * r["x"] @ H @ r["x"] + g @ r["x"]
         for cap in caps:
-            xc = r["x"] if r["iterations"] <= cap else \
-                primal_active_set.solve(H, g, C, q["lo"], q["hi"], x0, W,
-                                        max_iter=cap)["x"]
+            xc = r["path"][min(cap, r["iterations"]) - 1]
             missed = 0.0 if f_opt >= 0 else float(
                 (0.5 * xc @ H @ xc + g @ xc - f_opt) / -f_opt)
             out[cap][0].append(float(np.max(np.abs(xc - q["du"])
@@ -287,7 +301,7 @@ def run_osqp(c: dict, adaptive: bool, cap: int | None = None) -> dict:
                      scaled_termination=False)
         if prev is not None and q["step"] > 0:
             # the shifted plan is the last answer moved ahead: δu = 0
-            solver.warm_start(x=np.zeros(n), y=_shift(prev, parts))
+            solver.warm_start(x=np.zeros(n), y=shift_stages(prev, parts))
         r = solver.solve(raise_error=False)
         if not cap and r.info.status_val != 1:
             raise RuntimeError(f"OSQP: {r.info.status} on a QP")
@@ -355,10 +369,11 @@ def report(c: dict, admm_caps: list[int], primal_caps: list[int]) -> str:
         o = run_osqp(c, adaptive)
         lines.append("| {} | {:.0f} | {:.0f} | {:.0f} | {:.1e} |".format(
             name, *_pct(o["iters"][con]), o["error"].max()))
-    lines += ["", f"(the primal active set leaves out {pas['infeasible_start']}"
-              " QPs where δu = 0 breaks a bound, and each loop's first, "
-              "which has no warm start)", "", "Stopped after a fixed number of iterations, "
-              "constrained QPs:", "",
+    lines += ["", "(the primal active set leaves out "
+              f"{pas['infeasible_start']} QPs where δu = 0 breaks a bound, "
+              "and each loop's first, which has no warm start)", "",
+              "Stopped after a fixed number of iterations, constrained "
+              "QPs:", "",
               "| method, iterations | |δu − step's| / m_max, median | p99 "
               "| worst | violation (scaled) or cost decrease missed, p99 | "
               "worst |",

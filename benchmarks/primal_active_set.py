@@ -38,14 +38,16 @@ def solve(H: np.ndarray, g: np.ndarray, C: np.ndarray, lo: np.ndarray,
     the most wrong one. Every iterate is feasible, so a solve stopped at
     ``max_iter`` returns a feasible point of lower cost than ``x0``.
     Returns ``x``, ``iterations``, ``optimal``, the multipliers ``lam``
-    (positive at an upper bound, as DAQP's; zero unless optimal) and the
-    last ``working`` set.
+    (positive at an upper bound, as DAQP's; zero unless optimal), the
+    last ``working`` set and the ``path``: the point after each
+    iteration (what a solve stopped there returns).
     """
     x = np.array(x0, dtype=float)
     W = dict(working)
     n = x.size
     lam = np.zeros(C.shape[0])
     norms = np.linalg.norm(C, axis=1)
+    path = []
     for it in range(1, max_iter + 1):
         rows = list(W)
         Cw = C[rows]
@@ -60,8 +62,9 @@ def solve(H: np.ndarray, g: np.ndarray, C: np.ndarray, lo: np.ndarray,
             wrong = [-mult[i] * W[j] for i, j in enumerate(rows)]
             if not rows or max(wrong) <= tol:
                 return {"x": x, "iterations": it, "optimal": True,
-                        "lam": lam, "working": W}
+                        "lam": lam, "working": W, "path": path + [x]}
             del W[rows[int(np.argmax(wrong))]]
+            path.append(x)
             continue
         Cp, Cx = C @ p, C @ x
         alpha, block = 1.0, None
@@ -76,7 +79,8 @@ def solve(H: np.ndarray, g: np.ndarray, C: np.ndarray, lo: np.ndarray,
             if room < alpha:
                 alpha, block = max(room, 0.0), int(j)
         x = x + alpha * p
+        path.append(x)
         if block is not None:
             W[block] = 1 if Cp[block] > 0 else -1
     return {"x": x, "iterations": max_iter, "optimal": False, "lam": lam,
-            "working": W}
+            "working": W, "path": path}

@@ -31,8 +31,10 @@ from tqdm.auto import tqdm
 
 from adcs_common.quaternion import quat_error_angle
 from benchmarks import primal_active_set
-from benchmarks.horizon_qps import (_setup, _shift, add_loop_arguments,
-                                    row_scales, warm_working_set)
+from benchmarks.horizon_qps import (add_loop_arguments, demo_setup,
+                                    du_form, plan_controls, row_scales,
+                                    shift_stages, stage_parts,
+                                    warm_working_set)
 from benchmarks.mpc_worst_case import random_states
 
 #: A loop has settled once its pointing error stays below this [deg].
@@ -44,8 +46,10 @@ def fly(horizon: int, x0: np.ndarray, steps: int, cap: int,
     """One closed loop; ``cap`` 0 runs each QP to its optimum."""
     sc, model, mpc, qp = setup
     N, nu, nw = horizon, model.nu, sc.wheels.n_wheels
-    parts = [(N, nu), (N, nw)] + ([(N, 3)] if mpc.rate_max else [])
+    parts = stage_parts(N, nu, nw, mpc.rate_max is not None)
     scale = row_scales(sc, mpc)
+    controls = plan_controls(mpc)
+    u_lo, u_hi = (np.tile(b, N) for b in model.control_bounds())
     rk4 = model.rk4_step(1)
     qf, tau = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
     x, z = x0.copy(), mpc.initial_guess(x0)
@@ -59,8 +63,7 @@ def fly(horizon: int, x0: np.ndarray, steps: int, cap: int,
                                   qp(z0, np.r_[x, qf, tau]))
         lo = np.r_[bounds[0].ravel(), bounds[2].ravel()]
         hi = np.r_[bounds[1].ravel(), bounds[3].ravel()]
-        Wm = np.linalg.inv(winv)
-        H, C = Wm.T @ Wm, np.vstack([np.eye(N * nu), rows @ Wm])
+        _, H, C = du_form(winv, rows)
         tol = 1e-9 * scale
         if signs is None or np.any(lo > tol) or np.any(hi < -tol):
             y, _, flag, info = daqp.solve(np.eye(N * nu), winv.T @ g.ravel(),
@@ -72,7 +75,8 @@ def fly(horizon: int, x0: np.ndarray, steps: int, cap: int,
             du, daqp_steps = winv @ y, daqp_steps + 1
             signs = np.sign(np.array(info["lam"])).astype(int)
         else:
-            W = warm_working_set(C, lo, hi, _shift(signs, parts), tol)
+            W = warm_working_set(C, lo, hi, shift_stages(signs, parts),
+                                 tol)
             r = primal_active_set.solve(H, g.ravel(), C, lo, hi,
                                         np.zeros(N * nu), W,
                                         max_iter=cap or 10_000)
@@ -80,9 +84,7 @@ def fly(horizon: int, x0: np.ndarray, steps: int, cap: int,
             signs = np.zeros(len(lo), int)
             for j, side in r["working"].items():
                 signs[j] = side
-        u = np.clip(z0[_controls(mpc)] + du,
-                    np.tile(model.control_bounds()[0], N),
-                    np.tile(model.control_bounds()[1], N)).reshape(N, nu)
+        u = np.clip(z0[controls] + du, u_lo, u_hi).reshape(N, nu)
         z = _rollout(mpc, rk4, x, u, tau)
         x = np.asarray(rk4(x, u[0], tau, 0.5)).ravel()
         errors.append(float(quat_error_angle(x[:4], qf)))
@@ -90,10 +92,6 @@ def fly(horizon: int, x0: np.ndarray, steps: int, cap: int,
     return {"capped": capped, "daqp": daqp_steps,
             "final_error": errors[-1],
             "settle_time": mpc.dt * (outside[-1] + 1 if outside.size else 0)}
-
-
-def _controls(mpc) -> list[int]:
-    return [i for s in mpc._us for i in range(s.start, s.stop)]
 
 
 def _rollout(mpc, rk4, x: np.ndarray, u: np.ndarray, tau) -> np.ndarray:
@@ -112,7 +110,7 @@ def main(argv=None) -> None:
     add_loop_arguments(ap)
     ap.add_argument("--caps", default="10,20,40,0")
     a = ap.parse_args(argv)
-    setup = _setup(a.horizon)
+    setup = demo_setup(a.horizon)
     starts = random_states(setup[1], a.draws, np.random.default_rng(a.seed))
     print("| cap | loops | steps | steps stopped at the cap | DAQP steps "
           f"| settled within {SETTLED_DEG}°, median [s] | worst [s] "

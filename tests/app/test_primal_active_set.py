@@ -32,8 +32,10 @@ def test_a_capped_solve_is_feasible_and_lowers_the_cost():
     full = pas.solve(H, g, C, lo, hi, np.zeros(12), {})
     assert full["iterations"] > 3
     f = [0.0]
+    assert len(full["path"]) == full["iterations"]
     for cap in range(1, full["iterations"]):
         x = pas.solve(H, g, C, lo, hi, np.zeros(12), {}, max_iter=cap)["x"]
+        np.testing.assert_array_equal(x, full["path"][cap - 1])
         v = C @ x
         assert np.all(v >= lo - 1e-12) and np.all(v <= hi + 1e-12)
         f.append(0.5 * x @ H @ x + g @ x)
