@@ -291,8 +291,15 @@ def qp_factor_function(mpc: Any) -> ca.Function:
     I and the gradient W⁻ᵀg. Its bounds: ``lbu ≤ W⁻¹y ≤ ubu`` (torques,
     N·m) and ``lba ≤ rows @ y ≤ uba``, the deviations of the momenta
     (N·m·s) and then, with a rate bound, of the rates (rad/s) of the
-    states 1…N, stage-major.
+    states 1…N, stage-major. Any `AttitudeMPC` poses it from its
+    weights, bounds and horizon, whatever its solver; keep-out cones,
+    which only the stage-wise QP holds, are not in it.
     """
+    from .controller import AttitudeMPC     # it imports this module
+
+    if not isinstance(mpc, AttitudeMPC):
+        raise InvalidValueError(
+            f"mpc must be an AttitudeMPC, got {type(mpc).__name__}")
     kern = _kernels(mpc)
     nx = mpc.model.nx
     z = ca.MX.sym("z", mpc.nz)

@@ -332,3 +332,22 @@ def test_a_step_whose_certificate_fails_returns_its_warm_start():
     with pytest.raises(InvalidValueError, match="kkt_tol"):
         AttitudeMPC(MODEL, solver="condensed",
                     solver_options={"kkt_tol": -1.0})
+
+
+@pytest.mark.parametrize("bad", [None, "condensed", MODEL])
+def test_qp_factor_function_refuses_what_is_not_an_mpc(bad):
+    with pytest.raises(InvalidValueError, match="must be an AttitudeMPC"):
+        qp_factor_function(bad)
+
+
+def test_qp_factor_function_poses_any_solvers_qp():
+    """The same QP from a stage-wise MPC of the same craft."""
+    a = qp_factor_function(AttitudeMPC(MODEL, horizon=4, dt=0.5,
+                                       solver="condensed", rti=True))
+    b = qp_factor_function(AttitudeMPC(MODEL, horizon=4, dt=0.5,
+                                       solver="stagewise", rti=True))
+    mpc = AttitudeMPC(MODEL, horizon=4, dt=0.5, solver="condensed")
+    x = MODEL.state([1.0, 0.0, 0.0, 0.0])
+    z, p = mpc.initial_guess(x), np.r_[x, QF, np.zeros(3)]
+    for u, v in zip(a(z, p), b(z, p)):
+        np.testing.assert_array_equal(np.array(u), np.array(v))
