@@ -2,13 +2,14 @@
 
 Run from the repository root::
 
-    python -m benchmarks.horizon_qps [--horizon 20] [--draws 20]
+    python -m benchmarks.horizon_qps [--spacecraft demo]
+                                     [--horizon 20] [--draws 20]
                                      [--steps 120] [--seed 0]
                                      [--admm-caps 25,50,100,200]
                                      [--primal-caps 10,20,40]
 
 Flies the condensed RTI step (`AttitudeMPC`, ``solver="condensed"``,
-``rti=True``; the demo craft, dt 0.5 s) in Python from the random starts
+``rti=True``; the demo craft or ``--spacecraft``, dt 0.5 s) in Python from the random starts
 of `benchmarks.mpc_worst_case` (same seed, same states; the craft's rate
 bound if it has one, as `adcs export` poses the step) and keeps every
 step's QP as the step poses it (`ocp.mpc.condensed.qp_factor_function`:
@@ -69,10 +70,11 @@ OSQP_TOL = 1e-6
 FIXED_RHO = 0.1
 
 
-def demo_setup(horizon: int) -> tuple:
-    """``(spacecraft, model, mpc, qp)``: the demo craft's condensed RTI
-    MPC and its QP (`qp_factor_function`)."""
-    sc = load_spacecraft("demo")
+def study_setup(horizon: int, spacecraft: str = "demo") -> tuple:
+    """``(spacecraft, model, mpc, qp)``: the craft's condensed RTI MPC (a
+    built-in name or a TOML file, `load_spacecraft`; dt 0.5 s) and its QP
+    (`qp_factor_function`)."""
+    sc = load_spacecraft(spacecraft)
     model = rigid_spacecraft(sc.inertia, sc.wheels)
     mpc = AttitudeMPC(model, horizon=horizon, dt=0.5, solver="condensed",
                       rti=True, rate_max=sc.rate_max)
@@ -117,17 +119,21 @@ def warm_working_set(C: np.ndarray, lo: np.ndarray, hi: np.ndarray,
 
 
 def add_loop_arguments(ap: argparse.ArgumentParser) -> None:
-    """The Monte Carlo's options: horizon, draws, steps, seed."""
+    """The Monte Carlo's options: spacecraft, horizon, draws, steps,
+    seed."""
+    ap.add_argument("--spacecraft", default="demo",
+                    help="a built-in craft or a TOML file (default demo)")
     ap.add_argument("--horizon", type=int, default=20)
     ap.add_argument("--draws", type=int, default=20)
     ap.add_argument("--steps", type=int, default=120)
     ap.add_argument("--seed", type=int, default=0)
 
 
-def collect(horizon: int, draws: int, steps: int, seed: int) -> dict:
+def collect(horizon: int, draws: int, steps: int, seed: int,
+            spacecraft: str = "demo") -> dict:
     """The QPs of ``draws`` closed loops of ``steps`` steps, with the
     step's answer δu, and the scales of their rows."""
-    sc, model, mpc, qp = demo_setup(horizon)
+    sc, model, mpc, qp = study_setup(horizon, spacecraft)
     N, nu, nw = horizon, model.nu, sc.wheels.n_wheels
     rk4 = model.rk4_step(1)
     qf, tau = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
@@ -400,7 +406,8 @@ def main(argv=None) -> None:
     a = ap.parse_args(argv)
     caps = [[int(v) for v in arg.split(",") if v]
             for arg in (a.admm_caps, a.primal_caps)]
-    print(report(collect(a.horizon, a.draws, a.steps, a.seed), *caps))
+    print(report(collect(a.horizon, a.draws, a.steps, a.seed,
+                         a.spacecraft), *caps))
 
 
 if __name__ == "__main__":

@@ -2,12 +2,14 @@
 
 Run from the repository root::
 
-    python -m benchmarks.primal_loops [--horizon 20] [--draws 20]
+    python -m benchmarks.primal_loops [--spacecraft demo]
+                                      [--horizon 20] [--draws 20]
                                       [--steps 120] [--caps 10,20,40,0]
 
 The question `benchmarks.horizon_qps` leaves: a primal active set's
 iterates keep every bound, so stopping it bounds the QP; does the closed
-loop still reach the target? Each loop flies the demo craft (dt 0.5 s)
+loop still reach the target? Each loop flies the demo craft (or
+``--spacecraft``, a built-in name or a TOML file; dt 0.5 s)
 from the random starts of `benchmarks.mpc_worst_case` in Python: at each
 step the condensed step's QP (`qp_factor_function`, at the last plan
 moved one stage ahead) solved by `benchmarks.primal_active_set` from
@@ -31,7 +33,7 @@ from tqdm.auto import tqdm
 
 from adcs_common.quaternion import quat_error_angle
 from benchmarks import primal_active_set
-from benchmarks.horizon_qps import (add_loop_arguments, demo_setup,
+from benchmarks.horizon_qps import (add_loop_arguments, study_setup,
                                     du_form, plan_controls, row_scales,
                                     shift_stages, stage_parts,
                                     warm_working_set)
@@ -110,7 +112,7 @@ def main(argv=None) -> None:
     add_loop_arguments(ap)
     ap.add_argument("--caps", default="10,20,40,0")
     a = ap.parse_args(argv)
-    setup = demo_setup(a.horizon)
+    setup = study_setup(a.horizon, a.spacecraft)
     starts = random_states(setup[1], a.draws, np.random.default_rng(a.seed))
     print("| cap | loops | steps | steps stopped at the cap | DAQP steps "
           f"| settled within {SETTLED_DEG}°, median [s] | worst [s] "

@@ -1,11 +1,14 @@
 """The horizon study's QPs are the step's: every way of solving them
 lands on the step's torques (`benchmarks.horizon_qps`)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from benchmarks.horizon_qps import (active_sets, collect, run_daqp,
                                     run_osqp, run_primal)
+from ocp.spacecraft import load_spacecraft
 
 
 @pytest.fixture(scope="module")
@@ -51,3 +54,19 @@ def test_primal_active_set_from_the_steps_start_reaches_its_torques(loop):
     assert r["error"] <= 1e-5                 # the step's: DAQP's tolerance
     distance, missed = (np.array(v) for v in r[1])
     assert np.all((missed >= -1e-12) & (missed <= 1 + 1e-12))
+
+
+def test_a_users_toml_craft_with_a_rate_bound_reaches_the_study(tmp_path):
+    """Six wheels and a rate bound, from a TOML file: the QPs hold their
+    torque, momentum and rate rows, and DAQP gives the step's torques."""
+    sc = replace(load_spacecraft("chibis-m"), rate_max=0.02)
+    path = tmp_path / "craft.toml"
+    path.write_text(sc.to_toml())
+    c = collect(horizon=4, draws=1, steps=6, seed=0, spacecraft=str(path))
+    q = c["qps"][0]
+    assert q["Winv"].shape == (24, 24)
+    assert q["rows"].shape == (4 * 6 + 4 * 3, 24)        # momenta, rates
+    np.testing.assert_array_equal(c["scale"][-12:], 0.02)
+    d = run_daqp(c)
+    assert d["error"]["cold"] <= 1e-9
+    assert run_primal(c, d["signs"], [1])["error"] <= 1e-5

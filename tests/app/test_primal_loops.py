@@ -3,13 +3,13 @@ target as the uncapped one does (`benchmarks.primal_loops`)."""
 
 import numpy as np
 
-from benchmarks.horizon_qps import demo_setup
+from benchmarks.horizon_qps import study_setup
 from benchmarks.mpc_worst_case import random_states
 from benchmarks.primal_loops import fly
 
 
 def test_capped_primal_loop_reaches_the_target():
-    setup = demo_setup(8)
+    setup = study_setup(8)
     x0 = random_states(setup[1], 1, np.random.default_rng(0))[0]
     full = fly(8, x0, 80, 0, setup)
     capped = fly(8, x0, 80, 3, setup)
