@@ -286,7 +286,8 @@ def qp_factor_function(mpc: Any) -> ca.Function:
 
     For checks and studies: at the plan ``z`` (x_0 the measured state;
     the step's is the previous plan shifted) and parameters ``p = (x,
-    q_f, τ)``, the QP in δu (N·n_u,) has the Hessian ``H = W⁻ᵀW⁻¹`` and
+    q_f, τ)``, the QP in δu (N·n_u,) has the Hessian ``H = WᵀW`` (``H⁻¹ =
+    W⁻¹W⁻ᵀ``; W⁻¹ is block lower triangular in stages) and
     the gradient ``g``; with δu = W⁻¹y it is the QP in y of the Hessian
     I and the gradient W⁻ᵀg. Its bounds: ``lbu ≤ W⁻¹y ≤ ubu`` (torques,
     N·m) and ``lba ≤ rows @ y ≤ uba``, the deviations of the momenta

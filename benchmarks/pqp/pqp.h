@@ -1,0 +1,43 @@
+/* A primal active-set solver for the dense QP of Hessian I:
+ *
+ *   min ½ yᵀy + fᵀy   s.t.   lo ≤ C y ≤ hi,   C (m × n, row-major),
+ *
+ * started from a feasible point and a warm working set, and stoppable
+ * after a fixed number of iterations (every iterate is feasible and
+ * lowers the cost). C99, no heap: the caller passes the work arrays
+ * (pqp_work_size reals, pqp_iwork_size ints). Double, or float when
+ * compiled with -DPQP_SINGLE_PRECISION. */
+#ifndef PQP_H
+#define PQP_H
+
+#ifdef PQP_SINGLE_PRECISION
+typedef float pqp_real;
+#else
+typedef double pqp_real;
+#endif
+
+/* return values of pqp_solve */
+#define PQP_OPTIMAL 0
+#define PQP_ITERATION_LIMIT 1
+#define PQP_INFEASIBLE_START 2
+#define PQP_DEPENDENT_ROW 3
+
+/* reals and ints of the work arrays for n variables and m rows */
+int pqp_work_size(int n, int m);
+int pqp_iwork_size(int n, int m);
+
+/* Solve from the point y (n; in: feasible, out: the last iterate). side
+ * (m; in: the warm working set's sides, -1 lower, 1 upper, 0 not in it;
+ * rows not at that bound at y, or dependent on those before them, are
+ * left out; out: the last working set). lam (m; out: the multipliers,
+ * positive at an upper bound, zero unless PQP_OPTIMAL). At most
+ * max_iter iterations (a KKT solve each: a step, or a row dropped);
+ * *iterations the number made. tol: the step below which y is a
+ * working set's optimum, and the multipliers' sign tolerance, both
+ * relative to 1 + max |y + f| (the gradient's scale). */
+int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
+              const pqp_real* hi, const pqp_real* f, pqp_real* y,
+              signed char* side, pqp_real* lam, int max_iter, pqp_real tol,
+              pqp_real* w, int* iw, int* iterations);
+
+#endif

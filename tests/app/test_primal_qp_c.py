@@ -1,0 +1,210 @@
+"""The primal active set in C (benchmarks/pqp) against its numpy twin.
+
+The C solver and `benchmarks.primal_active_set` take the same decisions
+on the same QP (Hessian I), so they reach the same point in the same
+iterations; capped, the C point keeps every bound and lowers the cost;
+it is C99 without heap, clean under -Wall -Wextra -Werror on the host
+and both Cortex-M cores, and the target build gives the host's answers.
+"""
+
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import pytest
+
+from benchmarks import primal_active_set
+from benchmarks import primal_qp_c as pc
+from ocp.codegen.result import OPT_FLAGS
+from ocp.codegen.target import (CORES, CROSS_CC, TARGET_WARNINGS,
+                                toolchain_missing)
+
+
+def _qp(rng: np.random.Generator, stages: int = 6, wheels: int = 2,
+        dt: float = 0.5) -> dict:
+    """A QP shaped as the step's: rows ``[L; dt·S·L]`` (L lower
+    triangular, S the per-wheel prefix sums), y = 0 strictly feasible,
+    and a gradient that drives it into its bounds."""
+    n = stages * wheels
+    L = np.tril(rng.normal(size=(n, n))) + 3 * np.eye(n)
+    S = np.zeros((n, n))
+    for k in range(stages):
+        for i in range(wheels):
+            S[k * wheels + i, i:(k + 1) * wheels:wheels] = dt
+    C = np.vstack([L, S @ L])
+    lo = -rng.uniform(0.5, 1.5, 2 * n)
+    hi = rng.uniform(0.5, 1.5, 2 * n)
+    return {"C": C, "lo": lo, "hi": hi, "f": 20 * rng.normal(size=n)}
+
+
+def _twin(q: dict, warm: dict[int, int] | None = None) -> dict:
+    n = q["C"].shape[1]
+    return primal_active_set.solve(np.eye(n), q["f"], q["C"], q["lo"],
+                                   q["hi"], np.zeros(n), warm or {})
+
+
+def _sides(m: int, warm: dict[int, int]) -> np.ndarray:
+    side = np.zeros(m, dtype=int)
+    side[list(warm)] = list(warm.values())
+    return side
+
+
+@pytest.fixture(scope="module")
+def lib(tmp_path_factory):
+    return pc.host_library(tmp_path_factory.mktemp("pqp"))
+
+
+@pytest.fixture(scope="module")
+def qps():
+    rng = np.random.default_rng(7)
+    return [_qp(rng) for _ in range(20)]
+
+
+def test_c_takes_the_twins_path(lib, qps):
+    """Cold: the same optimum, multipliers and iterations as numpy's."""
+    for q in qps:
+        ref = _twin(q)
+        m, n = q["C"].shape
+        r = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], np.zeros(n),
+                       np.zeros(m))
+        assert r["status"] == "optimal"
+        assert r["iterations"] == ref["iterations"]
+        assert np.max(np.abs(r["y"] - ref["x"])) <= 1e-9
+        assert np.max(np.abs(r["lam"] - ref["lam"])) <= 1e-8
+        assert ref["working"], "the QPs must have active bounds"
+
+
+def test_warm_start_from_the_optimum_takes_one_iteration(lib, qps):
+    """Started at the optimum's working set (and point), one KKT solve
+    proves it optimal; the multipliers are the optimum's."""
+    for q in qps:
+        ref = _twin(q)
+        m = q["C"].shape[0]
+        r = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], ref["x"],
+                       _sides(m, ref["working"]))
+        assert (r["status"], r["iterations"]) == ("optimal", 1)
+        assert np.max(np.abs(r["lam"] - ref["lam"])) <= 1e-8
+
+
+def test_warm_rows_off_their_bound_or_dependent_are_left_out(lib, qps):
+    """Warm sides whose row is not at its bound at the start, or whose
+    normal repeats one before it, are dropped: from the optimum with its
+    working set and those two, one KKT solve still proves it optimal."""
+    q = qps[0]
+    ref = _twin(q)
+    m, n = q["C"].shape
+    j = next(iter(ref["working"]))
+    C = np.vstack([q["C"], q["C"][j:j + 1]])      # row m repeats row j
+    lo, hi = np.r_[q["lo"], q["lo"][j]], np.r_[q["hi"], q["hi"][j]]
+    side = _sides(m + 1, ref["working"])
+    side[m] = side[j]
+    free = next(i for i in range(m) if i not in ref["working"]
+                and q["lo"][i] < q["C"][i] @ ref["x"] < q["hi"][i])
+    side[free] = 1
+    r = pc.solve_c(lib, C, lo, hi, q["f"], ref["x"], side)
+    assert (r["status"], r["iterations"]) == ("optimal", 1)
+    assert r["side"][m] == 0 and r["side"][free] == 0
+    assert np.max(np.abs(r["y"] - ref["x"])) <= 1e-12
+
+
+def test_capped_solve_is_feasible_and_lowers_the_cost(lib, qps):
+    """Each cap returns the twin's point after that many iterations:
+    inside every bound, its cost no higher than the start's."""
+    for q in qps[:8]:
+        ref = _twin(q)
+        m, n = q["C"].shape
+        for cap in range(1, ref["iterations"]):
+            r = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"],
+                           np.zeros(n), np.zeros(m), max_iter=cap)
+            assert (r["status"], r["iterations"]) == ("iteration limit", cap)
+            assert np.max(np.abs(r["y"] - ref["path"][cap - 1])) <= 1e-9
+            v = q["C"] @ r["y"]
+            assert np.all(v <= q["hi"] + 1e-12)
+            assert np.all(v >= q["lo"] - 1e-12)
+            assert 0.5 * r["y"] @ r["y"] + q["f"] @ r["y"] <= 0.0
+
+
+def test_infeasible_start_is_refused(lib, qps):
+    q = qps[0]
+    m, n = q["C"].shape
+    start = np.full(n, 10.0)
+    r = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], start,
+                   np.zeros(m))
+    assert (r["status"], r["iterations"]) == ("infeasible start", 0)
+    assert np.array_equal(r["y"], start)
+
+
+def test_single_precision_equals_double(tmp_path, lib, qps):
+    """The float build reaches the double optimum to float accuracy."""
+    lib32 = pc.host_library(tmp_path, "single")
+    for q in qps:
+        m, n = q["C"].shape
+        r64 = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], np.zeros(n),
+                         np.zeros(m))
+        r32 = pc.solve_c(lib32, q["C"], q["lo"], q["hi"], q["f"],
+                         np.zeros(n), np.zeros(m), tol=pc.TOL["single"],
+                         precision="single")
+        assert r32["status"] == "optimal"
+        scale = np.max(np.abs(r64["y"]))
+        assert np.max(np.abs(r32["y"] - r64["y"])) <= 1e-4 * scale
+
+
+def test_the_steps_qps_match_the_twin(lib):
+    """QPs of a short closed loop of the condensed step (horizon 5), from
+    the step's start: the C answer is the numpy twin's."""
+    from benchmarks.horizon_qps import collect, run_daqp
+
+    c = collect(5, 1, 40, 0)
+    problems, infeasible = pc.y_problems(c, run_daqp(c)["signs"])
+    assert infeasible == 0 and sum(p["constrained"] for p in problems) >= 5
+    for p in problems:
+        r = pc.solve_c(lib, p["C"], p["lo"], p["hi"], p["f"],
+                       np.zeros(p["C"].shape[1]), p["side"])
+        assert r["status"] == "optimal"
+        assert np.max(np.abs(r["y"] - p["y_ref"])) <= 1e-9
+
+
+@pytest.mark.skipif(toolchain_missing(run=False) is not None,
+                    reason=str(toolchain_missing(run=False)))
+@pytest.mark.parametrize("target", sorted(CORES))
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_target_build_is_clean_and_heap_free(tmp_path, target, precision):
+    """C99 under -Wall -Wextra -Werror for the core; the object calls no
+    allocator."""
+    define = ["-DPQP_SINGLE_PRECISION"] if precision == "single" else []
+    obj = tmp_path / "pqp.o"
+    proc = subprocess.run([CROSS_CC, *OPT_FLAGS, *CORES[target].cpu_flags,
+                           *TARGET_WARNINGS, *define, "-c",
+                           str(pc.PQP_DIR / "pqp.c"), "-o", str(obj)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0 and not proc.stderr, proc.stderr
+    undefined = subprocess.run(["arm-none-eabi-nm", "-u", str(obj)],
+                               capture_output=True, text=True,
+                               check=True).stdout.split()
+    assert not {"malloc", "calloc", "realloc", "free"} & set(undefined)
+    if precision == "single":
+        assert "sqrt" not in undefined
+
+
+@pytest.mark.skipif(toolchain_missing() is not None,
+                    reason=str(toolchain_missing()))
+def test_emulated_m7_gives_the_host_answers(qps):
+    """On the emulated Cortex-M7 (double) the solver reaches the twin's
+    optimum, and its instruction counts grow with the cap."""
+    problems = []
+    for q in qps[:4]:
+        ref = _twin(q)
+        problems.append({**q, "side": np.zeros(q["C"].shape[0], int),
+                         "y_ref": ref["x"], "iterations": ref["iterations"],
+                         "constrained": True})
+    rows = pc.run_target(problems, [2, 0], "cortex-m7", "double")
+    assert len(rows) == 3 * len(problems)
+    for i, p in enumerate(problems):
+        got = {r["cap"]: r for r in rows if r["qp"] == i}
+        assert got[pc.NO_CAP]["status"] == "optimal"
+        assert got[pc.NO_CAP]["iterations"] == p["iterations"]
+        assert got[pc.NO_CAP]["err"] <= 1e-9
+        assert got[2]["status"] == "iteration limit"
+        assert (0 < got[-1]["instructions"] < got[2]["instructions"]
+                < got[pc.NO_CAP]["instructions"])
