@@ -4,7 +4,7 @@ Run from the repository root::
 
     python -m benchmarks.primal_qp_c [--target cortex-m7]
                                      [--precision double]
-                                     [--caps 10,20,40,0]
+                                     [--caps 5,10,20,40,0]
                                      [--spacecraft demo] [--horizon 20]
                                      [--draws 20] [--steps 120] [--seed 0]
 
@@ -316,8 +316,8 @@ def main(argv: list[str] | None = None) -> None:
                     choices=sorted(CORES))
     ap.add_argument("--precision", default="double",
                     choices=("double", "single"))
-    ap.add_argument("--caps", default="10,20,40,0",
-                    help="iteration caps, 0 for none (default 10,20,40,0)")
+    ap.add_argument("--caps", default="5,10,20,40,0",
+                    help="iteration caps, 0 for none (default 5,10,20,40,0)")
     args = ap.parse_args(argv)
     caps = [int(c) for c in args.caps.split(",")]
     c = collect(args.horizon, args.draws, args.steps, args.seed,

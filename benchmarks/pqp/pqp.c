@@ -61,12 +61,17 @@ static int factor_add(int n, const pqp_real* C, const int* len,
 }
 
 /* Drop row q of the factor of k rows: rotate columns (i, i+1) to zero
- * the factor's new superdiagonal, then close the gap. */
-static void factor_drop(int k, int q, pqp_real* L) {
+ * the factor's new superdiagonal, then close the gap. v (k), the
+ * solution of L v = b, is rotated with them: its first k - 1 entries
+ * solve the new factor's system with b's entry q left out. */
+static void factor_drop(int k, int q, pqp_real* L, pqp_real* v) {
   int i, t;
   for (i = q; i < k - 1; ++i) {
     pqp_real a = LROW(L, i + 1)[i], b = LROW(L, i + 1)[i + 1];
     pqp_real r = PQP_SQRT(a * a + b * b), c = a / r, s = b / r;
+    pqp_real vi = v[i];
+    v[i] = c * vi + s * v[i + 1];
+    v[i + 1] = -s * vi + c * v[i + 1];
     LROW(L, i + 1)[i] = r;
     LROW(L, i + 1)[i + 1] = 0;
     for (t = i + 2; t < k; ++t) {
@@ -89,14 +94,15 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
   pqp_real *L = w, *r = L + n * (n + 1) / 2, *p = r + n, *t = p + n,
            *v = t + n, *Cy = v + n, *Cp = Cy + m, *norm = Cp + m;
   int *ws = iw, *len = iw + n;
-  int i, j, k = 0, it;
+  int i, j, k = 0, it, at_zero = 1;
+  for (i = 0; i < n; ++i) at_zero = at_zero && y[i] == 0;
   for (j = 0; j < m; ++j) {
     const pqp_real* c = C + (long)j * n;
     for (len[j] = n; len[j] > 0 && c[len[j] - 1] == 0; --len[j]) {
     }
     lam[j] = 0;
     norm[j] = dot(len[j], c, c);
-    Cy[j] = dot(len[j], c, y);
+    Cy[j] = at_zero ? 0 : dot(len[j], c, y);
     if (Cy[j] < lo[j] - tol * (1 + PQP_FABS(lo[j])) ||
         Cy[j] > hi[j] + tol * (1 + PQP_FABS(hi[j])))
       return PQP_INFEASIBLE_START;
@@ -113,6 +119,13 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
     }
     ws[k++] = j;
   }
+  /* v = L⁻¹ C_W r, kept from here on: a step leaves C_W r unchanged
+   * (C_W p = 0), a row added appends one entry, one dropped rotates v */
+  for (i = 0; i < n; ++i) r[i] = y[i] + f[i];
+  for (i = 0; i < k; ++i) {
+    v[i] = dot(len[ws[i]], C + (long)ws[i] * n, r) - dot(i, LROW(L, i), v);
+    v[i] /= LROW(L, i)[i];
+  }
   for (it = 1; it <= max_iter; ++it) {
     pqp_real pmax = 0, pnorm = 0, alpha = 1, rmax = 0;
     int block = -1;
@@ -120,11 +133,6 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
     for (i = 0; i < n; ++i) {
       r[i] = y[i] + f[i];
       if (PQP_FABS(r[i]) > rmax) rmax = PQP_FABS(r[i]);
-    }
-    for (i = 0; i < k; ++i) {
-      v[i] = dot(len[ws[i]], C + (long)ws[i] * n, r) -
-             dot(i, LROW(L, i), v);
-      v[i] /= LROW(L, i)[i];
     }
     for (i = 0; i < k; ++i) t[i] = v[i];
     for (i = k - 1; i >= 0; --i) {
@@ -156,7 +164,7 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
         return PQP_OPTIMAL;
       }
       side[ws[q]] = 0;
-      factor_drop(k, q, L);
+      factor_drop(k, q, L, v);
       for (i = q; i < k - 1; ++i) ws[i] = ws[i + 1];
       --k;
       continue;
@@ -165,9 +173,12 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
     pnorm = PQP_SQRT(pnorm);
     for (j = 0; j < m; ++j) {
       pqp_real room;
-      Cp[j] = dot(len[j], C + (long)j * n, p);
-      if (side[j] || PQP_FABS(Cp[j]) <= PQP_EPS * pnorm * PQP_SQRT(norm[j]))
+      if (side[j]) {
+        Cp[j] = 0; /* C_W p = 0: the working rows stay at their bound */
         continue;
+      }
+      Cp[j] = dot(len[j], C + (long)j * n, p);
+      if (PQP_FABS(Cp[j]) <= PQP_EPS * pnorm * PQP_SQRT(norm[j])) continue;
       room = ((Cp[j] > 0 ? hi[j] : lo[j]) - Cy[j]) / Cp[j];
       if (room < alpha) alpha = room > 0 ? room : 0, block = j;
     }
@@ -179,6 +190,10 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
         return PQP_DEPENDENT_ROW;
       }
       side[block] = Cp[block] > 0 ? 1 : -1;
+      /* the new entry of v, from c·(y + f) = c·y + c·f */
+      v[k] = Cy[block] + dot(len[block], C + (long)block * n, f) -
+             dot(k, LROW(L, k), v);
+      v[k] /= LROW(L, k)[k];
       ws[k++] = block;
     }
   }

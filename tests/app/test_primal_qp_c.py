@@ -108,6 +108,28 @@ def test_warm_rows_off_their_bound_or_dependent_are_left_out(lib, qps):
     assert np.max(np.abs(r["y"] - ref["x"])) <= 1e-12
 
 
+def test_rows_dropped_when_the_gradient_turns(lib, qps):
+    """From one QP's optimum and working set, a new gradient: rows leave
+    the working set (the factor and its solution rotated) and the C
+    solver still walks the twin's path to the new optimum."""
+    rng = np.random.default_rng(3)
+    dropped = 0
+    for q in qps:
+        ref = _twin(q)
+        m = q["C"].shape[0]
+        q2 = {**q, "f": 20 * rng.normal(size=q["f"].size)}
+        n = q["C"].shape[1]
+        twin = primal_active_set.solve(np.eye(n), q2["f"], q["C"], q["lo"],
+                                       q["hi"], ref["x"], ref["working"])
+        r = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q2["f"], ref["x"],
+                       _sides(m, ref["working"]))
+        assert r["status"] == "optimal"
+        assert r["iterations"] == twin["iterations"]
+        assert np.max(np.abs(r["y"] - twin["x"])) <= 1e-9
+        dropped += len(set(ref["working"]) - set(twin["working"]))
+    assert dropped >= 20
+
+
 def test_capped_solve_is_feasible_and_lowers_the_cost(lib, qps):
     """Each cap returns the twin's point after that many iterations:
     inside every bound, its cost no higher than the start's."""
