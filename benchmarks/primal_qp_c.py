@@ -46,6 +46,7 @@ from tqdm.auto import tqdm
 from benchmarks import primal_active_set
 from benchmarks.horizon_qps import (add_loop_arguments, collect, run_daqp,
                                     shift_stages, stage_parts)
+from ocp.codegen.memory import call_graph, section_sizes, worst_stack
 from ocp.codegen.result import OPT_FLAGS
 from ocp.codegen.target import (CORES, CROSS_CC, INSTRUCTIONS_PER_TICK,
                                 QEMU, TARGET_WARNINGS, target_head,
@@ -276,6 +277,28 @@ def run_target(problems: list[dict], caps: list[int], target: str,
     return rows
 
 
+def solver_memory(target: str, precision: str = "double") -> dict:
+    """pqp.c compiled for ``target`` alone: its ``flash`` (text + rodata,
+    bytes), the deepest ``stack`` from `pqp_solve` (gcc's frames and call
+    graph, `ocp.codegen.memory.worst_stack`), whether that is
+    ``bounded`` and the ``library`` functions it calls (their frames not
+    counted)."""
+    core = CORES[target]
+    define = ["-DPQP_SINGLE_PRECISION"] if precision == "single" else []
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp)
+        subprocess.run([CROSS_CC, *OPT_FLAGS, *core.cpu_flags,
+                        *TARGET_WARNINGS, *define, "-fstack-usage",
+                        "-fcallgraph-info=su", "-c", str(PQP_DIR / "pqp.c"),
+                        "-o", "pqp.o"], cwd=out, check=True,
+                       capture_output=True, text=True)
+        frames, edges = call_graph((out / "pqp.ci").read_text())
+        sizes = section_sizes(out / "pqp.o", "arm-none-eabi-size")
+    stack, bounded, library = worst_stack("pqp_solve", frames, edges)
+    return {"flash": sizes.get("text", 0) + sizes.get("rodata", 0),
+            "stack": stack, "bounded": bounded, "library": library}
+
+
 def _stats(v) -> str:
     v = np.asarray(v)
     if not v.size:
@@ -309,6 +332,27 @@ def report(problems: list[dict], rows: list[dict], caps: list[int]) -> str:
     return "\n".join(lines)
 
 
+def host_accuracy(problems: list[dict], c: dict,
+                  precision: str = "single") -> dict:
+    """The host build's answers (the target's code, compiled by cc) on
+    every QP, uncapped, against the numpy twin's: the largest torque
+    difference over m_max (``du``, δu = W⁻¹y) and the largest bound
+    violation over each row's scale (``violation``; `row_scales`)."""
+    n = problems[0]["C"].shape[1]
+    with tempfile.TemporaryDirectory() as tmp:
+        lib = host_library(Path(tmp), precision)
+        du = violation = 0.0
+        for p in problems:
+            r = solve_c(lib, p["C"], p["lo"], p["hi"], p["f"], np.zeros(n),
+                        p["side"], tol=TOL[precision], precision=precision)
+            v = p["C"] @ r["y"]
+            du = max(du, float(np.max(np.abs(v[:n] - p["C"][:n]
+                                             @ p["y_ref"]) / c["m_max"])))
+            violation = max(violation, float(np.max(
+                np.maximum(v - p["hi"], p["lo"] - v) / c["scale"])))
+    return {"du": du, "violation": violation}
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_loop_arguments(ap)
@@ -330,6 +374,18 @@ def main(argv: list[str] | None = None) -> None:
           f" constrained; {infeasible} left out: y = 0 breaks a bound), "
           f"{n} variables, {m} rows, {args.target}, {args.precision}:\n")
     print(report(problems, rows, caps))
+    mem = solver_memory(args.target, args.precision)
+    work = (n * (n + 1) // 2 + 4 * n + 3 * m) * (
+        4 if args.precision == "single" else 8) + 4 * (n + m)
+    print(f"\npqp.c on the {args.target}: {mem['flash']:,} bytes of flash, "
+          f"work {work:,} bytes, stack {mem['stack']:,} bytes"
+          f"{'' if mem['bounded'] else ' (not bounded)'}"
+          f"{' + ' + ', '.join(mem['library']) if mem['library'] else ''}.")
+    if args.precision == "single":
+        acc = host_accuracy(problems, c)
+        print(f"\nThe float build on the host, uncapped: torques within "
+              f"{acc['du']:.1e} m_max of the numpy twin's, bounds kept "
+              f"within {acc['violation']:.1e} of their scale.")
 
 
 if __name__ == "__main__":

@@ -10,11 +10,15 @@
 #ifdef PQP_SINGLE_PRECISION
 #define PQP_SQRT sqrtf
 #define PQP_FABS fabsf
-#define PQP_EPS 1e-6f
+/* a row joins only if its pivot is above PQP_DEP of its norm; the
+ * ratio test skips rows moved less than PQP_MOVE of |p||c| */
+#define PQP_DEP 1e-4f
+#define PQP_MOVE 1e-4f
 #else
 #define PQP_SQRT sqrt
 #define PQP_FABS fabs
-#define PQP_EPS 1e-9
+#define PQP_DEP 1e-9
+#define PQP_MOVE 1e-9
 #endif
 
 /* row i of the packed lower factor (rows of length i + 1) */
@@ -55,7 +59,7 @@ static int factor_add(int n, const pqp_real* C, const int* len,
     row[i] = v / LROW(L, i)[i];
     d -= row[i] * row[i];
   }
-  if (d <= PQP_EPS * PQP_EPS * norm2) return 1;
+  if (d <= PQP_DEP * PQP_DEP * norm2) return 1;
   row[k] = PQP_SQRT(d);
   return 0;
 }
@@ -85,6 +89,13 @@ static void factor_drop(int k, int q, pqp_real* L, pqp_real* v) {
     const pqp_real* src = LROW(L, i + 1);
     for (t = 0; t <= i; ++t) dst[t] = src[t];
   }
+}
+
+/* rows parked at their bound (side ±2) back out of the working set */
+static void unpark(int m, signed char* side) {
+  int j;
+  for (j = 0; j < m; ++j)
+    if (side[j] == 2 || side[j] == -2) side[j] = 0;
 }
 
 int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
@@ -160,10 +171,12 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
       }
       if (q < 0) {
         for (i = 0; i < k; ++i) lam[ws[i]] = -t[i];
+        unpark(m, side);
         *iterations = it;
         return PQP_OPTIMAL;
       }
       side[ws[q]] = 0;
+      unpark(m, side);
       factor_drop(k, q, L, v);
       for (i = q; i < k - 1; ++i) ws[i] = ws[i + 1];
       --k;
@@ -178,7 +191,7 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
         continue;
       }
       Cp[j] = dot(len[j], C + (long)j * n, p);
-      if (PQP_FABS(Cp[j]) <= PQP_EPS * pnorm * PQP_SQRT(norm[j])) continue;
+      if (PQP_FABS(Cp[j]) <= PQP_MOVE * pnorm * PQP_SQRT(norm[j])) continue;
       room = ((Cp[j] > 0 ? hi[j] : lo[j]) - Cy[j]) / Cp[j];
       if (room < alpha) alpha = room > 0 ? room : 0, block = j;
     }
@@ -186,8 +199,11 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
     for (j = 0; j < m; ++j) Cy[j] += alpha * Cp[j];
     if (block >= 0) {
       if (k == n || factor_add(n, C, len, ws, k, block, norm[block], L)) {
-        *iterations = it;
-        return PQP_DEPENDENT_ROW;
+        /* a row the working set already holds at its bound (in exact
+         * arithmetic it could not block): parked, out of the ratio test
+         * until a row leaves */
+        side[block] = Cp[block] > 0 ? 2 : -2;
+        continue;
       }
       side[block] = Cp[block] > 0 ? 1 : -1;
       /* the new entry of v, from c·(y + f) = c·y + c·f */
@@ -197,6 +213,7 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
       ws[k++] = block;
     }
   }
+  unpark(m, side);
   *iterations = max_iter;
   return PQP_ITERATION_LIMIT;
 }

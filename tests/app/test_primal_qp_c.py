@@ -185,6 +185,11 @@ def test_the_steps_qps_match_the_twin(lib):
                        np.zeros(p["C"].shape[1]), p["side"])
         assert r["status"] == "optimal"
         assert np.max(np.abs(r["y"] - p["y_ref"])) <= 1e-9
+    # the float build: torques and bounds to float's accuracy (measured
+    # 3.3e-5 of m_max and 1.1e-5 of the rows' scale here)
+    acc = pc.host_accuracy(problems, c)
+    assert acc["du"] <= 1e-3 and acc["violation"] <= 1e-4
+    assert pc.host_accuracy(problems, c, "double")["du"] <= 1e-9
 
 
 @pytest.mark.skipif(toolchain_missing(run=False) is not None,
@@ -207,6 +212,16 @@ def test_target_build_is_clean_and_heap_free(tmp_path, target, precision):
     assert not {"malloc", "calloc", "realloc", "free"} & set(undefined)
     if precision == "single":
         assert "sqrt" not in undefined
+    # flight-sized: a few kB of code, a bounded stack of a few hundred
+    # bytes, no library call but the C library's copies and square root
+    mem = pc.solver_memory(target, precision)
+    assert mem["bounded"] and 0 < mem["stack"] <= 1024
+    assert 0 < mem["flash"] <= 8192
+    library = set(mem["library"])
+    if (target, precision) == ("cortex-m4f", "double"):
+        # double in software on the M4F's single-precision FPU
+        library = {f for f in library if not f.startswith("__aeabi_")}
+    assert library <= {"memmove", "memcpy", "memset", "sqrt", "sqrtf"}
 
 
 @pytest.mark.skipif(toolchain_missing() is not None,
