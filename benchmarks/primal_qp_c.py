@@ -10,7 +10,7 @@ Run from the repository root::
 
 `benchmarks.horizon_qps` counted the iterations a primal active set
 needs on the condensed RTI step's QPs, in dense numpy. This counts its
-instructions: ``benchmarks/pqp/pqp.c`` (C99, no heap, double or float)
+instructions: ``ocp/mpc/pqp/pqp.c`` (C99, no heap, double or float)
 solves each QP in y as the step poses it (Hessian I, rows
 ``[W⁻¹; momenta]``) from where the step starts: y = 0 (δu = 0, the last
 plan moved one stage ahead) and the signs of the last QP's multipliers
@@ -48,12 +48,13 @@ from benchmarks.horizon_qps import (add_loop_arguments, collect, run_daqp,
                                     shift_stages, stage_parts)
 from ocp.codegen.memory import call_graph, section_sizes, worst_stack
 from ocp.codegen.result import OPT_FLAGS
+from ocp.mpc.primal_qp import PQP_SOURCES
 from ocp.codegen.target import (CORES, CROSS_CC, INSTRUCTIONS_PER_TICK,
                                 QEMU, TARGET_WARNINGS, target_head,
                                 toolchain_missing)
 
-#: The C solver's folder (pqp.c, pqp.h).
-PQP_DIR = Path(__file__).with_name("pqp")
+#: The C solver's folder (pqp.c, pqp.h), shipped with ocp.mpc.
+PQP_DIR = PQP_SOURCES
 #: The solver's step and sign tolerance (y is of the order of W·m_max).
 TOL = {"double": 1e-10, "single": 1e-4}
 #: Iterations of an uncapped solve.

@@ -356,8 +356,9 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
     ----------
     mpc : AttitudeMPC
         The controller (model, weights, bounds, horizon, dt).
-    plugin : {None, "daqp", "qrqp"}
-        Conic of the dense QP (None: `condensed_qp_plugin`).
+    plugin : {None, "daqp", "qrqp", "pqp"}
+        Conic of the dense QP (None: `condensed_qp_plugin`; "pqp": the
+        primal active set in C, `ocp.mpc.primal_qp`).
     step_tol : float
         Step ``max |δu / m_max|`` [1] at which the iterations stop.
     anderson : int

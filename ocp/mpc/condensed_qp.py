@@ -112,6 +112,8 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     `ocp.codegen.precision.TOLERANCES`).
     """
     n, na = N * nu, sp_g.size1() - N * nu
+    if plugin == "pqp":
+        return _primal_route(N, nu, nw, sp_w, sp_g, row_tol)
     at = RowLayout(N, nu, nw, sp_g.size1() // N)
     g = ca.MX.sym("g", n)
     W = ca.MX.sym("Winv", sp_w)
@@ -176,6 +178,38 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
                                                             broken_), y1_)
 
     return routed
+
+
+def _primal_route(N: int, nu: int, nw: int, sp_w: ca.Sparsity,
+                  sp_g: ca.Sparsity, row_tol: float) -> Callable[..., list]:
+    """`routed_qp`'s QP by the primal active set in C (`ocp.mpc.primal_qp`)
+    from y = 0 and the warm start's signs; where y = 0 breaks a bound
+    (no feasible start: a defect, or a rate beyond its bound), by DAQP's
+    route instead."""
+    from .primal_qp import qp_external
+
+    ext = qp_external(N, nu, nw, sp_g, QP_ITER_LIMIT)
+    daqp = routed_qp("daqp", N, nu, nw, sp_w, sp_g, row_tol)
+    n, na = N * nu, sp_g.size1() - N * nu
+    ins = [ca.MX.sym(k, sp) for k, sp in (
+        ("g", ca.Sparsity.dense(n)), ("Winv", sp_w), ("G", sp_g),
+        ("lbu", ca.Sparsity.dense(n)), ("ubu", ca.Sparsity.dense(n)),
+        ("lba", ca.Sparsity.dense(na)), ("uba", ca.Sparsity.dense(na)),
+        ("lam_u0", ca.Sparsity.dense(n)), ("lam_a0", ca.Sparsity.dense(na)))]
+    outs = [ca.MX.sym(k, sp) for k, sp in (
+        ("y", ca.Sparsity.dense(n)), ("lam_u", ca.Sparsity.dense(n)),
+        ("lam_a", ca.Sparsity.dense(na)),
+        ("lam", ca.Sparsity.dense(sp_g.size1())))]
+    pick = ca.Function.if_else(
+        "cond_qp_pqp_route",
+        ca.Function("cond_qp_pqp_daqp", ins + outs, daqp(*ins)),
+        ca.Function("cond_qp_pqp_keep", ins + outs, outs))
+
+    def primal(*a: Any) -> list:
+        g_, _, R_, lbu_, ubu_, lba_, uba_, lu0_, la0_ = a
+        *sol, infeasible = ext(g_, R_, lbu_, ubu_, lba_, uba_, lu0_, la0_)
+        return pick(infeasible, *a, *sol)
+    return primal
 
 
 def kkt_residual(y, g, dual, v, a, lam_u, lam_a, lbu, ubu, lba, uba):

@@ -138,10 +138,12 @@ class AttitudeMPC:
         code-generatable conic (qrqp by default); with ``rti`` its QP
         point is certified too and a step that fails goes to the full
         SQP.
-    qp_solver : {"qrqp", "daqp"}, optional
+    qp_solver : {"qrqp", "daqp", "pqp"}, optional
         Conic of ``"sqpmethod"`` (default ``"qrqp"``) or of
         ``"condensed"`` (default daqp where the casadi wheel has it);
-        None with ``"stagewise"``.
+        None with ``"stagewise"``. ``"pqp"`` (``"condensed"`` only): the
+        toolbox's primal active set in C (`ocp.mpc.primal_qp`), warm-
+        started where the step starts; it needs a C compiler.
     rti : bool
         Real-time iteration: one full SQP step per sample (``"sqpmethod"``
         only). When that step leaves the applied command or the next
@@ -234,7 +236,8 @@ class AttitudeMPC:
                 condensed_qp_plugin())
         # qrqp fails the condensed QP's certificate (KKT 0.72, 3.5 s)
         conics = tuple(q for q in QP_SOLVERS if ca.has_conic(q) and not (
-            solver == "condensed" and q == "qrqp"))
+            solver == "condensed" and q == "qrqp")) + (
+            ("pqp",) if solver == "condensed" else ())
         if solver in ("sqpmethod", "condensed") and qp_solver not in conics:
             raise SolverNotFound(
                 f"{solver}:{qp_solver}", tuple(f"{solver}:{q}"

@@ -1,0 +1,228 @@
+"""The condensed step's QP by a primal active set in C (``qp_solver="pqp"``).
+
+`ocp.mpc.condensed_qp.routed_qp` hands DAQP the QP in y (Hessian I, the
+rows ``G`` stage by stage). With ``"pqp"`` it goes instead to
+``pqp/pqp.c``: a primal active set (Nocedal & Wright, Numerical
+Optimization, 2nd ed., algorithm 16.3) started where the step starts (y =
+0, δu = 0 on the shifted plan) from the shifted multipliers' signs, in
+C99 without heap, double or float. It reaches the optimum the DAQP QP
+has (the QP is strictly convex) along a path that stays near the warm
+start, and its iteration limit bounds a step by construction.
+
+The solver enters the step's graph as a CasADi external Function: a C
+wrapper in CasADi's calling convention (`wrapper_source`), compiled here
+into a shared library for Python (`qp_external`; needs a C compiler) and
+written into the export folder beside ``pqp.c`` for generated C
+(`copy_sources`). Where y = 0 breaks a bound (a defect the linearisation
+carries) it answers y = 0 and the step's certificate fails, so the step
+falls back to the shifted plan, never silently.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+
+import casadi as ca
+
+from adcs_common.codegen import compile_c
+
+#: The C solver's folder (pqp.c, pqp.h).
+PQP_SOURCES = Path(__file__).with_name("pqp")
+#: The solver's step and sign tolerances (relative), by casadi_real.
+PQP_TOL = {"double": 1e-10, "single": 1e-4}
+
+
+def external_name(n: int, m: int) -> str:
+    """The external Function's C name for n variables and m rows."""
+    return f"adcs_pqp_{n}x{m}"
+
+
+def _ints(values) -> str:
+    return ", ".join(str(int(v)) for v in values)
+
+
+def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
+                   max_iter: int, precision: str = "double",
+                   in_export: bool = False) -> str:
+    """C text of the external ``adcs_pqp_<n>x<m>(g, G, lbu, ubu, lba,
+    uba, lam_u0, lam_a0) -> (y, lam_u, lam_a, lam, infeasible)``
+    (``infeasible``: 1 where y = 0 breaks a bound, and then y = 0 and
+    the multipliers 0).
+
+    ``G`` (m × n, ``sp_g``) holds the QP's rows stage by stage, h = m / N
+    a stage: the bounds on δu_k (n_u), the momenta of δx_{k+1} (n_w),
+    then its rates (`condensed_qp.RowLayout`). The wrapper unpacks G
+    into dense rows in its work, spreads the bounds and the warm signs
+    in G's order, solves from y = 0 (at most ``max_iter`` iterations)
+    and picks the multipliers back. ``in_export``: it includes the
+    generated header (casadi_real, casadi_int of the export).
+    """
+    n, m = sp_g.size2(), sp_g.size1()
+    h = m // N
+    name = external_name(n, m)
+    colind, row = sp_g.get_ccs()
+    tol = PQP_TOL[precision]
+    head = ('#include "adcs_codegen.h"\n' if in_export else
+            "#define casadi_real double\n#define casadi_int long long int\n")
+    return f"""/* {name}: the condensed step's QP in y by a primal active set
+ * (pqp.c), as a CasADi external Function (written by
+ * ocp.mpc.primal_qp). C99, no heap: the work is the caller's. */
+{head}#include "pqp.h"
+
+/* pqp.c must be built with casadi_real's precision */
+typedef char {name}_real_check[sizeof(pqp_real) == sizeof(casadi_real)
+                                ? 1 : -1];
+
+#define N_STAGES {N}
+#define N_U {nu}
+#define N_W {nw}
+#define H_ROWS {h}
+#define N_VAR {n}
+#define M_ROWS {m}
+#define N_A {m - n}
+
+static const casadi_int {name}_s_n[3] = {{N_VAR, 1, 1}};
+static const casadi_int {name}_s_a[3] = {{N_A, 1, 1}};
+static const casadi_int {name}_s_m[3] = {{M_ROWS, 1, 1}};
+static const casadi_int {name}_s_1[3] = {{1, 1, 1}};
+static const casadi_int {name}_s_g[] = {{M_ROWS, N_VAR,
+  {_ints(colind)},
+  {_ints(row)}}};
+
+casadi_int {name}_n_in(void);
+casadi_int {name}_n_out(void);
+const casadi_int* {name}_sparsity_in(casadi_int i);
+const casadi_int* {name}_sparsity_out(casadi_int i);
+int {name}_work(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* sz_iw,
+                casadi_int* sz_w);
+int {name}(const casadi_real** arg, casadi_real** res, casadi_int* iw,
+           casadi_real* w, int mem);
+
+casadi_int {name}_n_in(void) {{ return 8; }}
+casadi_int {name}_n_out(void) {{ return 5; }}
+
+const casadi_int* {name}_sparsity_in(casadi_int i) {{
+  switch (i) {{
+    case 1: return {name}_s_g;
+    case 0: case 2: case 3: case 6: return {name}_s_n;
+    case 4: case 5: case 7: return {name}_s_a;
+    default: return 0;
+  }}
+}}
+
+const casadi_int* {name}_sparsity_out(casadi_int i) {{
+  switch (i) {{
+    case 0: case 1: return {name}_s_n;
+    case 2: return {name}_s_a;
+    case 3: return {name}_s_m;
+    case 4: return {name}_s_1;
+    default: return 0;
+  }}
+}}
+
+/* reals: G's dense rows, lo, hi, g, y, lam, pqp's work; ints: pqp's and
+ * the sides (M_ROWS signed chars, in casadi_ints' room) */
+int {name}_work(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* sz_iw,
+                casadi_int* sz_w) {{
+  if (sz_arg) *sz_arg = 8;
+  if (sz_res) *sz_res = 5;
+  if (sz_iw) *sz_iw = N_VAR + 2 * M_ROWS;
+  if (sz_w) *sz_w = M_ROWS * N_VAR + 4 * M_ROWS + 2 * N_VAR
+                    + pqp_work_size(N_VAR, M_ROWS);
+  return 0;
+}}
+
+static casadi_real {name}_at(const casadi_real* v, int j) {{
+  return v ? v[j] : 0;
+}}
+
+int {name}(const casadi_real** arg, casadi_real** res, casadi_int* iw,
+           casadi_real* w, int mem) {{
+  casadi_real *C = w, *lo = C + M_ROWS * N_VAR, *hi = lo + M_ROWS,
+              *g = hi + M_ROWS, *y = g + N_VAR, *lam = y + N_VAR,
+              *pw = lam + M_ROWS;
+  int* piw = (int*)iw;
+  signed char* side = (signed char*)(piw + N_VAR + M_ROWS);
+  const casadi_int* colind = {name}_s_g + 2;
+  const casadi_int* row = colind + N_VAR + 1;
+  int r, c, j, its, status;
+  casadi_int k;
+  (void)mem;
+  for (j = 0; j < M_ROWS * N_VAR; ++j) C[j] = 0;
+  for (c = 0; c < N_VAR; ++c)
+    for (k = colind[c]; k < colind[c + 1]; ++k)
+      C[row[k] * N_VAR + c] = {name}_at(arg[1], (int)k);
+  for (r = 0; r < M_ROWS; ++r) {{
+    const int s = r / H_ROWS, i = r % H_ROWS;
+    casadi_real sign;
+    if (i < N_U) {{
+      j = s * N_U + i;
+      lo[r] = {name}_at(arg[2], j);
+      hi[r] = {name}_at(arg[3], j);
+      sign = {name}_at(arg[6], j);
+    }} else {{
+      j = i < N_U + N_W ? s * N_W + i - N_U
+                        : N_STAGES * N_W + s * (H_ROWS - N_U - N_W)
+                              + i - N_U - N_W;
+      lo[r] = {name}_at(arg[4], j);
+      hi[r] = {name}_at(arg[5], j);
+      sign = {name}_at(arg[7], j);
+    }}
+    side[r] = (signed char)(sign > 0 ? 1 : sign < 0 ? -1 : 0);
+  }}
+  for (j = 0; j < N_VAR; ++j) {{
+    g[j] = {name}_at(arg[0], j);
+    y[j] = 0;
+  }}
+  status = pqp_solve(N_VAR, M_ROWS, C, lo, hi, g, y, side, lam, {max_iter},
+                     (casadi_real){tol!r}, pw, piw, &its);
+  if (status == PQP_INFEASIBLE_START)
+    for (j = 0; j < M_ROWS; ++j) lam[j] = 0;
+  if (res[4]) res[4][0] = status == PQP_INFEASIBLE_START;
+  if (res[0])
+    for (j = 0; j < N_VAR; ++j) res[0][j] = y[j];
+  for (r = 0; r < M_ROWS; ++r) {{
+    const int s = r / H_ROWS, i = r % H_ROWS;
+    if (i < N_U) {{
+      if (res[1]) res[1][s * N_U + i] = lam[r];
+    }} else if (res[2]) {{
+      res[2][i < N_U + N_W ? s * N_W + i - N_U
+                           : N_STAGES * N_W + s * (H_ROWS - N_U - N_W)
+                                 + i - N_U - N_W] = lam[r];
+    }}
+    if (res[3]) res[3][r] = lam[r];
+  }}
+  return 0;
+}}
+"""
+
+
+def qp_external(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
+                max_iter: int) -> ca.Function:
+    """The external Function of `wrapper_source`, built as a shared
+    library (double) in the user's temporary folder, once per text.
+
+    Raises
+    ------
+    CompilerNotFound
+        No C compiler: ``qp_solver="pqp"`` needs one.
+    """
+    n, m = sp_g.size2(), sp_g.size1()
+    text = wrapper_source(N, nu, nw, sp_g, max_iter)
+    solver = (PQP_SOURCES / "pqp.c").read_text()
+    key = hashlib.sha256((text + solver).encode()).hexdigest()[:16]
+    folder = Path(tempfile.gettempdir()) / f"adcs_pqp_{os.getuid()}" / key
+    lib = folder / f"lib{external_name(n, m)}.so"
+    if not lib.is_file():
+        folder.mkdir(parents=True, exist_ok=True)
+        src = folder / "wrapper.c"
+        src.write_text(text)
+        part = folder / f"{lib.name}.{os.getpid()}"
+        compile_c([src, PQP_SOURCES / "pqp.c"], part,
+                  flags=["-std=c99", f"-I{PQP_SOURCES}"])
+        os.replace(part, lib)
+    return ca.external(external_name(n, m), str(lib))
+

@@ -1,0 +1,136 @@
+"""The condensed step with its QP solved by the primal active set in C
+(``qp_solver="pqp"``, `ocp.mpc.primal_qp`).
+
+The QP is strictly convex, so the primal active set and DAQP reach the
+same optimum: the two steps fly the same closed loop, each QP point
+certified by the step's own KKT residual; the primal solver enters the
+step as an external call that generated C keeps.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from benchmarks.mpc_worst_case import random_states
+from ocp.models.rigid import rigid_spacecraft
+from ocp.mpc import AttitudeMPC
+from ocp.mpc.condensed import STEP_NAMES
+from ocp.mpc.primal_qp import external_name, wrapper_source
+from ocp.spacecraft import load_spacecraft
+from adcs_common.exceptions import SolverNotFound
+
+
+def _loop(mpc: AttitudeMPC, x0: np.ndarray, steps: int) -> dict:
+    rk4 = mpc.model.rk4_step(1)
+    qf, tau = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
+    x, z = x0.copy(), mpc.initial_guess(x0)
+    lx, lg = np.zeros(mpc.nz), np.zeros(mpc.ng)
+    us, kkt = [], []
+    kkt_at = STEP_NAMES[1].index("qp_kkt")
+    for _ in range(steps):
+        out = mpc.rti_function(x, qf, tau, z, lx, lg)
+        u = np.array(out[0]).ravel()
+        z, lx, lg = (np.array(v).ravel() for v in out[1:4])
+        us.append(u)
+        kkt.append(float(out[kkt_at]))
+        x = np.asarray(rk4(x, u, tau, mpc.dt)).ravel()
+    return {"u": np.array(us), "x": x, "kkt": kkt}
+
+
+@pytest.mark.parametrize("craft", ["demo", "rate_bound"])
+def test_pqp_step_flies_daqps_loop(craft, tmp_path):
+    """From a random start, 60 RTI steps at horizon 8: the same torques
+    as with DAQP (1e-9 of m_max), every QP point certified (KKT ≤ 1e-8);
+    with a rate bound the rate rows go through the wrapper too."""
+    sc = load_spacecraft("demo")
+    rate_max = None if craft == "demo" else 0.02
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    x0 = random_states(model, 1, np.random.default_rng(3))[0]
+    runs = {q: _loop(AttitudeMPC(model, horizon=8, dt=0.5,
+                                 solver="condensed", rti=True,
+                                 rate_max=rate_max, qp_solver=q), x0, 60)
+            for q in ("daqp", "pqp")}
+    m_max = float(np.max(sc.wheels.m_max))
+    assert np.max(np.abs(runs["pqp"]["u"] - runs["daqp"]["u"])) <= 1e-9 * m_max
+    assert max(runs["pqp"]["kkt"]) <= 1e-8
+    # the loop was constrained: some torque at its bound
+    assert np.max(np.abs(runs["pqp"]["u"])) >= 0.999 * m_max
+
+
+def test_generated_step_calls_the_external(tmp_path):
+    """The step's generated C declares and calls the pqp external."""
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    mpc = AttitudeMPC(model, horizon=5, dt=0.5, solver="condensed",
+                      rti=True, qp_solver="pqp")
+    name = external_name(5 * sc.wheels.n_wheels, 5 * 2 * sc.wheels.n_wheels)
+    cg = ca.CodeGenerator("step.c")
+    cg.add(mpc.rti_function)
+    text = cg.dump()
+    assert f"int {name}(const casadi_real** arg" in text
+    assert f"{name}(arg" in text
+
+
+def test_wrapper_text_is_the_rows_layout():
+    """The wrapper's sparsity of G is the step's, and its sizes are the
+    QP's: n = N·n_u variables, m = N·h rows."""
+    text = wrapper_source(2, 2, 2, ca.Sparsity.dense(12, 4), 50)
+    assert "#define N_VAR 4" in text and "#define M_ROWS 12" in text
+    assert "#define H_ROWS 6" in text and ", 50," in text
+
+
+def test_pqp_is_for_the_condensed_step_only():
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    with pytest.raises(SolverNotFound):
+        AttitudeMPC(model, horizon=5, dt=0.5, solver="sqpmethod",
+                    qp_solver="pqp")
+
+
+def test_external_solves_the_posed_qp_and_flags_infeasible_starts():
+    """On a QP the step poses (`qp_factor_function`, a saturating slew's
+    first plan), the external's y is DAQP's optimum; with a bound that
+    y = 0 breaks it answers y = 0 and flags it."""
+    import daqp
+
+    from ocp.mpc.condensed import qp_factor_function
+    from ocp.mpc.primal_qp import qp_external
+
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    mpc = AttitudeMPC(model, horizon=5, dt=0.5, solver="condensed",
+                      rti=True)
+    x = random_states(model, 1, np.random.default_rng(0))[0]
+    z = mpc.initial_guess(x)
+    winv, rows, g, lbu, ubu, lba, uba = (
+        np.array(v) for v in qp_factor_function(mpc)(
+            z, np.r_[x, 1.0, 0.0, 0.0, 0.0, np.zeros(3)]))
+    gy = winv.T @ g.ravel()
+    n, na = winv.shape[0], rows.shape[0]
+    N, nu = 5, sc.wheels.n_wheels
+    h = (n + na) // N
+    # G: stage by stage, the bounds' rows (W⁻¹) then the momenta's
+    G = np.zeros((n + na, n))
+    for k in range(N):
+        G[k * h:k * h + nu] = winv[k * nu:(k + 1) * nu]
+        G[k * h + nu:(k + 1) * h] = rows[k * (h - nu):(k + 1) * (h - nu)]
+    ext = qp_external(N, nu, sc.wheels.n_wheels,
+                      ca.DM(G).sparsity(), 1000)
+    A = np.vstack([winv, rows])
+    lo, hi = np.r_[lbu.ravel(), lba.ravel()], np.r_[ubu.ravel(), uba.ravel()]
+    ref, _, flag, _ = daqp.solve(np.eye(n), gy, A, hi, lo,
+                                 np.zeros(n + na, dtype=np.int32))
+    assert flag == 1 and np.max(np.abs(A @ ref - np.clip(A @ ref, lo, hi))) < 1e-9
+    args = [gy, ca.DM(G), lbu, ubu, lba, uba, np.zeros(n), np.zeros(na)]
+    y, lam_u, lam_a, lam, infeasible = (np.array(v).ravel()
+                                        for v in ext(*args))
+    assert float(infeasible[0]) == 0.0
+    assert np.max(np.abs(y - ref)) <= 1e-9
+    assert np.count_nonzero(lam) > 0            # a bound was active
+    bad = list(args)
+    bad[2] = np.full(n, 1e-3)                   # δu ≥ 1e-3: y = 0 breaks it
+    y, *_, lam, infeasible = (np.array(v).ravel() for v in ext(*bad))
+    assert float(infeasible[0]) == 1.0
+    assert not np.any(y) and not np.any(lam)
