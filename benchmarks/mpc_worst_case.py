@@ -4,7 +4,7 @@ Run from the repository root::
 
     python -m benchmarks.mpc_worst_case [--loops 200] [--steps 120]
                                         [--max-iter 8] [--seed 0]
-                                        [--horizon 20]
+                                        [--horizon 20] [--qp pqp]
     python -m benchmarks.mpc_worst_case --target cortex-m7
                                         [--draws-on-target 20]
 
@@ -101,8 +101,9 @@ def fly(f: ca.Function, model, x0: np.ndarray, steps: int,
 
 
 def run(loops: int, steps: int, max_iter: int, seed: int = 0,
-        horizon: int = 20) -> list:
-    """Rows ``(variant, summary dict)`` of the Monte Carlo."""
+        horizon: int = 20, qp: str | None = None) -> list:
+    """Rows ``(variant, summary dict)`` of the Monte Carlo (``qp``: the
+    condensed QP, `export_c`'s ``condensed_qp_plugin``)."""
     sc = load_spacecraft("demo")
     model = rigid_spacecraft(sc.inertia, sc.wheels)
     rng = np.random.default_rng(seed)
@@ -110,7 +111,7 @@ def run(loops: int, steps: int, max_iter: int, seed: int = 0,
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         res = export_c(tmp, sc, horizon=horizon, dt=0.5,
-                       mpc_max_iter=max_iter,
+                       mpc_max_iter=max_iter, condensed_qp_plugin=qp,
                        mpc_variants=VARIANTS, build=True)
         for name in VARIANTS:
             f = ca.external(name, str(res.shared_library))
@@ -173,7 +174,7 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
                      target: str = "cortex-m7",
                      name: str = "mpc_cond_rti_step",
                      precision: str = "double",
-                     horizon: int = 20) -> dict:
+                     horizon: int = 20, qp: str | None = None) -> dict:
     """The first ``draws`` states of `run`'s Monte Carlo flown by ``name``
     on the emulated ``target`` and on the host.
 
@@ -199,6 +200,7 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
         wall times [s]; ``ok``: every loop passed the driver's check.
     ``precision`` "single" exports the target's (and its host driver's)
     C in float (`--precision single`); the Python loop stays double.
+    ``qp``: the condensed QP (`export_c`'s ``condensed_qp_plugin``).
     """
     from ocp.codegen.build import build_exported, run_driver
     from ocp.codegen.loop_starts import loop_key, write_loop_starts
@@ -211,7 +213,7 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         res = export_c(tmp, sc, horizon=horizon, dt=0.5,
-                       mpc_variants=(name,),
+                       mpc_variants=(name,), condensed_qp_plugin=qp,
                        target=target, repeats=10, precision=precision)
         res = write_loop_starts(res, starts, steps=steps)
         elf = build_target(res)
@@ -223,7 +225,8 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
         # the Python loop loads a host export: a Cortex-M export's
         # casadi_int is int, which casadi.external cannot load
         lib = export_c(Path(tmp) / "host", sc, horizon=horizon, dt=0.5,
-                       mpc_variants=(name,), build=True).shared_library
+                       mpc_variants=(name,), condensed_qp_plugin=qp,
+                       build=True).shared_library
         f = ca.external(name, str(lib))
         py = [fly(f, model, x0, steps, 0.5) for x0 in starts]
     loops = []
@@ -324,12 +327,15 @@ def main(argv=None) -> None:
                     choices=("double", "single"),
                     help="the target export's arithmetic (single: float, "
                     "on the cortex-m4f); the Python loop stays double")
+    ap.add_argument("--qp", default=None, choices=("daqp", "pqp"),
+                    help="the condensed steps' QP (default daqp; pqp: the "
+                    "toolbox's primal active set, ocp.mpc.primal_qp)")
     ap.add_argument("--json", default=None,
                     help="write --target's figures, every step's, here")
     args = ap.parse_args(argv)
     if args.target == "host":
         print(format_rows(run(args.loops, args.steps, args.max_iter,
-                              args.seed, args.horizon)))
+                              args.seed, args.horizon, args.qp)))
         return
     from ocp.codegen.target import toolchain_missing
 
@@ -337,7 +343,7 @@ def main(argv=None) -> None:
         raise SystemExit(f"benchmarks.mpc_worst_case: {reason}")
     out = run_target_draws(args.draws_on_target, args.steps, args.seed,
                            args.target, precision=args.precision,
-                           horizon=args.horizon)
+                           horizon=args.horizon, qp=args.qp)
     print(format_target(out))
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))

@@ -60,6 +60,8 @@ from allocation.qp.conic_function import wheel_qp_method
 from thrusters import ThrusterSet
 
 from ocp.models.rigid import SpacecraftModel, rigid_spacecraft
+from ocp.mpc.primal_qp import PQP_DIR, PQP_SINGLE_FLAG
+from ocp.mpc.primal_qp import copy_sources as copy_pqp_sources
 from ocp.spacecraft import load_spacecraft
 from .build import build_exported, run_driver
 from .checks import check_loop_steps, loop_plan
@@ -129,6 +131,8 @@ def _resolve_wheel_qp_plugin(plugin: str | None,
                              name: str = "wheel_qp_plugin") -> str:
     if plugin is None:
         return "daqp" if daqp_available() else "qrqp"
+    if plugin == "pqp" and name == "condensed_qp_plugin":
+        return plugin                   # the toolbox's own, `ocp.mpc.primal_qp`
     if plugin not in WHEEL_QP_PLUGINS:
         raise InvalidValueError(
             f"{name} must be one of {WHEEL_QP_PLUGINS} or None, "
@@ -322,8 +326,11 @@ def _write_build_files(out, solver_sources, cflags=()) -> None:
     """The Makefile and CMakeLists.txt: relative paths, C99 and libm;
     ``cflags``: defines every build needs (DAQP's float build)."""
     rel = [p.relative_to(out).as_posix() for p in solver_sources]
-    note = (f"{DAQP_DIR}/: DAQP, MIT licence, {DAQP_DIR}/LICENSE"
-            if rel else "the QPs are generated inline")
+    notes = [f"{d}/: {what}, {d}/LICENSE" for d, what in (
+        (DAQP_DIR, "DAQP, MIT licence"),
+        (PQP_DIR, "the toolbox's primal active set, BSD-3-Clause"))
+        if any(r.startswith(f"{d}/") for r in rel)]
+    note = "; ".join(notes) or "the QPs are generated inline"
     (out / "Makefile").write_text(_MAKEFILE.format(
         src=SOURCE, opt=" ".join(OPT_FLAGS), solver_note=note,
         solver_sources="".join(f" \\\n  {r}" for r in rel),
@@ -371,6 +378,7 @@ def _write_source(fns: dict, out: Path, reuse_factorization: bool,
     source.write_text(text)
     solver_sources = (copy_daqp_sources(out, precision == "single")
                       if daqp_conics else [])
+    solver_sources += copy_pqp_sources(out, text, precision)
     if not daqp_conics and (out / DAQP_DIR / "api.c").is_file():
         for name in DAQP_SOURCES:                # stale from an earlier
             (out / DAQP_DIR / name).unlink(missing_ok=True)   # export
@@ -390,6 +398,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              wheel_qp_plugin: str | None = None,
              wheel_qp_fast_path: bool = True,
              duty_qp_plugin: str | None = None,
+             condensed_qp_plugin: str | None = None,
              qrqp_reuse_factorization: bool = True,
              rate_max: float | None = None,
              target: str = "host", precision: str = "double",
@@ -449,6 +458,12 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         form for 3 or 4 working wheels, so ``wheel_qp`` then needs no
         solver library; with more wheels the minimum-norm point when it
         is within the bounds, else the conic).
+    condensed_qp_plugin : {None, "daqp", "pqp"}
+        QP of the condensed steps: DAQP (None, where `daqp_available`) or
+        ``"pqp"``, the toolbox's primal active set in C started where
+        the step starts (`ocp.mpc.primal_qp`; its sources and wrapper go
+        to ``pqp/``, and DAQP stays for the steps where δu = 0 breaks a
+        bound).
     duty_qp_plugin : {None, "daqp", "qrqp"}
         Conic of ``duty_qp``'s fast path (`duty_qp_function`): daqp
         (sub-microsecond), qrqp or None: daqp when `daqp_available`.
@@ -520,6 +535,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     cortex_m = check_target(target) in CORES
     wheel_qp_plugin, duty_qp_plugin, condensed = _target_plugins(
         target, out, wheel_qp_plugin, duty_qp_plugin)
+    condensed = condensed_qp_plugin if condensed is None else condensed
     plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
     method = wheel_qp_method(wheels, wheel_qp_fast_path)
     duty_plugin = _resolve_wheel_qp_plugin(duty_qp_plugin, "duty_qp_plugin")
@@ -548,6 +564,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     # DAQP's float build with float casadi_real (c_float: 4 bytes)
     cflags = [DAQP_SINGLE_FLAG] if precision == "single" and daqp_conics \
         else []
+    if precision == "single" and (out / PQP_DIR / "pqp.c").is_file():
+        cflags.append(PQP_SINGLE_FLAG)
     _write_build_files(out, solver_sources, cflags)
     real = 4 if precision == "single" else 8
     static_bytes = sum(real * nw + 4 * niw for nw, niw in daqp_conics.values())

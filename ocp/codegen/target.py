@@ -122,6 +122,8 @@ def write_target_files(res: ExportResult, target: str, driver_text: str
     (out / LINKER_SCRIPT).write_text(_template(LINKER_SCRIPT))
     (out / TARGET_DRIVER).write_text(driver_text)
     srcs, inc = daqp_c_sources(out)
+    # the toolbox's primal active set and its wrappers (ocp.mpc.primal_qp)
+    srcs += sorted((out / "pqp").glob("*.c"))
     extras = {**res.extras, "target": target,
               "c_sources": [str(p) for p in srcs],
               "c_include": [str(p) for p in inc]}

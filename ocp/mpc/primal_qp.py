@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -33,6 +35,13 @@ from adcs_common.codegen import compile_c
 PQP_SOURCES = Path(__file__).with_name("pqp")
 #: The solver's step and sign tolerances (relative), by casadi_real.
 PQP_TOL = {"double": 1e-10, "single": 1e-4}
+#: The export folder's subfolder of pqp's sources (`copy_sources`).
+PQP_DIR = "pqp"
+#: pqp's float build (a single-precision export: casadi_real float).
+PQP_SINGLE_FLAG = "-DPQP_SINGLE_PRECISION"
+_NAME = re.compile(r"\b(adcs_pqp_\d+x\d+)\(")
+#: Each external built in this process: its `wrapper_source` arguments.
+_BUILT: dict[str, tuple] = {}
 
 
 def external_name(n: int, m: int) -> str:
@@ -65,7 +74,7 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     name = external_name(n, m)
     colind, row = sp_g.get_ccs()
     tol = PQP_TOL[precision]
-    head = ('#include "adcs_codegen.h"\n' if in_export else
+    head = ('#include "../adcs_codegen.h"\n' if in_export else
             "#define casadi_real double\n#define casadi_int long long int\n")
     return f"""/* {name}: the condensed step's QP in y by a primal active set
  * (pqp.c), as a CasADi external Function (written by
@@ -211,6 +220,7 @@ def qp_external(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
         No C compiler: ``qp_solver="pqp"`` needs one.
     """
     n, m = sp_g.size2(), sp_g.size1()
+    _BUILT[external_name(n, m)] = (N, nu, nw, sp_g, max_iter)
     text = wrapper_source(N, nu, nw, sp_g, max_iter)
     solver = (PQP_SOURCES / "pqp.c").read_text()
     key = hashlib.sha256((text + solver).encode()).hexdigest()[:16]
@@ -226,3 +236,33 @@ def qp_external(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
         os.replace(part, lib)
     return ca.external(external_name(n, m), str(lib))
 
+
+def copy_sources(out: Path, source_text: str, precision: str = "double"
+                 ) -> list[Path]:
+    """Write pqp.c, pqp.h and the wrapper of every pqp external that the
+    generated ``source_text`` calls into ``out/pqp`` (a stale folder of an
+    earlier export is emptied when it calls none).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The C sources written (to compile beside the generated source).
+    """
+    dst = Path(out) / PQP_DIR
+    names = sorted(set(_NAME.findall(source_text)))
+    if not names:
+        if dst.is_dir():
+            shutil.rmtree(dst)
+        return []
+    dst.mkdir(exist_ok=True)
+    for name in ("pqp.c", "pqp.h", "LICENSE"):
+        shutil.copyfile(PQP_SOURCES / name, dst / name)
+    written = [dst / "pqp.c"]
+    for name in names:
+        if name not in _BUILT:
+            raise RuntimeError(f"{name} was not built in this process")
+        path = dst / f"{name}.c"
+        path.write_text(wrapper_source(*_BUILT[name], precision=precision,
+                                       in_export=True))
+        written.append(path)
+    return written

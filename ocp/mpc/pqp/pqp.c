@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-3-Clause (LICENSE beside this file) */
 /* Primal active set (Nocedal & Wright, Numerical Optimization, 2nd ed.,
  * algorithm 16.3) for the QP of Hessian I: the working set's step is
  * p = -(r - C_Wᵀ t), M t = C_W r, r = y + f, with the Cholesky factor

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: BSD-3-Clause (LICENSE beside this file) */
 /* A primal active-set solver for the dense QP of Hessian I:
  *
  *   min ½ yᵀy + fᵀy   s.t.   lo ≤ C y ≤ hi,   C (m × n, row-major),

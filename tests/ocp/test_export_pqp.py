@@ -1,0 +1,120 @@
+"""The condensed step exported with ``condensed_qp_plugin="pqp"``.
+
+The primal active set travels in the export folder (``pqp/``: its source,
+header and licence, and the wrapper of the step's QP size), the folder
+builds alone under -Wall -Wextra -Werror, no function reaches the heap,
+and the driver's closed loop ends where the DAQP export's does; the
+Cortex-M builds (M7 double, M4F float) fly it on the emulated boards.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ocp.codegen.build import run_driver
+from ocp.codegen.export import export_c
+from ocp.codegen.target import run_target, toolchain_missing
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(shutil.which("cc") is None
+                       or shutil.which("make") is None,
+                       reason="needs cc and make"),
+]
+
+HEAP = {"malloc", "calloc", "realloc", "free"}
+SYSTEM_ENV = {"PATH": "/usr/bin:/bin", "LC_ALL": "C"}
+STEP = "mpc_cond_rti_step"
+LOOP = f"closed_loop:{STEP}"
+
+
+def _export(out: Path, qp: str | None, **kw):
+    return export_c(out, spacecraft="demo", horizon=6,
+                    mpc_variants=(STEP,), condensed_qp_plugin=qp,
+                    repeats=5, **kw)
+
+
+def _undefined(objects: list[Path], nm: str = "nm") -> set[str]:
+    out = subprocess.run([nm, "-u", *map(str, objects)], capture_output=True,
+                         text=True, check=True).stdout
+    return {ln.split()[-1] for ln in out.splitlines()
+            if ln.strip() and not ln.endswith(":")}
+
+
+@pytest.fixture(scope="module")
+def exports(tmp_path_factory):
+    root = tmp_path_factory.mktemp("pqp-export")
+    return {qp: _export(root / str(qp), qp, build=True)
+            for qp in ("pqp", None)}
+
+
+def test_pqp_sources_travel_in_the_folder(exports):
+    res = exports["pqp"]
+    folder = res.out_dir / "pqp"
+    wrappers = sorted(folder.glob("adcs_pqp_*.c"))
+    assert [p.name for p in wrappers] == ["adcs_pqp_24x48.c"]
+    for name in ("pqp.c", "pqp.h", "LICENSE"):
+        assert (folder / name).is_file(), name
+    assert "BSD 3-Clause" in (folder / "LICENSE").read_text()
+    assert '#include "../adcs_codegen.h"' in wrappers[0].read_text()
+    assert "adcs_pqp_24x48(arg" in res.source.read_text()
+    for name in ("Makefile", "CMakeLists.txt"):
+        body = (res.out_dir / name).read_text()
+        assert "pqp/pqp.c" in body and "pqp/adcs_pqp_24x48.c" in body
+    assert str(res.out_dir) not in wrappers[0].read_text()
+    # a DAQP export leaves no pqp folder
+    assert not (exports[None].out_dir / "pqp").exists()
+
+
+def test_pqp_export_flies_daqps_loop(exports):
+    """The host drivers' 86-step closed loops: every call returns 0, the
+    loop passes its check and ends in the DAQP export's state."""
+    runs = {qp: run_driver(res) for qp, res in exports.items()}
+    a, b = runs["pqp"][LOOP], runs[None][LOOP]
+    assert a["flag"] == 0 and a["loop_ok"]
+    assert np.max(np.abs(np.array(a["state"]) - b["state"])) <= 1e-9
+    assert exports["pqp"].extras["warnings"] == 0
+
+
+def test_copied_folder_builds_alone_without_heap(exports, tmp_path):
+    """make with the system's tools in a copy, -Werror; no allocator in
+    the generated object or pqp's."""
+    dst = tmp_path / "copy"
+    shutil.copytree(exports["pqp"].out_dir, dst)
+    for stale in dst.rglob("*.o"):
+        stale.unlink()
+    run = subprocess.run(["make", "-j2"], cwd=dst, env=SYSTEM_ENV,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert "-Werror" in run.stdout and "warning" not in run.stderr
+    objects = [dst / "adcs_codegen.o", *sorted((dst / "pqp").glob("*.o"))]
+    assert len(objects) == 3
+    assert not _undefined(objects) & HEAP
+    drv = subprocess.run(["./adcs_driver"], cwd=dst, env=SYSTEM_ENV,
+                         capture_output=True, text=True, timeout=300)
+    assert drv.returncode == 0 and f"TIME {LOOP} " in drv.stdout
+
+
+@pytest.mark.skipif(toolchain_missing() is not None,
+                    reason=str(toolchain_missing()))
+@pytest.mark.parametrize("target, precision", [("cortex-m7", "double"),
+                                               ("cortex-m4f", "single")])
+def test_pqp_step_on_the_emulated_cores(tmp_path, target, precision):
+    """Cross-compiled clean (-Werror), no heap in the memory report, and
+    the emulated closed loop reaches the target (float: within 1e-3 rad
+    of it and its bounds kept to float's accuracy, as the DAQP step)."""
+    res = _export(tmp_path / target, "pqp", target=target,
+                  precision=precision, build=True)
+    rec = res.extras["memory"]["functions"][STEP]
+    assert rec["heap"] is False and not set(rec["library_calls"]) & HEAP
+    out = run_target(res)
+    loop = out[LOOP]
+    assert loop["flag"] == 0 and loop["loop_ok"]
+    assert np.deg2rad(loop["final_error_deg"]) <= 1e-3
+    assert loop["loop_worst_violation"] <= (1e-9 if precision == "double"
+                                            else 1e-5)
