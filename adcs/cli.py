@@ -106,14 +106,18 @@ def _export(args: argparse.Namespace) -> int:
                    cc=args.cc, progress=args.build or args.run,
                    target=args.target, loop_steps=args.loop_steps,
                    mpc_move_blocks=args.move_blocks,
+                   condensed_qp_plugin=args.condensed_qp,
                    mpc_scenarios=_scenarios(args.scenarios, sc))
     for p in (res.source, res.header, res.driver, res.makefile,
               res.makefile.with_name("CMakeLists.txt"), res.readme):
         print(f"  wrote {p}")
-    if res.extras.get("solver_sources"):
+    if (res.out_dir / "daqp" / "api.c").is_file():
         print(f"  wrote {res.out_dir / 'daqp'}/ (DAQP's C sources, MIT "
               f"licence; static workspace "
               f"{res.extras['daqp_static_bytes']} bytes)")
+    if (res.out_dir / "pqp" / "pqp.c").is_file():
+        print(f"  wrote {res.out_dir / 'pqp'}/ (the condensed QP's primal "
+              "active set and its wrapper, BSD-3-Clause)")
     if variants:
         print("  driver's closed loop: "
               + _loop_text(res.extras["closed_loop"]))
@@ -400,6 +404,13 @@ def _add_export(sub) -> None:
                      "QP and SQP tolerances chosen for float, DAQP in its "
                      "float build; mpc_cond_rti_step only (default "
                      "double)")
+    exp.add_argument("--condensed-qp", choices=("daqp", "pqp"),
+                     default=None,
+                     help="QP of the condensed MPC steps: daqp (the "
+                     "default) or pqp, the toolbox's primal active set in "
+                     "C started where the step starts (its sources go to "
+                     "pqp/; DAQP stays for steps whose start breaks a "
+                     "bound)")
     exp.add_argument("--build", action="store_true",
                      help="compile the driver and a shared library (gcc)")
     exp.add_argument("--run", action="store_true",

@@ -207,6 +207,16 @@ def _readme(fns: dict[str, ca.Function],
     build_cmd = " ".join(["cc", opt, "-std=c99 -o adcs_driver main.c",
                           f"{SOURCE}.c", *solver_sources, "-lm"])
     solver_text = _solver_text(fns, plugin, method, patched, duty_plugin)
+    wrappers = [s for s in solver_sources if s.startswith("pqp/adcs_pqp_")]
+    if wrappers:
+        solver_text += (
+            " The condensed MPC steps solve their QP with `pqp/pqp.c`, the "
+            "toolbox's primal active set (BSD-3-Clause, `pqp/LICENSE`), "
+            f"called through {', '.join(f'`{w}`' for w in wrappers)} "
+            "(CasADi's calling convention): started from δu = 0 on the "
+            "shifted plan and the last step's active set, at most 1000 "
+            "iterations, the caller's work only; a step whose start breaks "
+            "a bound solves its QP with DAQP instead.")
     heap = _memory_text(static_bytes)
     version = ca.__version__  # type: ignore[attr-defined]  # not in stubs
     return f"""# Generated ADCS C code

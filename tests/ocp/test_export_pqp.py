@@ -67,6 +67,7 @@ def test_pqp_sources_travel_in_the_folder(exports):
         body = (res.out_dir / name).read_text()
         assert "pqp/pqp.c" in body and "pqp/adcs_pqp_24x48.c" in body
     assert str(res.out_dir) not in wrappers[0].read_text()
+    assert "`pqp/adcs_pqp_24x48.c`" in res.readme.read_text()
     # a DAQP export leaves no pqp folder
     assert not (exports[None].out_dir / "pqp").exists()
 
@@ -118,3 +119,22 @@ def test_pqp_step_on_the_emulated_cores(tmp_path, target, precision):
     assert np.deg2rad(loop["final_error_deg"]) <= 1e-3
     assert loop["loop_worst_violation"] <= (1e-9 if precision == "double"
                                             else 1e-5)
+
+
+def test_cli_exports_with_pqp(tmp_path, capsys):
+    """``adcs export --condensed-qp pqp --run``: the folder carries pqp/
+    and the driver's checks pass; an unknown QP is a one-line error with
+    exit status 2."""
+    from adcs.cli import main
+
+    out = tmp_path / "c"
+    assert main(["export", "--out", str(out), "--mpc", STEP, "--horizon",
+                 "5", "--condensed-qp", "pqp", "--run"]) == 0
+    printed = capsys.readouterr().out
+    assert f"wrote {out / 'pqp'}/" in printed
+    assert "every closed loop reached its target" in printed
+    assert (out / "pqp" / "adcs_pqp_20x40.c").is_file()
+    with pytest.raises(SystemExit) as exc:
+        main(["export", "--out", str(out), "--condensed-qp", "osqp"])
+    assert exc.value.code == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
