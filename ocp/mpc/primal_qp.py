@@ -14,8 +14,15 @@ wrapper in CasADi's calling convention (`wrapper_source`), compiled here
 into a shared library for Python (`qp_external`; needs a C compiler) and
 written into the export folder beside ``pqp.c`` for generated C
 (`copy_sources`). Where y = 0 breaks a bound (a defect the linearisation
-carries) it answers y = 0 and the step's certificate fails, so the step
-falls back to the shifted plan, never silently.
+carries, or a rate beyond its bound) it answers y = 0 and flags it, and
+`ocp.mpc.condensed_qp` hands that QP to DAQP's route instead. A QP
+stopped by the iteration limit is not its optimum and fails the step's
+certificate, never silently.
+
+The wrapper keeps no state (its memory is the caller's work), so a
+controller with this QP may be stepped from several threads; the
+library is compiled once per QP size, each process and thread into a
+file of its own renamed into place (tested).
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ import os
 import re
 import shutil
 import tempfile
+import threading
 from pathlib import Path
 
 import casadi as ca
@@ -230,7 +238,8 @@ def qp_external(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
         folder.mkdir(parents=True, exist_ok=True)
         src = folder / "wrapper.c"
         src.write_text(text)
-        part = folder / f"{lib.name}.{os.getpid()}"
+        # a private name per process and thread, then one atomic rename
+        part = folder / f"{lib.name}.{os.getpid()}.{threading.get_ident()}"
         compile_c([src, PQP_SOURCES / "pqp.c"], part,
                   flags=["-std=c99", f"-I{PQP_SOURCES}"])
         os.replace(part, lib)

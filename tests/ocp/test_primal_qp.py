@@ -134,3 +134,29 @@ def test_external_solves_the_posed_qp_and_flags_infeasible_starts():
     y, *_, lam, infeasible = (np.array(v).ravel() for v in ext(*bad))
     assert float(infeasible[0]) == 1.0
     assert not np.any(y) and not np.any(lam)
+
+
+def test_threads_build_and_share_the_solver(tmp_path, monkeypatch):
+    """Two threads building controllers of a new QP size at once (each
+    compiles into its own file, one rename wins) and then stepping the
+    same controller: same answers as one thread alone."""
+    import tempfile
+    from concurrent.futures import ThreadPoolExecutor
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+
+    def build(_):
+        return AttitudeMPC(model, horizon=3, dt=0.5, solver="condensed",
+                           rti=True, qp_solver="pqp")
+
+    with ThreadPoolExecutor(2) as pool:
+        a, _ = pool.map(build, range(2))
+    assert len(list(tmp_path.rglob("libadcs_pqp_12x24.so"))) == 1
+    x0s = random_states(model, 4, np.random.default_rng(5))
+    alone = [_loop(a, x0, 10)["u"] for x0 in x0s]
+    with ThreadPoolExecutor(2) as pool:
+        shared = list(pool.map(lambda x0: _loop(a, x0, 10)["u"], x0s))
+    for u1, u2 in zip(alone, shared):
+        assert np.array_equal(u1, u2)
