@@ -160,3 +160,20 @@ def test_threads_build_and_share_the_solver(tmp_path, monkeypatch):
         shared = list(pool.map(lambda x0: _loop(a, x0, 10)["u"], x0s))
     for u1, u2 in zip(alone, shared):
         assert np.array_equal(u1, u2)
+
+
+def test_no_compiler_is_the_toolboxs_error(tmp_path, monkeypatch):
+    """Without a C compiler, qp_solver='pqp' says so (CompilerNotFound,
+    a toolbox error), not a traceback from inside CasADi."""
+    import tempfile
+
+    from adcs_common.codegen import CompilerNotFound
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setenv("PATH", str(tmp_path))
+    monkeypatch.delenv("CC", raising=False)
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    with pytest.raises(CompilerNotFound):
+        AttitudeMPC(model, horizon=4, dt=0.5, solver="condensed", rti=True,
+                    qp_solver="pqp")
