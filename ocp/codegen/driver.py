@@ -8,7 +8,9 @@ from importlib import resources
 import casadi as ca
 import numpy as np
 from ocp.models.rigid import SpacecraftModel
+from ocp.mpc.primal_qp import PQP_DIR
 from .checks import loop_plan, plan_length
+from .daqp_static import DAQP_DIR
 from .loop_starts import loop_start_source
 from .precision import README_SINGLE
 from .result import OPT_FLAGS, SOURCE
@@ -137,6 +139,27 @@ _MAKEFILE = _template("Makefile.in")
 
 
 _CMAKELISTS = _template("CMakeLists.txt.in")
+
+
+def write_build_files(out, solver_sources, cflags=()) -> None:
+    """The Makefile and CMakeLists.txt: relative paths, C99 and libm;
+    ``cflags``: defines every build needs (DAQP's and pqp's float
+    builds); ``solver_sources`` the C sources beside the generated one
+    (``daqp/``, ``pqp/``), each folder named with its licence."""
+    rel = [p.relative_to(out).as_posix() for p in solver_sources]
+    notes = [f"{d}/: {what}, {d}/LICENSE" for d, what in (
+        (DAQP_DIR, "DAQP, MIT licence"),
+        (PQP_DIR, "the toolbox's primal active set, BSD-3-Clause"))
+        if any(r.startswith(f"{d}/") for r in rel)]
+    note = "; ".join(notes) or "the QPs are generated inline"
+    (out / "Makefile").write_text(_MAKEFILE.format(
+        src=SOURCE, opt=" ".join(OPT_FLAGS), solver_note=note,
+        solver_sources="".join(f" \\\n  {r}" for r in rel),
+        defines=" ".join(cflags)))
+    (out / "CMakeLists.txt").write_text(_CMAKELISTS.format(
+        src=SOURCE, opt=" ".join(OPT_FLAGS), solver_note=note,
+        solver_sources_cmake="".join(f"\n  {r}" for r in rel),
+        defines=" ".join(f[2:] for f in cflags)))
 
 
 def _solver_text(fns, plugin, method, patched, duty_plugin) -> str:

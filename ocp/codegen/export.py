@@ -71,7 +71,7 @@ from .daqp_static import (
     copy_daqp_sources,
     patch_daqp_static,
 )
-from .driver import _CMAKELISTS, _MAKEFILE, _driver_source, _readme
+from .driver import _driver_source, _readme, write_build_files
 from .patches import (
     patch_daqp_failure,
     patch_daqp_warm_start,
@@ -86,7 +86,7 @@ from .precision import (DAQP_SINGLE_FLAG,
 from .mpc_variants import MPC_VARIANTS, check_variants as _check_variants
 from .mpc_variants import check_variant_options, mpc_functions
 from .qrqp_patch import patch_qrqp
-from .result import ExportResult, OPT_FLAGS, SOURCE
+from .result import ExportResult, SOURCE
 from .linux_target import LINUX_TARGETS
 from .target import (CORES, build_target, check_target, daqp_c_sources,
                      target_head, write_target_files)
@@ -322,25 +322,6 @@ def _renamed(f: ca.Function, name: str) -> ca.Function:
     return ca.Function(name, args, f.call(args), f.name_in(), f.name_out())
 
 
-def _write_build_files(out, solver_sources, cflags=()) -> None:
-    """The Makefile and CMakeLists.txt: relative paths, C99 and libm;
-    ``cflags``: defines every build needs (DAQP's float build)."""
-    rel = [p.relative_to(out).as_posix() for p in solver_sources]
-    notes = [f"{d}/: {what}, {d}/LICENSE" for d, what in (
-        (DAQP_DIR, "DAQP, MIT licence"),
-        (PQP_DIR, "the toolbox's primal active set, BSD-3-Clause"))
-        if any(r.startswith(f"{d}/") for r in rel)]
-    note = "; ".join(notes) or "the QPs are generated inline"
-    (out / "Makefile").write_text(_MAKEFILE.format(
-        src=SOURCE, opt=" ".join(OPT_FLAGS), solver_note=note,
-        solver_sources="".join(f" \\\n  {r}" for r in rel),
-        defines=" ".join(cflags)))
-    (out / "CMakeLists.txt").write_text(_CMAKELISTS.format(
-        src=SOURCE, opt=" ".join(OPT_FLAGS), solver_note=note,
-        solver_sources_cmake="".join(f"\n  {r}" for r in rel),
-        defines=" ".join(f[2:] for f in cflags)))
-
-
 def _write_source(fns: dict, out: Path, reuse_factorization: bool,
                   precision: str = "double", int_type: str = "long long"
                   ) -> tuple[int, bool, dict[str, tuple[int, int]],
@@ -566,7 +547,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         else []
     if precision == "single" and (out / PQP_DIR / "pqp.c").is_file():
         cflags.append(PQP_SINGLE_FLAG)
-    _write_build_files(out, solver_sources, cflags)
+    write_build_files(out, solver_sources, cflags)
     real = 4 if precision == "single" else 8
     static_bytes = sum(real * nw + 4 * niw for nw, niw in daqp_conics.values())
     readme = out / "README.md"
