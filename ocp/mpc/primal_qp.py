@@ -49,7 +49,7 @@ PQP_DIR = "pqp"
 PQP_SINGLE_FLAG = "-DPQP_SINGLE_PRECISION"
 _NAME = re.compile(r"\b(adcs_pqp_\d+x\d+)\(")
 #: Each external built in this process: its `wrapper_source` arguments.
-_BUILT: dict[str, tuple] = {}
+_BUILT: dict[str, tuple[int, int, int, ca.Sparsity, int]] = {}
 
 
 def external_name(n: int, m: int) -> str:
@@ -84,137 +84,12 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     tol = PQP_TOL[precision]
     head = ('#include "../adcs_codegen.h"\n' if in_export else
             "#define casadi_real double\n#define casadi_int long long int\n")
-    return f"""/* {name}: the condensed step's QP in y by a primal active set
- * (pqp.c), as a CasADi external Function (written by
- * ocp.mpc.primal_qp). C99, no heap: the work is the caller's. */
-{head}#include "pqp.h"
-
-/* pqp.c must be built with casadi_real's precision */
-typedef char {name}_real_check[sizeof(pqp_real) == sizeof(casadi_real)
-                                ? 1 : -1];
-
-#define N_STAGES {N}
-#define N_U {nu}
-#define N_W {nw}
-#define H_ROWS {h}
-#define N_VAR {n}
-#define M_ROWS {m}
-#define N_A {m - n}
-
-static const casadi_int {name}_s_n[3] = {{N_VAR, 1, 1}};
-static const casadi_int {name}_s_a[3] = {{N_A, 1, 1}};
-static const casadi_int {name}_s_m[3] = {{M_ROWS, 1, 1}};
-static const casadi_int {name}_s_1[3] = {{1, 1, 1}};
-static const casadi_int {name}_s_g[] = {{M_ROWS, N_VAR,
-  {_ints(colind)},
-  {_ints(row)}}};
-
-casadi_int {name}_n_in(void);
-casadi_int {name}_n_out(void);
-const casadi_int* {name}_sparsity_in(casadi_int i);
-const casadi_int* {name}_sparsity_out(casadi_int i);
-int {name}_work(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* sz_iw,
-                casadi_int* sz_w);
-int {name}(const casadi_real** arg, casadi_real** res, casadi_int* iw,
-           casadi_real* w, int mem);
-
-casadi_int {name}_n_in(void) {{ return 8; }}
-casadi_int {name}_n_out(void) {{ return 5; }}
-
-const casadi_int* {name}_sparsity_in(casadi_int i) {{
-  switch (i) {{
-    case 1: return {name}_s_g;
-    case 0: case 2: case 3: case 6: return {name}_s_n;
-    case 4: case 5: case 7: return {name}_s_a;
-    default: return 0;
-  }}
-}}
-
-const casadi_int* {name}_sparsity_out(casadi_int i) {{
-  switch (i) {{
-    case 0: case 1: return {name}_s_n;
-    case 2: return {name}_s_a;
-    case 3: return {name}_s_m;
-    case 4: return {name}_s_1;
-    default: return 0;
-  }}
-}}
-
-/* reals: G's dense rows, lo, hi, g, y, lam, pqp's work; ints: pqp's and
- * the sides (M_ROWS signed chars, in casadi_ints' room) */
-int {name}_work(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* sz_iw,
-                casadi_int* sz_w) {{
-  if (sz_arg) *sz_arg = 8;
-  if (sz_res) *sz_res = 5;
-  if (sz_iw) *sz_iw = N_VAR + 2 * M_ROWS;
-  if (sz_w) *sz_w = M_ROWS * N_VAR + 4 * M_ROWS + 2 * N_VAR
-                    + pqp_work_size(N_VAR, M_ROWS);
-  return 0;
-}}
-
-static casadi_real {name}_at(const casadi_real* v, int j) {{
-  return v ? v[j] : 0;
-}}
-
-int {name}(const casadi_real** arg, casadi_real** res, casadi_int* iw,
-           casadi_real* w, int mem) {{
-  casadi_real *C = w, *lo = C + M_ROWS * N_VAR, *hi = lo + M_ROWS,
-              *g = hi + M_ROWS, *y = g + N_VAR, *lam = y + N_VAR,
-              *pw = lam + M_ROWS;
-  int* piw = (int*)iw;
-  signed char* side = (signed char*)(piw + N_VAR + M_ROWS);
-  const casadi_int* colind = {name}_s_g + 2;
-  const casadi_int* row = colind + N_VAR + 1;
-  int r, c, j, its, status;
-  casadi_int k;
-  (void)mem;
-  for (j = 0; j < M_ROWS * N_VAR; ++j) C[j] = 0;
-  for (c = 0; c < N_VAR; ++c)
-    for (k = colind[c]; k < colind[c + 1]; ++k)
-      C[row[k] * N_VAR + c] = {name}_at(arg[1], (int)k);
-  for (r = 0; r < M_ROWS; ++r) {{
-    const int s = r / H_ROWS, i = r % H_ROWS;
-    casadi_real sign;
-    if (i < N_U) {{
-      j = s * N_U + i;
-      lo[r] = {name}_at(arg[2], j);
-      hi[r] = {name}_at(arg[3], j);
-      sign = {name}_at(arg[6], j);
-    }} else {{
-      j = i < N_U + N_W ? s * N_W + i - N_U
-                        : N_STAGES * N_W + s * (H_ROWS - N_U - N_W)
-                              + i - N_U - N_W;
-      lo[r] = {name}_at(arg[4], j);
-      hi[r] = {name}_at(arg[5], j);
-      sign = {name}_at(arg[7], j);
-    }}
-    side[r] = (signed char)(sign > 0 ? 1 : sign < 0 ? -1 : 0);
-  }}
-  for (j = 0; j < N_VAR; ++j) {{
-    g[j] = {name}_at(arg[0], j);
-    y[j] = 0;
-  }}
-  status = pqp_solve(N_VAR, M_ROWS, C, lo, hi, g, y, side, lam, {max_iter},
-                     (casadi_real){tol!r}, pw, piw, &its);
-  if (status == PQP_INFEASIBLE_START)
-    for (j = 0; j < M_ROWS; ++j) lam[j] = 0;
-  if (res[4]) res[4][0] = status == PQP_INFEASIBLE_START;
-  if (res[0])
-    for (j = 0; j < N_VAR; ++j) res[0][j] = y[j];
-  for (r = 0; r < M_ROWS; ++r) {{
-    const int s = r / H_ROWS, i = r % H_ROWS;
-    if (i < N_U) {{
-      if (res[1]) res[1][s * N_U + i] = lam[r];
-    }} else if (res[2]) {{
-      res[2][i < N_U + N_W ? s * N_W + i - N_U
-                           : N_STAGES * N_W + s * (H_ROWS - N_U - N_W)
-                                 + i - N_U - N_W] = lam[r];
-    }}
-    if (res[3]) res[3][r] = lam[r];
-  }}
-  return 0;
-}}
-"""
+    values = {"NAME": name, "HEAD": head, "N": N, "NU": nu, "NW": nw,
+              "H": h, "NVAR": n, "M": m, "NA": m - n,
+              "COLIND": _ints(colind), "ROW": _ints(row),
+              "MAXITER": max_iter, "TOL": repr(tol)}
+    text = (PQP_SOURCES / "wrapper.c.in").read_text()
+    return re.sub(r"@([A-Z]+)@", lambda k: str(values[k[1]]), text)
 
 
 def qp_external(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
@@ -271,7 +146,8 @@ def copy_sources(out: Path, source_text: str, precision: str = "double"
         if name not in _BUILT:
             raise RuntimeError(f"{name} was not built in this process")
         path = dst / f"{name}.c"
-        path.write_text(wrapper_source(*_BUILT[name], precision=precision,
-                                       in_export=True))
+        N, nu, nw, sp_g, max_iter = _BUILT[name]
+        path.write_text(wrapper_source(N, nu, nw, sp_g, max_iter,
+                                       precision=precision, in_export=True))
         written.append(path)
     return written
