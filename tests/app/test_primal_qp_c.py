@@ -245,3 +245,31 @@ def test_emulated_m7_gives_the_host_answers(qps):
         assert got[2]["status"] == "iteration limit"
         assert (0 < got[-1]["instructions"] < got[2]["instructions"]
                 < got[pc.NO_CAP]["instructions"])
+
+
+def test_nearly_dependent_rows_do_not_join(lib):
+    """The pivot comes from the Gram matrix, so a row within 1e-8 of the
+    working set's span (rounding, not a direction) is left out: joining
+    it made the factor garbage and a QP of the 200-loop Monte Carlo end
+    0.025 outside a bound."""
+    rng = np.random.default_rng(11)
+    n = 6
+    r0, r1 = rng.normal(size=n), rng.normal(size=n)
+    C = np.vstack([r0, r1, r0 + r1 + 1e-8 * rng.normal(size=n),
+                   np.eye(n)])
+    lo, hi = np.r_[-1.0, -1.0, -1.0, -np.ones(n)], np.r_[0.0, 0.0, 0.0,
+                                                         np.ones(n)]
+    side = np.zeros(C.shape[0], dtype=int)
+    side[:3] = 1
+    r = pc.solve_c(lib, C, lo, hi, np.zeros(n), np.zeros(n), side,
+                   max_iter=0)
+    assert list(r["side"][:3]) == [1, 1, 0]
+    # and from there the solve stays feasible and reaches numpy's optimum
+    f = 5 * rng.normal(size=n)
+    r = pc.solve_c(lib, C, lo, hi, f, np.zeros(n), side)
+    ref = primal_active_set.solve(np.eye(n), f, C, lo, hi, np.zeros(n),
+                                  {0: 1, 1: 1})
+    v = C @ r["y"]
+    assert r["status"] == "optimal"
+    assert np.all(v <= hi + 1e-9) and np.all(v >= lo - 1e-9)
+    assert np.max(np.abs(r["y"] - ref["x"])) <= 1e-7

@@ -18,7 +18,10 @@
 #else
 #define PQP_SQRT sqrt
 #define PQP_FABS fabs
-#define PQP_DEP 1e-9
+/* the pivot comes from the Gram matrix (its square): below about
+ * sqrt(DBL_EPSILON) of the norm it is rounding, so a row nearer than
+ * 1e-6 to the working set's span counts as dependent */
+#define PQP_DEP 1e-6
 #define PQP_MOVE 1e-9
 #endif
 
