@@ -60,7 +60,7 @@ TOL = {"double": 1e-10, "single": 1e-4}
 #: Iterations of an uncapped solve.
 NO_CAP = 1000
 #: Statuses of pqp_solve (pqp.h).
-STATUS = ("optimal", "iteration limit", "infeasible start", "dependent row")
+STATUS = ("optimal", "iteration limit", "infeasible start")
 
 
 def host_library(out_dir: Path, precision: str = "double") -> ctypes.CDLL:

@@ -38,6 +38,7 @@ from adcs_common.codegen import CompileError, CompilerNotFound
 from adcs_common.exceptions import AdcsError, InvalidValueError
 from .checks import (DriverCheckError, driver_verdict, loop_failures,
                      loop_line, parse_loop_line, parse_series_line)
+from ocp.mpc.primal_qp import PQP_DIR
 from .driver import _template
 from .result import OPT_FLAGS, SOURCE, ExportResult
 
@@ -123,7 +124,7 @@ def write_target_files(res: ExportResult, target: str, driver_text: str
     (out / TARGET_DRIVER).write_text(driver_text)
     srcs, inc = daqp_c_sources(out)
     # the toolbox's primal active set and its wrappers (ocp.mpc.primal_qp)
-    srcs += sorted((out / "pqp").glob("*.c"))
+    srcs += sorted((out / PQP_DIR).glob("*.c"))
     extras = {**res.extras, "target": target,
               "c_sources": [str(p) for p in srcs],
               "c_include": [str(p) for p in inc]}

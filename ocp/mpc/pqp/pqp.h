@@ -21,7 +21,6 @@ typedef double pqp_real;
 #define PQP_OPTIMAL 0
 #define PQP_ITERATION_LIMIT 1
 #define PQP_INFEASIBLE_START 2
-#define PQP_DEPENDENT_ROW 3
 
 /* reals and ints of the work arrays for n variables and m rows */
 int pqp_work_size(int n, int m);
