@@ -107,6 +107,7 @@ def _export(args: argparse.Namespace) -> int:
                    target=args.target, loop_steps=args.loop_steps,
                    mpc_move_blocks=args.move_blocks,
                    condensed_qp_plugin=args.condensed_qp,
+                   condensed_qp_max_iter=args.qp_max_iter,
                    mpc_scenarios=_scenarios(args.scenarios, sc))
     for p in (res.source, res.header, res.driver, res.makefile,
               res.makefile.with_name("CMakeLists.txt"), res.readme):
@@ -411,6 +412,11 @@ def _add_export(sub) -> None:
                      "C started where the step starts (its sources go to "
                      "pqp/; DAQP stays for steps whose start breaks a "
                      "bound)")
+    exp.add_argument("--qp-max-iter", type=int, default=None,
+                     help="with --condensed-qp pqp: its iteration cap per "
+                     "QP (default 1000); a capped QP's point keeps every "
+                     "bound and lowers the cost, and the step applies it "
+                     "(output qp_capped)")
     exp.add_argument("--build", action="store_true",
                      help="compile the driver and a shared library (gcc)")
     exp.add_argument("--run", action="store_true",

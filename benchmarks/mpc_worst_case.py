@@ -5,6 +5,7 @@ Run from the repository root::
     python -m benchmarks.mpc_worst_case [--loops 200] [--steps 120]
                                         [--max-iter 8] [--seed 0]
                                         [--horizon 20] [--qp pqp]
+                                        [--qp-max-iter 5]
     python -m benchmarks.mpc_worst_case --target cortex-m7
                                         [--draws-on-target 20]
 
@@ -75,6 +76,7 @@ def fly(f: ca.Function, model, x0: np.ndarray, steps: int,
     names = [f.name_out(i) for i in range(f.n_out())]
     kkt_i, it_i = names.index("qp_kkt"), names.index("iterations")
     v_i = names.index("first_violation")
+    cap_i = names.index("qp_capped") if "qp_capped" in names else None
     rk4 = model.rk4_step(1)
     x = x0.copy()
     qf = np.array([1.0, 0.0, 0.0, 0.0])
@@ -83,7 +85,7 @@ def fly(f: ca.Function, model, x0: np.ndarray, steps: int,
     for k in range((z.size - nx) // (nx + nu) + 1):
         z[k * (nx + nu):k * (nx + nu) + nx] = x
     lx, lg = np.zeros(f.nnz_in(4)), np.zeros(f.nnz_in(5))
-    times, kkts, iters, viols = [], [], [], []
+    times, kkts, iters, viols, capped = [], [], [], [], 0
     for _ in range(steps):
         ins[0][:], ins[1][:], ins[2][:] = x, qf, 0.0
         ins[3][:], ins[4][:], ins[5][:] = z, lx, lg
@@ -93,17 +95,21 @@ def fly(f: ca.Function, model, x0: np.ndarray, steps: int,
         kkts.append(float(outs[kkt_i][0]))
         iters.append(float(outs[it_i][0]))
         viols.append(float(outs[v_i][0]))
+        capped += cap_i is not None and bool(outs[cap_i][0] > 0)
         z, lx, lg = outs[1].copy(), outs[2].copy(), outs[3].copy()
         x = np.asarray(rk4(x, outs[0], np.zeros(3), dt)).ravel()
     return {"times": np.array(times), "kkt": np.array(kkts),
             "iters": np.array(iters), "violation": max(viols),
+            "capped": capped,
             "final_error": float(quat_error_angle(x[:4], qf))}
 
 
 def run(loops: int, steps: int, max_iter: int, seed: int = 0,
-        horizon: int = 20, qp: str | None = None) -> list:
+        horizon: int = 20, qp: str | None = None,
+        qp_max_iter: int | None = None) -> list:
     """Rows ``(variant, summary dict)`` of the Monte Carlo (``qp``: the
-    condensed QP, `export_c`'s ``condensed_qp_plugin``)."""
+    condensed QP, `export_c`'s ``condensed_qp_plugin``; ``qp_max_iter``
+    its ``condensed_qp_max_iter``, pqp's cap)."""
     sc = load_spacecraft("demo")
     model = rigid_spacecraft(sc.inertia, sc.wheels)
     rng = np.random.default_rng(seed)
@@ -112,6 +118,7 @@ def run(loops: int, steps: int, max_iter: int, seed: int = 0,
     with tempfile.TemporaryDirectory() as tmp:
         res = export_c(tmp, sc, horizon=horizon, dt=0.5,
                        mpc_max_iter=max_iter, condensed_qp_plugin=qp,
+                       condensed_qp_max_iter=qp_max_iter,
                        mpc_variants=VARIANTS, build=True)
         for name in VARIANTS:
             f = ca.external(name, str(res.shared_library))
@@ -127,6 +134,7 @@ def run(loops: int, steps: int, max_iter: int, seed: int = 0,
                 "max_kkt": max(float(r["kkt"].max()) for r in runs),
                 "max_iterations": max(float(r["iters"].max())
                                       for r in runs),
+                "capped": sum(r["capped"] for r in runs),
                 "final_error_max_deg": float(np.rad2deg(max(
                     r["final_error"] for r in runs))),
                 "final_error_median_deg": float(np.rad2deg(np.median(
@@ -148,6 +156,11 @@ def format_rows(rows) -> str:
             f"{r['max_kkt']:.1e} | {r['max_iterations']:.0f} | "
             f"{r['final_error_median_deg']:.1e}° / "
             f"{r['final_error_max_deg']:.1e}° |")
+    capped = {name: r["capped"] for name, r in rows if r["capped"]}
+    if capped:
+        out += ["", "Steps whose last QP was capped (pqp, a feasible "
+                "descent point): " + ", ".join(f"`{k}` {v}" for k, v in
+                                               capped.items())]
     return "\n".join(out)
 
 
@@ -174,7 +187,8 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
                      target: str = "cortex-m7",
                      name: str = "mpc_cond_rti_step",
                      precision: str = "double",
-                     horizon: int = 20, qp: str | None = None) -> dict:
+                     horizon: int = 20, qp: str | None = None,
+                     qp_max_iter: int | None = None) -> dict:
     """The first ``draws`` states of `run`'s Monte Carlo flown by ``name``
     on the emulated ``target`` and on the host.
 
@@ -200,7 +214,9 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
         wall times [s]; ``ok``: every loop passed the driver's check.
     ``precision`` "single" exports the target's (and its host driver's)
     C in float (`--precision single`); the Python loop stays double.
-    ``qp``: the condensed QP (`export_c`'s ``condensed_qp_plugin``).
+    ``qp``: the condensed QP (`export_c`'s ``condensed_qp_plugin``),
+    ``qp_max_iter`` its cap (``condensed_qp_max_iter``); ``capped``
+    counts the Python loop's capped steps.
     """
     from ocp.codegen.build import build_exported, run_driver
     from ocp.codegen.loop_starts import loop_key, write_loop_starts
@@ -214,6 +230,7 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
         t0 = time.perf_counter()
         res = export_c(tmp, sc, horizon=horizon, dt=0.5,
                        mpc_variants=(name,), condensed_qp_plugin=qp,
+                       condensed_qp_max_iter=qp_max_iter,
                        target=target, repeats=10, precision=precision)
         res = write_loop_starts(res, starts, steps=steps)
         elf = build_target(res)
@@ -226,6 +243,7 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
         # casadi_int is int, which casadi.external cannot load
         lib = export_c(Path(tmp) / "host", sc, horizon=horizon, dt=0.5,
                        mpc_variants=(name,), condensed_qp_plugin=qp,
+                       condensed_qp_max_iter=qp_max_iter,
                        build=True).shared_library
         f = ca.external(name, str(lib))
         py = [fly(f, model, x0, steps, 0.5) for x0 in starts]
@@ -257,6 +275,8 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
             "horizon": horizon,
             "precision": precision,
             "steps": steps, "seed": seed, "loops": loops, **pooled,
+            "qp": qp or "daqp", "qp_max_iter": qp_max_iter,
+            "capped": sum(r["capped"] for r in py),
             "ok": all(r["ok"] for r in loops),
             "seconds": {"build": t1 - t0, "emulation": t2 - t1}}
 
@@ -307,6 +327,10 @@ def format_target(out: dict, rows_max: int = 20) -> str:
     rows += ["", f"Worst step after the cold one: draw {worst}; worst "
              f"cold step: draw {cold}; loops failing the driver's check: "
              f"{failed or 'none'}; p99: interpolated (numpy's default)."]
+    if out.get("qp_max_iter"):
+        rows.append(f"QP: {out['qp']} capped at {out['qp_max_iter']} "
+                    f"iterations; capped steps in the Python loop: "
+                    f"{out['capped']} of {out['draws'] * out['steps']}.")
     return "\n".join(rows)
 
 
@@ -330,12 +354,16 @@ def main(argv=None) -> None:
     ap.add_argument("--qp", default=None, choices=("daqp", "pqp"),
                     help="the condensed steps' QP (default daqp; pqp: the "
                     "toolbox's primal active set, ocp.mpc.primal_qp)")
+    ap.add_argument("--qp-max-iter", type=int, default=None,
+                    help="with --qp pqp: its iteration cap per QP "
+                    "(default 1000); capped steps are counted")
     ap.add_argument("--json", default=None,
                     help="write --target's figures, every step's, here")
     args = ap.parse_args(argv)
     if args.target == "host":
         print(format_rows(run(args.loops, args.steps, args.max_iter,
-                              args.seed, args.horizon, args.qp)))
+                              args.seed, args.horizon, args.qp,
+                              args.qp_max_iter)))
         return
     from ocp.codegen.target import toolchain_missing
 
@@ -343,7 +371,8 @@ def main(argv=None) -> None:
         raise SystemExit(f"benchmarks.mpc_worst_case: {reason}")
     out = run_target_draws(args.draws_on_target, args.steps, args.seed,
                            args.target, precision=args.precision,
-                           horizon=args.horizon, qp=args.qp)
+                           horizon=args.horizon, qp=args.qp,
+                           qp_max_iter=args.qp_max_iter)
     print(format_target(out))
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))

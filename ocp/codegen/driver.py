@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import math
 from importlib import resources
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 from ocp.models.rigid import SpacecraftModel
-from ocp.mpc.primal_qp import PQP_DIR
+from ocp.mpc.primal_qp import PQP_DIR, max_iter_of
 from .checks import loop_plan, plan_length
 from .daqp_static import DAQP_DIR
 from .loop_starts import loop_start_source
@@ -232,14 +233,19 @@ def _readme(fns: dict[str, ca.Function],
     solver_text = _solver_text(fns, plugin, method, patched, duty_plugin)
     wrappers = [s for s in solver_sources if s.startswith("pqp/adcs_pqp_")]
     if wrappers:
+        cap = min(max_iter_of(Path(w).stem) for w in wrappers)
         solver_text += (
             " The condensed MPC steps solve their QP with `pqp/pqp.c`, the "
             "toolbox's primal active set (BSD-3-Clause, `pqp/LICENSE`), "
             f"called through {', '.join(f'`{w}`' for w in wrappers)} "
             "(CasADi's calling convention): started from δu = 0 on the "
-            "shifted plan and the last step's active set, at most 1000 "
+            f"shifted plan and the last step's active set, at most {cap} "
             "iterations, the caller's work only; a step whose start breaks "
-            "a bound solves its QP with DAQP instead.")
+            "a bound solves its QP with DAQP instead. A QP stopped at that "
+            "cap returns a point that keeps every bound and lowers the "
+            "QP's cost: the step applies it, its `qp_kkt` is then that "
+            "point's certificate (bound violation and cost rise, not the "
+            "KKT residual) and its output `qp_capped` is 1.")
     heap = _memory_text(static_bytes)
     version = ca.__version__  # type: ignore[attr-defined]  # not in stubs
     return f"""# Generated ADCS C code

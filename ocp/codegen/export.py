@@ -200,6 +200,7 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                       duty_qp_plugin: str | None = "qrqp",
                       rate_max: float | None = None,
                       condensed_qp_plugin: str | None = None,
+                      condensed_qp_max_iter: int | None = None,
                       precision: str = "double",
                       mpc_move_blocks: Any = None,
                       mpc_scenarios: Any = None, mpc_keep_out: Any = None
@@ -277,7 +278,7 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
             max_iter=mpc_max_iter, rate_max=rate_max,
             condensed_plugin=condensed, precision=precision,
             move_blocks=mpc_move_blocks, scenarios=mpc_scenarios,
-            keep_out=mpc_keep_out)
+            keep_out=mpc_keep_out, condensed_max_iter=condensed_qp_max_iter)
         fns.update({k: _renamed(f, k) for k, f in mpc_fns.items()})
         samples.update(mpc_samples)
     return fns, samples, model
@@ -380,6 +381,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              wheel_qp_fast_path: bool = True,
              duty_qp_plugin: str | None = None,
              condensed_qp_plugin: str | None = None,
+             condensed_qp_max_iter: int | None = None,
              qrqp_reuse_factorization: bool = True,
              rate_max: float | None = None,
              target: str = "host", precision: str = "double",
@@ -445,6 +447,11 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         the step starts (`ocp.mpc.primal_qp`; its sources and wrapper go
         to ``pqp/``, and DAQP stays for the steps where δu = 0 breaks a
         bound).
+    condensed_qp_max_iter : int, optional
+        With ``"pqp"``: its iteration cap (`AttitudeMPC`
+        ``solver_options`` ``qp_max_iter``; default 1000). A capped QP's
+        point keeps every bound and lowers the cost; the step applies it
+        and its output ``qp_capped`` says so.
     duty_qp_plugin : {None, "daqp", "qrqp"}
         Conic of ``duty_qp``'s fast path (`duty_qp_function`): daqp
         (sub-microsecond), qrqp or None: daqp when `daqp_available`.
@@ -524,7 +531,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     check_single(check_precision(precision), {
         "condensed_qp_plugin": condensed}, mpc_variants)
     check_variant_options(mpc_variants, move_blocks=mpc_move_blocks,
-                          scenarios=mpc_scenarios, keep_out=mpc_keep_out)
+                          scenarios=mpc_scenarios, keep_out=mpc_keep_out,
+                          qp_cap=(condensed, condensed_qp_max_iter))
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
@@ -533,7 +541,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
         rate_max=rate_max, condensed_qp_plugin=condensed,
-        precision=precision)
+        condensed_qp_max_iter=condensed_qp_max_iter, precision=precision)
     daqp_patched, patched, daqp_conics, solver_sources = _write_source(
         fns, out, qrqp_reuse_factorization, precision,
         "int" if cortex_m else "long long")

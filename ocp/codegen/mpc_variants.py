@@ -42,10 +42,20 @@ def check_variants(variants: Any) -> tuple[str, ...]:
 
 
 def check_variant_options(variants: Sequence[str], *, move_blocks: Any,
-                          scenarios: Any, keep_out: Any) -> None:
-    """Refuse an MPC option that no exported variant takes."""
-    sw, robust = (any(k in v for v in variants) for k in ("_sw_", "robust"))
+                          scenarios: Any, keep_out: Any,
+                          qp_cap: tuple[str, Any] = ("daqp", None)) -> None:
+    """Refuse an MPC option that no exported variant takes, or a bad
+    ``qp_cap``: ``(condensed QP, its cap)``, a positive int for pqp only
+    (`ocp.mpc.condensed.condensed_step_functions`' ``qp_max_iter``)."""
+    from ocp.mpc.condensed import check_qp_max_iter
+
+    sw, robust, cond = (any(k in v for v in variants)
+                        for k in ("_sw_", "robust", "_cond_"))
+    qp_max_iter = qp_cap[1]
+    check_qp_max_iter(*qp_cap)
     for name, value, ok, which in (
+            ("condensed_qp_max_iter", qp_max_iter, cond,
+             "condensed MPC steps (mpc_cond_step, mpc_cond_rti_step)"),
             ("mpc_move_blocks", move_blocks, sw,
              "stage-wise MPC steps (mpc_sw_step, mpc_sw_rti_step)"),
             ("mpc_scenarios", scenarios, robust,
@@ -61,13 +71,16 @@ def mpc_functions(model: SpacecraftModel, variants: Sequence[str], *,
                   horizon: int, dt: float, max_iter: int,
                   rate_max: float | None, condensed_plugin: str,
                   precision: str, move_blocks: Any = None,
-                  scenarios: Any = None, keep_out: Any = None
+                  scenarios: Any = None, keep_out: Any = None,
+                  condensed_max_iter: int | None = None
                   ) -> tuple[dict[str, ca.Function],
                              dict[str, list[np.ndarray]]]:
     """``(functions, samples)`` of the MPC variants asked for.
 
     The sample input of each is the demo slew's first step: 90° about
     (1, 1, 0) from rest, the controller's initial guess.
+    ``condensed_max_iter``: the condensed steps' QP cap (pqp,
+    `AttitudeMPC` ``solver_options`` ``qp_max_iter``).
     """
     from ocp.mpc import AttitudeMPC, RobustMPC, inertia_corners
 
@@ -86,8 +99,10 @@ def mpc_functions(model: SpacecraftModel, variants: Sequence[str], *,
                                  else inertia_corners(model.inertia, 0.2),
                                  keep_out=keep_out, **common)
         else:
+            cap = {} if condensed_max_iter is None else {
+                "qp_max_iter": condensed_max_iter}
             kw = ({"solver": "condensed", "qp_solver": condensed_plugin,
-                   "solver_options": condensed_options(precision)}
+                   "solver_options": {**condensed_options(precision), **cap}}
                   if "cond" in name else
                   {"solver": "stagewise", "move_blocks": move_blocks,
                    "keep_out": keep_out}

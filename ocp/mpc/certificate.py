@@ -15,7 +15,10 @@ import numpy as np
 
 from ocp.models.rigid import SpacecraftModel
 
-from .problem import available_mpc_solvers
+from adcs_common.exceptions import SolverNotFound
+
+from .condensed import condensed_qp_plugin
+from .problem import QP_SOLVERS, available_mpc_solvers
 
 
 #: Horizons above this take ``"stagewise"`` by default: the condensed
@@ -42,6 +45,32 @@ def default_mpc_solver(model: SpacecraftModel, horizon: int = 20) -> str:
     if model.thrusters is None and "condensed" in available_mpc_solvers():
         return "stagewise" if horizon > LONG_HORIZON else "condensed"
     return "sqpmethod"
+
+
+def resolve_qp_solver(solver: str, qp_solver: str | None) -> str:
+    """`AttitudeMPC`'s ``qp_solver`` for ``solver``: the one given, or
+    the default (qrqp; for ``"condensed"`` daqp where the casadi wheel has
+    it, `ocp.mpc.condensed.condensed_qp_plugin`), checked.
+
+    Raises
+    ------
+    SolverNotFound
+        A conic that is not code-generatable here, or qrqp for
+        ``"condensed"`` (it fails the condensed QP's certificate: KKT
+        0.72 after 3.5 s).
+    """
+    if qp_solver is None:
+        qp_solver = "qrqp" if solver != "condensed" else (
+            condensed_qp_plugin())
+    conics = tuple(q for q in QP_SOLVERS if ca.has_conic(q) and not (
+        solver == "condensed" and q == "qrqp")) + (
+        ("pqp",) if solver == "condensed" else ())
+    if solver in ("sqpmethod", "condensed") and qp_solver not in conics:
+        raise SolverNotFound(
+            f"{solver}:{qp_solver}", tuple(f"{solver}:{q}" for q in conics),
+            "qp_solver must be a code-generatable conic (the condensed "
+            "QP needs daqp: qrqp fails its certificate)")
+    return qp_solver
 
 
 def qp_kkt_function(mpc: Any, z, p, r, gv, f) -> ca.Function:

@@ -51,7 +51,8 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.validation import as_finite_scalar, check_positive
 from .acceleration import anderson_function
-from .condensed_qp import ROW_TOL, RowLayout, kkt_residual, routed_qp
+from .condensed_qp import (QP_ITER_LIMIT, ROW_TOL, RowLayout, capped_residual,
+                           kkt_residual, routed_qp)
 from .plan import nan_unless_finite
 from .problem import QP_KKT_TOL, momentum_residual, pointing_residuals
 from .condensed_sweeps import linearise, sweep_kernels
@@ -138,6 +139,10 @@ def _qp_bounds(mpc: Any, at: "_Layout", z: Any, e: list) -> tuple:
 def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     """``cond_iter(z, lam_x, p) -> (z_new, lam_x, step, qp_kkt)``: one SQP
     step and its QP's optimality certificate (`condensed_qp.kkt_residual`).
+    With ``plugin="pqp"`` a fifth output ``qp_capped``: 1 when the QP
+    stopped at its iteration limit (``qp_tols``' ``max_iter``), and then
+    ``qp_kkt`` is the capped point's certificate
+    (`condensed_qp.capped_residual`).
 
     ``z`` is a plan whose x_0 is the measured state (p's first n_x
     entries), ``lam_x`` multipliers in z's layout whose signs start the
@@ -172,10 +177,11 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     # on the unconstrained path; `_QP_TAIL` names the rest)
     qp_in = [*A, *B, *K, *Lit, *dx0, gy, du0, rows0, lbu, ubu, lba, uba,
              lx0[at.controls()], lam_a0, excess]
+    capping = plugin == "pqp"
     qp = ca.Function.if_else(
-        "cond_qp_first", _free_qp(qp_in, N),
+        "cond_qp_first", _free_qp(qp_in, N, capping),
         _constrained_qp(rk, qp_in, plugin, (N, nu, nw), rate_rows, qp_tols))
-    du, dx, lam_u, lam_a, kkt = qp(inside, *qp_in)
+    du, dx, lam_u, lam_a, kkt, *capped = qp(inside, *qp_in)
     # the commanded torques projected onto their box: a float QP point
     # can sit outside it by its rounding, amplified by W⁻¹ (2.6e-6 N·m
     # measured on the M4F); the certificate is the QP point's
@@ -194,9 +200,10 @@ def _iteration(mpc: Any, plugin: str, **qp_tols) -> ca.Function:
     lam_new[at.controls()] = lam_u
     step = ca.mmax(ca.fabs(du) / ca.DM(np.tile(np.r_[m_max], N)))
     return ca.Function("cond_iter", [z, lx0, p],
-                       [z_new, lam_new, step, kkt],
+                       [z_new, lam_new, step, kkt, *capped],
                        ["z", "lam_x0", "p"],
-                       ["z_new", "lam_x", "step", "qp_kkt"])
+                       ["z_new", "lam_x", "step", "qp_kkt"]
+                       + ["qp_capped"] * len(capped))
 
 
 class _Layout:
@@ -237,19 +244,21 @@ def _qp_symbols(qp_in: list, sym: Any, N: int) -> tuple[list, list, dict]:
     return i, stages, dict(zip(_QP_TAIL, i[5 * N:]))
 
 
-def _free_qp(qp_in: list, N: int) -> ca.Function:
+def _free_qp(qp_in: list, N: int, capping: bool = False) -> ca.Function:
     """``cond_qp_free(qp_in…) -> (δu, δx, λ_u, λ_a, kkt)``: the unconstrained
     optimum, its multipliers zero and its KKT residual: stationarity and
     complementarity hold exactly, so the residual is the bounds' largest
     excess (the last input), 0 where this branch runs. SX, so that it
     reads the few inputs it needs (an MX Function reserves a slot in the
-    work vector for every input)."""
+    work vector for every input). ``capping``: a sixth output, 0 (not
+    capped)."""
     i, stages, t = _qp_symbols(qp_in, ca.SX, N)
     return ca.Function("cond_qp_free", i,
                        [t["du0"], ca.horzcat(*stages[4]),
                         ca.SX.zeros(t["du0"].numel()),
                         ca.SX.zeros(t["rows0"].numel()),
-                        ca.fmax(t["excess"], 0.0)])
+                        ca.fmax(t["excess"], 0.0)]
+                       + [ca.SX(0)] * capping)
 
 
 def _constrained_qp(rk: dict, qp_in: list, plugin: str, dims: tuple,
@@ -263,15 +272,19 @@ def _constrained_qp(rk: dict, qp_in: list, plugin: str, dims: tuple,
     gy = t["gy"]
     bounds = [t[n] for n in ("lbu", "ubu", "lba", "uba")]
     winv, G = factor_rows(rk, A, B, K, Lit, rate_rows)
-    y, lam_u, lam_a, lam = routed_qp(plugin, N, nu, nw, winv.sparsity(),
-                                     G.sparsity(), **qp_tols)(
+    y, lam_u, lam_a, lam, *capped = routed_qp(
+        plugin, N, nu, nw, winv.sparsity(), G.sparsity(), **qp_tols)(
         gy, winv, G, *bounds, t["lam_u0"], t["lam_a0"])
     du, dx = closed_loop(rk, A, B, K, Lit, y)
     a = _rows_of(dx, rate_rows)
     dual = row_adjoint(rk, A, B, K, Lit, lam)
     kkt = kkt_residual(y, gy, dual, du, a, lam_u, lam_a, *bounds)
+    if capped:
+        # a capped point is certified as a feasible descent, not optimal
+        kkt = ca.if_else(capped[0] > 0,
+                         capped_residual(y, gy, du, a, *bounds), kkt)
     return ca.Function("cond_qp_full", i,
-                       [du, ca.horzcat(*dx), lam_u, lam_a, kkt])
+                       [du, ca.horzcat(*dx), lam_u, lam_a, kkt, *capped])
 
 
 def _rows_of(dx: list, rate_rows: bool) -> ca.MX:
@@ -328,11 +341,11 @@ STEP_NAMES = (["x", "qf", "tau", "z_prev", "lam_x_prev", "lam_g_prev"],
 def check_condensed_options(options: dict) -> None:
     """Refuse ``solver_options`` the condensed SQP does not take."""
     extra = set(options) - {"step_tol", "anderson", "row_tol", "qp_tol",
-                            "kkt_tol"}
+                            "kkt_tol", "qp_max_iter"}
     if extra:
         raise InvalidValueError(
             "solver='condensed' takes solver_options 'step_tol' and "
-            f"'anderson' only (+ row_tol, qp_tol, kkt_tol): "
+            f"'anderson' only (+ row_tol, qp_tol, kkt_tol, qp_max_iter): "
             f"{sorted(extra)}")
 
 
@@ -341,7 +354,8 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
                              anderson: int = ANDERSON_MEMORY,
                              row_tol: float = ROW_TOL,
                              qp_tol: float | None = None,
-                             kkt_tol: float = QP_KKT_TOL
+                             kkt_tol: float = QP_KKT_TOL,
+                             qp_max_iter: int | None = None
                              ) -> tuple[ca.Function, ca.Function]:
     """``(rti_function, step_function)`` of the condensed SQP.
 
@@ -372,20 +386,71 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
         Certificate [1] above which a step returns its warm start
         (`sqp_step_functions`; default `QP_KKT_TOL`, float exports
         `TOLERANCES`' ``qp_kkt_tol``).
+    qp_max_iter : int, optional
+        ``"pqp"`` only: the QP's iteration cap (default
+        `condensed_qp.QP_ITER_LIMIT`). A QP stopped there returns a point
+        that keeps every bound and lowers the QP's cost from the shifted
+        plan; the step takes it, certified by
+        `condensed_qp.capped_residual` instead of the KKT residual, and
+        its output ``qp_capped`` is 1. With ``"pqp"`` both Functions have
+        that output (after ``qp_kkt``).
     """
     if mpc.model.thrusters is not None:
         raise InvalidValueError(
             "solver='condensed' handles wheel-only models; with thrusters "
             "use solver='sqpmethod'")
     plugin = plugin or condensed_qp_plugin()
-    it = _iteration(mpc, plugin, row_tol=row_tol, qp_tol=qp_tol)
+    max_iter = check_qp_max_iter(plugin, qp_max_iter)
+    it = _iteration(mpc, plugin, row_tol=row_tol, qp_tol=qp_tol,
+                    max_iter=max_iter)
     return sqp_step_functions(mpc, it, "mpc_cond", step_tol, anderson,
-                              kkt_tol)
+                              kkt_tol, safe_tail=plugin == "pqp")
+
+
+def check_qp_max_iter(plugin: str, qp_max_iter: Any) -> int:
+    """The QP's iteration limit: ``qp_max_iter`` (pqp only, a positive
+    int) or `condensed_qp.QP_ITER_LIMIT`."""
+    if qp_max_iter is None:
+        return QP_ITER_LIMIT
+    if plugin != "pqp":
+        raise InvalidValueError(
+            "solver_options 'qp_max_iter' caps qp_solver='pqp' only (a "
+            f"capped {plugin} point is not feasible), got qp_solver "
+            f"{plugin!r}")
+    if isinstance(qp_max_iter, bool) or not isinstance(
+            qp_max_iter, (int, np.integer)) or qp_max_iter < 1:
+        raise InvalidValueError(
+            f"qp_max_iter must be a positive int, got {qp_max_iter!r}")
+    return int(qp_max_iter)
+
+
+def momentum_safe_tail(mpc: Any, z: ca.MX) -> ca.MX:
+    """The shifted plan ``z`` with its repeated last torque clipped so
+    that the last interval keeps the wheel momentum bound.
+
+    The shift repeats the last interval: from ``x_N`` the torque
+    ``u_{N-1}`` again, so the new last momentum is ``H_N + dt·u_{N-1}``
+    (``Ḣ_w = m``: exact), past ``h_max`` whenever a wheel at its bound was
+    still being driven into it. Clipped to ``[(−h_max − H_N)/dt, (h_max −
+    H_N)/dt]`` (and the torque bounds) it stays within, so the shifted
+    plan is a feasible start for a primal QP solver (`ocp.mpc.primal_qp`).
+    """
+    dt, nw = mpc.dt, mpc.wheels.n_wheels
+    h_max = np.asarray(mpc.wheels.h_max, dtype=float)
+    u_lo, u_hi = mpc.model.control_bounds()
+    us, h = mpc._us[-1], mpc._xs[-2].start + 7
+    h_n = z[h:h + nw]
+    lo = ca.fmax((-h_max - h_n) / dt, u_lo[:nw])
+    hi = ca.fmin((h_max - h_n) / dt, u_hi[:nw])
+    out = ca.MX(z)
+    out[us.start:us.start + nw] = ca.fmin(ca.fmax(z[us.start:us.start + nw],
+                                                  lo), hi)
+    return out
 
 
 def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
                        step_tol: float, anderson: int,
-                       kkt_tol: float = QP_KKT_TOL
+                       kkt_tol: float = QP_KKT_TOL, safe_tail: bool = False
                        ) -> tuple[ca.Function, ca.Function]:
     """``(rti, step)`` Functions around one SQP iteration ``it``.
 
@@ -398,6 +463,10 @@ def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
     every bound one sample ago), and its ``qp_kkt`` still says it failed:
     generated C cannot raise, and a flight loop must not apply a failed
     QP's point. `AttitudeMPC.step` refuses such a step in Python.
+    An ``it`` with a fifth output ``qp_capped`` (the pqp iteration) gives
+    both Functions that output too, the last QP's, after ``qp_kkt``.
+    ``safe_tail``: the shifted plan's last torque clipped to keep the
+    momentum bound (`momentum_safe_tail`).
     """
     step_tol = as_finite_scalar(step_tol, "step_tol")
     check_positive(step_tol, "step_tol")
@@ -416,24 +485,37 @@ def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
     lg_prev = ca.MX.sym("lam_g_prev", ng)
     p = ca.vertcat(x, qf, tau)
     z0, lx0, _ = mpc.shift_function(x, z_prev, lx_prev, lg_prev)
+    if safe_tail:
+        z0 = momentum_safe_tail(mpc, z0)
     ins = [x, qf, tau, z_prev, lx_prev, lg_prev]
     us0 = mpc._us[0]
 
-    def outputs(z, lx, n, kkt):
+    capping = it.n_out() == 5
+    names = (STEP_NAMES[0], STEP_NAMES[1] + ["qp_capped"] * capping)
+
+    def iterate(z, lx, p):
+        # (z, λ, step, certificate): with capping, (qp_kkt, qp_capped)
+        zn, ln, sn, *kn = it(z, lx, p)
+        return zn, ln, sn, ca.vertcat(*kn)
+
+    def outputs(z, lx, n, kkt_c):
+        kkt = kkt_c[0]
         ok = kkt <= kkt_tol                 # False for a NaN certificate
         z, lx = ca.if_else(ok, z, z0), ca.if_else(ok, lx, lx0)
         # a NaN plan's certificate is NaN (its check's figures are too)
         return [z[us0], z, lx, ca.MX.zeros(ng),
-                *mpc.check_function(z, p), n, *nan_unless_finite(z, kkt)]
+                *mpc.check_function(z, p), n, *nan_unless_finite(z, kkt),
+                *([kkt_c[1]] if capping else [])]
 
-    z1, lx1, _, kkt1 = it(z0, lx0, p)
+    z1, lx1, _, kkt1 = iterate(z0, lx0, p)
     rti = ca.Function(prefix + "_rti", ins, outputs(z1, lx1, 1.0, kkt1),
-                      *STEP_NAMES)
+                      *names)
     # the iterations nest: iteration k's Switch runs iteration k + 1 only
     # when its step was not small, so a converged plan returns through the
     # iterations made, not through max_iter skipped ones
     zs, ls = ca.MX.sym("z", nz), ca.MX.sym("lam_x", nz)
-    n, ps, kk = ca.MX.sym("n"), ca.MX.sym("p", nx + 7), ca.MX.sym("kkt")
+    n, ps = ca.MX.sym("n"), ca.MX.sym("p", nx + 7)
+    kk = ca.MX.sym("kkt", 1 + capping)
     m = int(anderson)
     mix = anderson_function(nz, m) if m else None
     hist = [ca.MX.sym("G_hist", nz, m + 1), ca.MX.sym("F_hist", nz, m + 1),
@@ -443,7 +525,7 @@ def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
     done = ca.Function("cond_done", sx, sx[:4])  # SX: reads z, λ, n, kkt
     inner = None
     for k in range(mpc.fallback_max_iter - 1, -1, -1):
-        zn, ln, sn, kn = it(zs, ls, ps)
+        zn, ln, sn, kn = iterate(zs, ls, ps)
         if inner is None:
             out = [zn, ln, n + 1, kn]
         else:
@@ -458,9 +540,10 @@ def sqp_step_functions(mpc: Any, it: ca.Function, prefix: str,
                            out)  # type: ignore[arg-type]
         inner = ca.Function.if_else(f"cond_iter_{k}", done, more)
     assert inner is not None      # fallback_max_iter >= 1
-    z, lx, count, kkt = inner(0, z0, lx0, 0.0, 0.0, p, *(
-        [ca.MX.zeros(nz, m + 1), ca.MX.zeros(nz, m + 1), ca.MX.zeros(m + 1)]
-        if m else []))
+    hist0 = [ca.MX.zeros(nz, m + 1), ca.MX.zeros(nz, m + 1),
+             ca.MX.zeros(m + 1)] if m else []
+    z, lx, count, kkt = inner(0, z0, lx0, 0.0, ca.DM.zeros(1 + capping), p,
+                              *hist0)
     full = ca.Function(prefix + "_step", ins, outputs(z, lx, count, kkt),
-                       *STEP_NAMES)
+                       *names)
     return rti, full

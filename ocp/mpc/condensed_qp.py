@@ -90,7 +90,8 @@ class RowLayout:
 
 def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
               sp_g: ca.Sparsity, row_tol: float = ROW_TOL,
-              qp_tol: float | None = None) -> Callable[..., list]:
+              qp_tol: float | None = None,
+              max_iter: int = QP_ITER_LIMIT) -> Callable[..., list]:
     """Build the QP in ``y`` (`ocp.mpc.riccati`): Hessian I, bounds as rows.
 
     ``qp(g, W⁻¹, G, lbu, ubu, lba, uba, lam_u0, lam_a0) -> [y, lam_u,
@@ -110,10 +111,12 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     ``row_tol`` replaces `ROW_TOL` and ``qp_tol`` (qrqp only) its
     ``constr_viol_tol`` / ``dual_inf_tol`` (float exports,
     `ocp.codegen.precision.TOLERANCES`).
+    With ``"pqp"`` the route returns a fifth value, ``capped``: 1 where
+    the solver stopped at ``max_iter`` iterations (`_primal_route`).
     """
     n, na = N * nu, sp_g.size1() - N * nu
     if plugin == "pqp":
-        return _primal_route(N, nu, nw, sp_w, sp_g, row_tol)
+        return _primal_route(N, nu, nw, sp_w, sp_g, row_tol, max_iter)
     at = RowLayout(N, nu, nw, sp_g.size1() // N)
     g = ca.MX.sym("g", n)
     W = ca.MX.sym("Winv", sp_w)
@@ -181,14 +184,18 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
 
 
 def _primal_route(N: int, nu: int, nw: int, sp_w: ca.Sparsity,
-                  sp_g: ca.Sparsity, row_tol: float) -> Callable[..., list]:
+                  sp_g: ca.Sparsity, row_tol: float,
+                  max_iter: int) -> Callable[..., list]:
     """`routed_qp`'s QP by the primal active set in C (`ocp.mpc.primal_qp`)
-    from y = 0 and the warm start's signs; where y = 0 breaks a bound
-    (no feasible start: a defect, or a rate beyond its bound), by DAQP's
-    route instead."""
+    from y = 0 and the warm start's signs, at most ``max_iter``
+    iterations; where y = 0 breaks a bound (no feasible start: a defect,
+    or a rate beyond its bound), by DAQP's route instead (never capped).
+    Returns ``[y, lam_u, lam_a, lam, capped]``: a capped point keeps
+    every bound and lowers the cost from y = 0, its multipliers are the
+    working set's least-squares estimates (`capped_residual` checks it)."""
     from .primal_qp import qp_external
 
-    ext = qp_external(N, nu, nw, sp_g, QP_ITER_LIMIT)
+    ext = qp_external(N, nu, nw, sp_g, max_iter)
     daqp = routed_qp("daqp", N, nu, nw, sp_w, sp_g, row_tol)
     n, na = N * nu, sp_g.size1() - N * nu
     ins = [ca.MX.sym(k, sp) for k, sp in (
@@ -207,8 +214,9 @@ def _primal_route(N: int, nu: int, nw: int, sp_w: ca.Sparsity,
 
     def primal(*a: Any) -> list:
         g_, _, R_, lbu_, ubu_, lba_, uba_, lu0_, la0_ = a
-        *sol, infeasible = ext(g_, R_, lbu_, ubu_, lba_, uba_, lu0_, la0_)
-        return pick(infeasible, *a, *sol)
+        *sol, infeasible, capped = ext(g_, R_, lbu_, ubu_, lba_, uba_, lu0_,
+                                       la0_)
+        return [*pick(infeasible, *a, *sol), capped]
     return primal
 
 
@@ -236,6 +244,24 @@ def kkt_residual(y, g, dual, v, a, lam_u, lam_a, lbu, ubu, lba, uba):
         ca.fmax(-lam_a, 0) * ca.fabs(a - lba)))
     return ca.fmax(stat / scale_g, ca.fmax(primal / size,
                                            comp / (lam * size)))
+
+
+def capped_residual(y, g, v, a, lbu, ubu, lba, uba):
+    """Certificate of a capped QP point y (the primal active set stopped
+    at its iteration limit, started from y = 0, the shifted plan).
+
+    Such a point is not the QP's optimum; what it guarantees, and this
+    checks, is that it keeps every bound and row and that its cost
+    ``½|y|² + gᵀy`` is no higher than the start's (0): the largest of the
+    row violations (relative to the rows' scale, as `kkt_residual`) and
+    the cost's rise (relative to ``1 + |g|²``). Zero for every iterate
+    of the solver in exact arithmetic.
+    """
+    size = 1.0 + ca.mmax(ca.vertcat(ca.fabs(lbu), ca.fabs(ubu),
+                                    ca.fabs(lba), ca.fabs(uba)))
+    primal = ca.mmax(ca.vertcat(v - ubu, lbu - v, a - uba, lba - a, 0.0))
+    rise = ca.fmax(0.5 * ca.dot(y, y) + ca.dot(g, y), 0.0)
+    return ca.fmax(primal / size, rise / (1.0 + ca.dot(g, g)))
 
 
 def _qp_options(plugin: str) -> dict:

@@ -66,9 +66,9 @@ from ocp.spacecraft.definition import Spacecraft
 from adcs_common.options import merge_options
 from adcs_common.solver_options import check_nlpsol_options
 from adcs_common.threads import new_lock, synchronized
-from .certificate import default_mpc_solver, qp_kkt_function
-from .condensed import (check_condensed_options, condensed_qp_plugin,
-                        condensed_step_functions)
+from .certificate import (default_mpc_solver, qp_kkt_function,
+                          resolve_qp_solver)
+from .condensed import check_condensed_options, condensed_step_functions
 from .stagewise import (block_lengths, check_stagewise_options,
                         stagewise_step_functions)
 from .keepout import KEEP_OUT_BACKOFF, as_keep_out
@@ -231,19 +231,7 @@ class AttitudeMPC:
             raise InvalidValueError(
                 "solver='stagewise' solves its QP itself (a Riccati "
                 f"interior point): qp_solver must be None, got {qp_solver!r}")
-        if qp_solver is None:
-            qp_solver = "qrqp" if solver != "condensed" else (
-                condensed_qp_plugin())
-        # qrqp fails the condensed QP's certificate (KKT 0.72, 3.5 s)
-        conics = tuple(q for q in QP_SOLVERS if ca.has_conic(q) and not (
-            solver == "condensed" and q == "qrqp")) + (
-            ("pqp",) if solver == "condensed" else ())
-        if solver in ("sqpmethod", "condensed") and qp_solver not in conics:
-            raise SolverNotFound(
-                f"{solver}:{qp_solver}", tuple(f"{solver}:{q}"
-                                               for q in conics),
-                "qp_solver must be a code-generatable conic (the condensed "
-                "QP needs daqp: qrqp fails its certificate)")
+        qp_solver = resolve_qp_solver(solver, qp_solver)
         if rti and solver not in ("sqpmethod", *OWN_SQP_SOLVERS):
             raise InvalidValueError(
                 "rti=True needs solver='sqpmethod', 'condensed' or "
@@ -519,11 +507,13 @@ class AttitudeMPC:
             # one buffered call: shift, SQP step(s), checks
             z, lam_x, lam_g, u, cost, viol, viol1, defect, *n = \
                 self._rti_call(x, qf, tau, z_prev)
-            status, iters, kkt = "rti_step", 1, n[-1]
+            status, iters, kkt = "rti_step", 1, n[1 if own else 0]
             if own and not self.rti:
                 iters = int(n[0])
                 status = ("converged" if iters < self.fallback_max_iter
                           else "iteration_limit")
+            if own and len(n) > 2 and n[2] > 0:
+                status += ":qp_capped"      # the last QP's (pqp)
         else:
             z0, lx0, lg0 = self.shift_function(x, z_prev, self._lam_x,
                                                self._lam_g)

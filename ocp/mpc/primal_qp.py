@@ -15,9 +15,18 @@ into a shared library for Python (`qp_external`; needs a C compiler) and
 written into the export folder beside ``pqp.c`` for generated C
 (`copy_sources`). Where y = 0 breaks a bound (a defect the linearisation
 carries, or a rate beyond its bound) it answers y = 0 and flags it, and
-`ocp.mpc.condensed_qp` hands that QP to DAQP's route instead. A QP
-stopped by the iteration limit is not its optimum and fails the step's
-certificate, never silently.
+`ocp.mpc.condensed_qp` hands that QP to DAQP's route instead.
+
+Its iteration limit (`AttitudeMPC` ``solver_options={"qp_max_iter":
+k}``, default `QP_ITER_LIMIT`) can cap the QP: every iterate keeps every
+bound and lowers the cost from the shifted plan, so a capped point is a
+feasible descent step, not the optimum. The step takes it, certified by
+`condensed_qp.capped_residual` (feasibility and descent) instead of the
+KKT residual, and says so (its output ``qp_capped``, status
+``":qp_capped"``); the next step starts from its working set. On the
+demo craft at horizon 20, capped at 5 iterations, closed loops from
+random attitudes settle within two samples of the uncapped ones
+(docs/benchmarks.md).
 
 The wrapper keeps no state (its memory is the caller's work), so a
 controller with this QP may be stepped from several threads; the
@@ -39,6 +48,8 @@ import casadi as ca
 
 from adcs_common.codegen import compile_c
 
+from .condensed_qp import QP_ITER_LIMIT
+
 #: The C solver's folder (pqp.c, pqp.h).
 PQP_SOURCES = Path(__file__).with_name("pqp")
 #: The solver's step and sign tolerances (relative), by casadi_real.
@@ -47,14 +58,22 @@ PQP_TOL = {"double": 1e-10, "single": 1e-4}
 PQP_DIR = "pqp"
 #: pqp's float build (a single-precision export: casadi_real float).
 PQP_SINGLE_FLAG = "-DPQP_SINGLE_PRECISION"
-_NAME = re.compile(r"\b(adcs_pqp_\d+x\d+)\(")
+_NAME = re.compile(r"\b(adcs_pqp_\d+x\d+(?:_cap\d+)?)\(")
 #: Each external built in this process: its `wrapper_source` arguments.
 _BUILT: dict[str, tuple[int, int, int, ca.Sparsity, int]] = {}
 
 
-def external_name(n: int, m: int) -> str:
-    """The external Function's C name for n variables and m rows."""
-    return f"adcs_pqp_{n}x{m}"
+def external_name(n: int, m: int, max_iter: int = QP_ITER_LIMIT) -> str:
+    """The external Function's C name for n variables and m rows, and
+    ``max_iter`` iterations when capped below `QP_ITER_LIMIT`
+    (``adcs_pqp_<n>x<m>`` or ``adcs_pqp_<n>x<m>_cap<max_iter>``)."""
+    cap = f"_cap{max_iter}" if max_iter < QP_ITER_LIMIT else ""
+    return f"adcs_pqp_{n}x{m}{cap}"
+
+
+def max_iter_of(name: str) -> int:
+    """The iteration limit of the external ``name`` built in this process."""
+    return _BUILT[name][4]
 
 
 def _ints(values) -> str:
@@ -65,9 +84,12 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
                    max_iter: int, precision: str = "double",
                    in_export: bool = False) -> str:
     """C text of the external ``adcs_pqp_<n>x<m>(g, G, lbu, ubu, lba,
-    uba, lam_u0, lam_a0) -> (y, lam_u, lam_a, lam, infeasible)``
-    (``infeasible``: 1 where y = 0 breaks a bound, and then y = 0 and
-    the multipliers 0).
+    uba, lam_u0, lam_a0) -> (y, lam_u, lam_a, lam, infeasible, capped)``
+    (`external_name`; ``infeasible``: 1 where y = 0 breaks a bound, and
+    then y = 0 and the multipliers 0; ``capped``: 1 where the solver
+    stopped at ``max_iter`` iterations, at a point that keeps every bound
+    and lowers the cost, with the working set's least-squares
+    multipliers, pqp.h).
 
     ``G`` (m × n, ``sp_g``) holds the QP's rows stage by stage, h = m / N
     a stage: the bounds on δu_k (n_u), the momenta of δx_{k+1} (n_w),
@@ -79,7 +101,7 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     """
     n, m = sp_g.size2(), sp_g.size1()
     h = m // N
-    name = external_name(n, m)
+    name = external_name(n, m, max_iter)
     colind, row = sp_g.get_ccs()
     tol = PQP_TOL[precision]
     head = ('#include "../adcs_codegen.h"\n' if in_export else
@@ -103,12 +125,13 @@ def qp_external(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
         No C compiler: ``qp_solver="pqp"`` needs one.
     """
     n, m = sp_g.size2(), sp_g.size1()
-    _BUILT[external_name(n, m)] = (N, nu, nw, sp_g, max_iter)
+    name = external_name(n, m, max_iter)
+    _BUILT[name] = (N, nu, nw, sp_g, max_iter)
     text = wrapper_source(N, nu, nw, sp_g, max_iter)
     solver = (PQP_SOURCES / "pqp.c").read_text()
     key = hashlib.sha256((text + solver).encode()).hexdigest()[:16]
     folder = Path(tempfile.gettempdir()) / f"adcs_pqp_{os.getuid()}" / key
-    lib = folder / f"lib{external_name(n, m)}.so"
+    lib = folder / f"lib{name}.so"
     if not lib.is_file():
         folder.mkdir(parents=True, exist_ok=True)
         src = folder / "wrapper.c"
@@ -118,7 +141,7 @@ def qp_external(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
         compile_c([src, PQP_SOURCES / "pqp.c"], part,
                   flags=["-std=c99", f"-I{PQP_SOURCES}"])
         os.replace(part, lib)
-    return ca.external(external_name(n, m), str(lib))
+    return ca.external(name, str(lib))
 
 
 def copy_sources(out: Path, source_text: str, precision: str = "double"

@@ -145,6 +145,8 @@ def test_capped_solve_is_feasible_and_lowers_the_cost(lib, qps):
             assert np.all(v <= q["hi"] + 1e-12)
             assert np.all(v >= q["lo"] - 1e-12)
             assert 0.5 * r["y"] @ r["y"] + q["f"] @ r["y"] <= 0.0
+            # no multipliers: the working set's sides, ±1 (a warm start)
+            assert np.array_equal(r["lam"], r["side"])
 
 
 def test_infeasible_start_is_refused(lib, qps):

@@ -103,14 +103,17 @@ def test_copied_folder_builds_alone_without_heap(exports, tmp_path):
 
 @pytest.mark.skipif(toolchain_missing() is not None,
                     reason=str(toolchain_missing()))
-@pytest.mark.parametrize("target, precision", [("cortex-m7", "double"),
-                                               ("cortex-m4f", "single")])
-def test_pqp_step_on_the_emulated_cores(tmp_path, target, precision):
+@pytest.mark.parametrize("target, precision, cap", [
+    ("cortex-m7", "double", None), ("cortex-m7", "double", 5),
+    ("cortex-m4f", "single", None)])
+def test_pqp_step_on_the_emulated_cores(tmp_path, target, precision, cap):
     """Cross-compiled clean (-Werror), no heap in the memory report, and
     the emulated closed loop reaches the target (float: within 1e-3 rad
-    of it and its bounds kept to float's accuracy, as the DAQP step)."""
+    of it and its bounds kept to float's accuracy, as the DAQP step);
+    also with the QP capped at 5 iterations."""
     res = _export(tmp_path / target, "pqp", target=target,
-                  precision=precision, build=True)
+                  precision=precision, build=True,
+                  condensed_qp_max_iter=cap)
     rec = res.extras["memory"]["functions"][STEP]
     assert rec["heap"] is False and not set(rec["library_calls"]) & HEAP
     out = run_target(res)
@@ -123,18 +126,27 @@ def test_pqp_step_on_the_emulated_cores(tmp_path, target, precision):
 
 def test_cli_exports_with_pqp(tmp_path, capsys):
     """``adcs export --condensed-qp pqp --run``: the folder carries pqp/
-    and the driver's checks pass; an unknown QP is a one-line error with
-    exit status 2."""
+    and the driver's checks pass, capped at 5 iterations; an unknown QP,
+    a cap below 1, a cap for DAQP or without a condensed step is a
+    one-line error with exit status 2."""
     from adcs.cli import main
 
     out = tmp_path / "c"
     assert main(["export", "--out", str(out), "--mpc", STEP, "--horizon",
-                 "5", "--condensed-qp", "pqp", "--run"]) == 0
+                 "5", "--condensed-qp", "pqp", "--qp-max-iter", "5",
+                 "--run"]) == 0
     printed = capsys.readouterr().out
     assert f"wrote {out / 'pqp'}/" in printed
     assert "every closed loop reached its target" in printed
-    assert (out / "pqp" / "adcs_pqp_20x40.c").is_file()
-    with pytest.raises(SystemExit) as exc:
-        main(["export", "--out", str(out), "--condensed-qp", "osqp"])
-    assert exc.value.code == 2
-    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    assert (out / "pqp" / "adcs_pqp_20x40_cap5.c").is_file()
+    assert "at most 5 iterations" in (out / "README.md").read_text()
+    for bad in (["--condensed-qp", "osqp"],
+                ["--condensed-qp", "pqp", "--qp-max-iter", "0"],
+                ["--condensed-qp", "daqp", "--qp-max-iter", "3"],
+                ["--mpc", "mpc_step", "--qp-max-iter", "3"]):
+        try:                    # argparse exits; a toolbox error returns
+            code = main(["export", "--out", str(out), *bad])
+        except SystemExit as exc:
+            code = exc.code
+        assert code == 2, bad
+        assert len(capsys.readouterr().err.strip().splitlines()) == 1

@@ -124,15 +124,22 @@ def test_external_solves_the_posed_qp_and_flags_infeasible_starts():
                                  np.zeros(n + na, dtype=np.int32))
     assert flag == 1 and np.max(np.abs(A @ ref - np.clip(A @ ref, lo, hi))) < 1e-9
     args = [gy, ca.DM(G), lbu, ubu, lba, uba, np.zeros(n), np.zeros(na)]
-    y, lam_u, lam_a, lam, infeasible = (np.array(v).ravel()
-                                        for v in ext(*args))
-    assert float(infeasible[0]) == 0.0
+    y, lam_u, lam_a, lam, infeasible, capped = (np.array(v).ravel()
+                                                for v in ext(*args))
+    assert float(infeasible[0]) == 0.0 and float(capped[0]) == 0.0
     assert np.max(np.abs(y - ref)) <= 1e-9
     assert np.count_nonzero(lam) > 0            # a bound was active
+    # capped at one iteration: a feasible point of lower cost, flagged
+    one = qp_external(N, nu, sc.wheels.n_wheels, ca.DM(G).sparsity(), 1)
+    y1, *_, infeasible, capped = (np.array(v).ravel() for v in one(*args))
+    assert float(capped[0]) == 1.0 and float(infeasible[0]) == 0.0
+    assert np.all(A @ y1 <= hi + 1e-12) and np.all(A @ y1 >= lo - 1e-12)
+    assert 0.5 * y1 @ y1 + gy.ravel() @ y1 < 0.0      # below the start's
     bad = list(args)
     bad[2] = np.full(n, 1e-3)                   # δu ≥ 1e-3: y = 0 breaks it
-    y, *_, lam, infeasible = (np.array(v).ravel() for v in ext(*bad))
-    assert float(infeasible[0]) == 1.0
+    y, *_, lam, infeasible, capped = (np.array(v).ravel()
+                                      for v in ext(*bad))
+    assert float(infeasible[0]) == 1.0 and float(capped[0]) == 0.0
     assert not np.any(y) and not np.any(lam)
 
 
@@ -177,3 +184,63 @@ def test_no_compiler_is_the_toolboxs_error(tmp_path, monkeypatch):
     with pytest.raises(CompilerNotFound):
         AttitudeMPC(model, horizon=4, dt=0.5, solver="condensed", rti=True,
                     qp_solver="pqp")
+
+
+def test_capped_step_applies_feasible_descent_points():
+    """Capped at five QP iterations (``qp_max_iter``), the RTI loop
+    applies the capped points: each flagged (``qp_capped``), certified as
+    a feasible descent (≤ 1e-8), within every bound, and the loop still
+    reaches the target; `AttitudeMPC.step` says ``":qp_capped"``."""
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    x0 = random_states(model, 1, np.random.default_rng(3))[0]
+    mpc = AttitudeMPC(model, horizon=8, dt=0.5, solver="condensed",
+                      rti=True, qp_solver="pqp",
+                      solver_options={"qp_max_iter": 5})
+    f = mpc.rti_function
+    names = [f.name_out(i) for i in range(f.n_out())]
+    assert names[-2:] == ["qp_kkt", "qp_capped"]
+    rk4 = model.rk4_step(1)
+    qf, tau = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
+    x, capped, statuses = x0.copy(), 0, set()
+    for _ in range(80):
+        res = mpc.step(x, qf)
+        statuses.add(res.status)
+        assert res.qp_kkt <= 1e-8 and res.first_violation <= 1e-9
+        x = np.asarray(rk4(x, res.u, tau, mpc.dt)).ravel()
+        capped += res.status.endswith(":qp_capped")
+    assert capped >= 5 and statuses <= {"rti_step", "rti_step:qp_capped"}
+    assert 2 * np.arccos(min(1.0, abs(x[0]))) <= 1e-3
+
+
+def test_capped_certificate_checks_feasibility_and_descent():
+    """`capped_residual`: 0 at a feasible point below the start's cost;
+    a bound broken by 0.3 (scale 1 + 2) gives 0.1; a cost rise of 1.5
+    (relative to 1 + |g|² = 2) gives 0.75."""
+    from ocp.mpc.condensed_qp import capped_residual
+
+    g = np.array([-1.0, 0.0])
+    lo, hi = -2 * np.ones(2), 2 * np.ones(2)
+    none = np.zeros(0)
+
+    def cert(y, v):
+        return float(capped_residual(y, g, v, none, lo, hi, none, none))
+
+    assert cert(np.array([1.0, 0.0]), np.array([1.0, 0.0])) == 0.0
+    assert abs(cert(np.array([1.0, 0.0]), np.array([2.3, 0.0])) - 0.1) \
+        <= 1e-15
+    assert abs(cert(np.array([-1.0, 0.0]), np.zeros(2)) - 0.75) <= 1e-15
+
+
+@pytest.mark.parametrize("qp, cap", [("daqp", 5), ("pqp", 0),
+                                     ("pqp", 2.5), ("pqp", True)])
+def test_qp_max_iter_is_checked(qp, cap):
+    """A cap for DAQP (a capped dual point breaks bounds) or one that is
+    not a positive int is refused, naming the option."""
+    from adcs_common.exceptions import InvalidValueError
+
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    with pytest.raises(InvalidValueError, match="qp_max_iter"):
+        AttitudeMPC(model, horizon=4, dt=0.5, solver="condensed", rti=True,
+                    qp_solver=qp, solver_options={"qp_max_iter": cap})

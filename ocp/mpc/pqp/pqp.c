@@ -217,6 +217,9 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
       ws[k++] = block;
     }
   }
+  /* stopped at a feasible point that is not stationary: no multipliers,
+   * the working set's sides instead (±1, the next call's warm start) */
+  for (i = 0; i < k; ++i) lam[ws[i]] = side[ws[i]];
   unpark(m, side);
   *iterations = max_iter;
   return PQP_ITERATION_LIMIT;

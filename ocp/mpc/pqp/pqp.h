@@ -30,7 +30,9 @@ int pqp_iwork_size(int n, int m);
  * (m; in: the warm working set's sides, -1 lower, 1 upper, 0 not in it;
  * rows not at that bound at y, or dependent on those before them, are
  * left out; out: the last working set). lam (m; out: the multipliers,
- * positive at an upper bound, zero unless PQP_OPTIMAL). At most
+ * positive at an upper bound; at PQP_ITERATION_LIMIT, where y is not
+ * stationary, the working set's sides instead: ±1 on its rows, to warm
+ * start a next call; zero elsewhere and at PQP_INFEASIBLE_START). At most
  * max_iter iterations (a KKT solve each: a step, or a row dropped);
  * *iterations the number made. tol: the step below which y is a
  * working set's optimum, and the multipliers' sign tolerance, both
