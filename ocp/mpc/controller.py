@@ -143,7 +143,10 @@ class AttitudeMPC:
         ``"condensed"`` (default daqp where the casadi wheel has it);
         None with ``"stagewise"``. ``"pqp"`` (``"condensed"`` only): the
         toolbox's primal active set in C (`ocp.mpc.primal_qp`), warm-
-        started where the step starts; it needs a C compiler.
+        started where the step starts; it needs a C compiler. With
+        ``solver_options={"qp_max_iter": k}`` it is capped: a step may
+        apply a feasible, cost-lowering point that is not its QP's
+        optimum (status ``"...:qp_capped"``, `ocp.mpc.condensed`).
     rti : bool
         Real-time iteration: one full SQP step per sample (``"sqpmethod"``
         only). When that step leaves the applied command or the next
@@ -169,7 +172,8 @@ class AttitudeMPC:
         forwarded untouched; for ``"condensed"``: ``{"step_tol": ...,
         "anderson": m}`` (`ocp.mpc.condensed.STEP_TOL`, the memory of the
         Anderson acceleration, `ocp.mpc.condensed.ANDERSON_MEMORY`; 0
-        turns it off); ``"stagewise"`` takes those and ``"ipm_tol"``,
+        turns it off; ``"qp_max_iter"``: the pqp QP's cap, default
+        1000); ``"stagewise"`` takes those and ``"ipm_tol"``,
         ``"ipm_max_iter"`` (`ocp.mpc.stagewise_ipm.IPM_TOL`,
         `IPM_MAX_ITER`).
     move_blocks : int or sequence of int, optional

@@ -131,7 +131,10 @@ class MPCStep(ResultMixin):
     iterations : int
         SQP/IPOPT iterations (-1 when the solver does not report them).
     status : str
-        The solver's return status.
+        The solver's return status (the toolbox's SQPs: ``"rti_step"``,
+        ``"converged"`` or ``"iteration_limit"``, with ``":qp_capped"``
+        appended when the last QP stopped at its cap, a feasible point
+        of lower cost that is not the QP's optimum, `ocp.mpc.primal_qp`).
     qp_kkt : float
         Optimality certificate of the last SQP step: the KKT residual of
         its QP's point (stationarity, row violation, complementarity;
