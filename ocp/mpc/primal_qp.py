@@ -134,13 +134,19 @@ def qp_external(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     lib = folder / f"lib{name}.so"
     if not lib.is_file():
         folder.mkdir(parents=True, exist_ok=True)
-        src = folder / "wrapper.c"
+        # private names per process and thread (the source too: another
+        # thread rewriting it mid-compile gave a library without the
+        # symbols), then one atomic rename
+        me = f"{os.getpid()}.{threading.get_ident()}"
+        src = folder / f"wrapper.{me}.c"
         src.write_text(text)
-        # a private name per process and thread, then one atomic rename
-        part = folder / f"{lib.name}.{os.getpid()}.{threading.get_ident()}"
-        compile_c([src, PQP_SOURCES / "pqp.c"], part,
-                  flags=["-std=c99", f"-I{PQP_SOURCES}"])
-        os.replace(part, lib)
+        part = folder / f"{lib.name}.{me}"
+        try:
+            compile_c([src, PQP_SOURCES / "pqp.c"], part,
+                      flags=["-std=c99", f"-I{PQP_SOURCES}"])
+            os.replace(part, lib)
+        finally:
+            src.unlink(missing_ok=True)
     return ca.external(name, str(lib))
 
 
