@@ -279,3 +279,22 @@ def test_pqp_flies_a_toml_craft(tmp_path):
     for r in runs.values():
         assert r.final_error < np.deg2rad(0.01)
         assert r.momentum_violation <= 1e-9 and r.torque_violation <= 1e-9
+
+
+@pytest.mark.parametrize("kw", [
+    {"condensed_qp_plugin": "pqpx"}, {"condensed_qp_plugin": "PQP"},
+    {"condensed_qp_plugin": "pqp", "condensed_qp_max_iter": 0},
+    {"condensed_qp_plugin": "daqp", "condensed_qp_max_iter": 8},
+    {"condensed_qp_plugin": "pqp", "condensed_qp_max_iter": 8,
+     "mpc_variants": ("mpc_step",)}])
+def test_export_refuses_a_bad_condensed_qp(tmp_path, kw):
+    """`export_c` answers an unknown condensed QP, a cap below 1, a cap
+    for DAQP or one no exported step takes with the toolbox's error,
+    before generating anything."""
+    from adcs_common.exceptions import InvalidValueError
+    from ocp.codegen.export import export_c
+
+    kw = {"mpc_variants": ("mpc_cond_rti_step",), **kw}
+    with pytest.raises(InvalidValueError):
+        export_c(tmp_path / "out", spacecraft="demo", horizon=4, **kw)
+    assert not (tmp_path / "out" / "adcs_codegen.c").exists()
