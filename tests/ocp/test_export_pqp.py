@@ -150,3 +150,21 @@ def test_cli_exports_with_pqp(tmp_path, capsys):
             code = exc.code
         assert code == 2, bad
         assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+@pytest.mark.skipif(toolchain_missing() is not None,
+                    reason=str(toolchain_missing()))
+def test_capped_step_meets_the_step_goals_at_horizon_15(tmp_path):
+    """On the emulated M7 in double, horizon 15, pqp capped at 8: the
+    driver's 86-step slew reaches the target with every step, cold one
+    included, within 2,000,000 instructions and the median within
+    400,000 (docs/benchmarks.md: 1,608,800 / 913,760 / 294,960)."""
+    res = export_c(tmp_path / "m7", spacecraft="demo", horizon=15,
+                   mpc_variants=(STEP,), condensed_qp_plugin="pqp",
+                   condensed_qp_max_iter=8, target="cortex-m7",
+                   repeats=3, build=True)
+    loop = run_target(res)[LOOP]
+    assert loop["flag"] == 0 and loop["loop_ok"]
+    steps = np.array(loop["steps"])
+    assert steps.max() <= 2_000_000 and np.median(steps) <= 400_000
+    assert loop["loop_worst_violation"] <= 1e-9
