@@ -429,22 +429,30 @@ def momentum_safe_tail(mpc: Any, z: ca.MX) -> ca.MX:
     that the last interval keeps the wheel momentum bound.
 
     The shift repeats the last interval: from ``x_N`` the torque
-    ``u_{N-1}`` again, so the new last momentum is ``H_N + dt·u_{N-1}``
-    (``Ḣ_w = m``: exact), past ``h_max`` whenever a wheel at its bound was
-    still being driven into it. Clipped to ``[(−h_max − H_N)/dt, (h_max −
-    H_N)/dt]`` (and the torque bounds) it stays within, so the shifted
-    plan is a feasible start for a primal QP solver (`ocp.mpc.primal_qp`).
+    ``u_{N-1}`` again, so the new last momentum is ``H_N + dt·s·u_{N-1}``
+    (``Ḣ_w = s m``, s the wheels' scale factors, 0 for a failed wheel:
+    exact), past ``h_max`` whenever a wheel at its bound was still being
+    driven into it. Clipped to ``[(−h_max − H_N)/(dt s), (h_max −
+    H_N)/(dt s)]`` (and the torque bounds) it stays within, so the
+    shifted plan is a feasible start for a primal QP solver
+    (`ocp.mpc.primal_qp`).
     """
-    dt, nw = mpc.dt, mpc.wheels.n_wheels
-    h_max = np.asarray(mpc.wheels.h_max, dtype=float)
+    wh = mpc.wheels
+    nw = wh.n_wheels
+    gain = mpc.dt * np.asarray(wh.scale * wh.active, dtype=float)
+    h_max = np.asarray(wh.h_max, dtype=float)
     u_lo, u_hi = mpc.model.control_bounds()
     us, h = mpc._us[-1], mpc._xs[-2].start + 7
-    h_n = z[h:h + nw]
-    lo = ca.fmax((-h_max - h_n) / dt, u_lo[:nw])
-    hi = ca.fmin((h_max - h_n) / dt, u_hi[:nw])
+    u = z[us.start:us.start + nw]
+    clipped = []
+    for i in range(nw):
+        lo, hi = u_lo[i], u_hi[i]
+        if gain[i] > 0:           # a failed wheel's torque bounds are 0
+            lo = ca.fmax((-h_max[i] - z[h + i]) / gain[i], lo)
+            hi = ca.fmin((h_max[i] - z[h + i]) / gain[i], hi)
+        clipped.append(ca.fmin(ca.fmax(u[i], lo), hi))
     out = ca.MX(z)
-    out[us.start:us.start + nw] = ca.fmin(ca.fmax(z[us.start:us.start + nw],
-                                                  lo), hi)
+    out[us.start:us.start + nw] = ca.vertcat(*clipped)
     return out
 
 

@@ -298,3 +298,35 @@ def test_export_refuses_a_bad_condensed_qp(tmp_path, kw):
     with pytest.raises(InvalidValueError):
         export_c(tmp_path / "out", spacecraft="demo", horizon=4, **kw)
     assert not (tmp_path / "out" / "adcs_codegen.c").exists()
+
+
+def test_shift_tail_keeps_the_momentum_bound():
+    """`momentum_safe_tail`: the shifted plan's repeated last torque is
+    clipped so that H_N + dt·s·u stays within ±h_max, s the wheels'
+    scale factors (a failed wheel's torque stays 0); torques that keep
+    it are left alone (on an array with scale errors and a failure)."""
+    from allocation import WheelArray
+    from ocp.mpc.condensed import momentum_safe_tail
+
+    sc = load_spacecraft("demo")
+    wheels = WheelArray(sc.wheels.axes, sc.wheels.h_max, sc.wheels.m_max,
+                        failed=(3,), scale=[1.1, 0.9, 1.0, 1.0])
+    model = rigid_spacecraft(sc.inertia, wheels)
+    mpc = AttitudeMPC(model, horizon=4, dt=0.5, solver="condensed",
+                      rti=True, qp_solver="pqp")
+    zs = ca.MX.sym("z", mpc.nz)
+    tail = ca.Function("tail", [zs], [momentum_safe_tail(mpc, zs)])
+    z = np.zeros(mpc.nz)
+    h0 = mpc._xs[-2].start + 7
+    u0 = mpc._us[-1].start
+    z[h0:h0 + 4] = [0.19, -0.195, 0.0, 0.0]
+    z[u0:u0 + 4] = [0.04, -0.04, 0.03, 0.0]
+    out = np.array(tail(z)).ravel()
+    s, dt = np.array([1.1, 0.9, 1.0, 0.0]), 0.5
+    u = out[u0:u0 + 4]
+    assert np.allclose(u, [(0.2 - 0.19) / (dt * 1.1),
+                           (-0.2 + 0.195) / (dt * 0.9), 0.03, 0.0],
+                       rtol=0, atol=1e-15)
+    assert np.all(np.abs(z[h0:h0 + 4] + dt * s * u) <= 0.2 + 1e-15)
+    assert np.array_equal(np.delete(out, np.s_[u0:u0 + 4]),
+                          np.delete(z, np.s_[u0:u0 + 4]))
