@@ -158,7 +158,7 @@ def test_capped_step_meets_the_step_goals_at_horizon_15(tmp_path):
     """On the emulated M7 in double, horizon 15, pqp capped at 8: the
     driver's 86-step slew reaches the target with every step, cold one
     included, within 2,000,000 instructions and the median within
-    400,000 (docs/benchmarks.md: 1,608,800 / 913,760 / 294,960)."""
+    400,000 (docs/benchmarks.md: 1,608,560 / 913,520 / 294,760)."""
     res = export_c(tmp_path / "m7", spacecraft="demo", horizon=15,
                    mpc_variants=(STEP,), condensed_qp_plugin="pqp",
                    condensed_qp_max_iter=8, target="cortex-m7",

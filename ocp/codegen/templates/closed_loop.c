@@ -16,7 +16,7 @@ static int closed_loop(const char* name, eval_t f, work_t work,
                        double tol_viol) {
   casadi_real tau[3] = {0, 0, 0}, h = dt, cost, viol, viol1, defect;
   int k, i, mem, pmem, flag = 0, finite = 1, ok;
-  double worst = 0.0, dot = 0.0, nq = 0.0, err, tmax = 0.0, twarm = 0.0;
+  double worst = 0.0, dot = 0.0, vn = 0.0, err, tmax = 0.0, twarm = 0.0;
   if (check_work(name, work, 8, 8, steps) || check_work("rk4", rk4_work,
       4, 1, steps) || nx > ADCS_LOOP_N || nz > ADCS_LOOP_N
       || ng > ADCS_LOOP_N || nu > ADCS_LOOP_N) return 1;
@@ -54,11 +54,19 @@ static int closed_loop(const char* name, eval_t f, work_t work,
   }
   release(mem);
   rk4_release(pmem);
-  for (i = 0; i < 4; ++i) { dot += cl_x[i] * qf[i]; nq += cl_x[i] * cl_x[i]; }
+  /* the error quaternion qf* ⊗ x in double: 2 atan2(|v|, |w|) resolves
+   * what 2 acos(x·qf) cannot (0.04° with float quaternions) */
+  {
+    const double w0 = qf[0], w1 = qf[1], w2 = qf[2], w3 = qf[3];
+    const double x0 = cl_x[0], x1 = cl_x[1], x2 = cl_x[2], x3 = cl_x[3];
+    const double v1 = w0 * x1 - x0 * w1 - (w2 * x3 - w3 * x2);
+    const double v2 = w0 * x2 - x0 * w2 - (w3 * x1 - w1 * x3);
+    const double v3 = w0 * x3 - x0 * w3 - (w1 * x2 - w2 * x1);
+    dot = w0 * x0 + w1 * x1 + w2 * x2 + w3 * x3;
+    vn = sqrt(v1 * v1 + v2 * v2 + v3 * v3);
+  }
   for (i = 0; i < nx; ++i) if (!isfinite((double)cl_x[i])) finite = 0;
-  dot = fabs(dot) / sqrt(nq);
-  if (dot > 1.0) dot = 1.0;
-  err = 2.0 * acos(dot) * 57.295779513082323;
+  err = 2.0 * atan2(vn, fabs(dot)) * 57.295779513082323;
   ok = finite && err <= tol_deg && worst <= tol_viol && flag == 0;
   for (k = 0; k < steps; ++k) if (drv_t[k] > tmax) tmax = drv_t[k];
   /* the first step starts cold (x0 everywhere, no multipliers) */
