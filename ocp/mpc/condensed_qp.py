@@ -191,8 +191,9 @@ def _primal_route(N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     iterations; where y = 0 breaks a bound (no feasible start: a defect,
     or a rate beyond its bound), by DAQP's route instead (never capped).
     Returns ``[y, lam_u, lam_a, lam, capped]``: a capped point keeps
-    every bound and lowers the cost from y = 0, its multipliers are the
-    working set's least-squares estimates (`capped_residual` checks it)."""
+    every bound and lowers the cost from y = 0 (`capped_residual` checks
+    it); in place of multipliers it returns its working set's sides, ±1,
+    the next step's warm start."""
     from .primal_qp import qp_external
 
     ext = qp_external(N, nu, nw, sp_g, max_iter)
@@ -233,10 +234,8 @@ def kkt_residual(y, g, dual, v, a, lam_u, lam_a, lbu, ubu, lba, uba):
     """
     stat = ca.mmax(ca.fabs(y + g + dual))
     scale_g = 1.0 + ca.mmax(ca.fabs(g))
-    size = 1.0 + ca.mmax(ca.vertcat(ca.fabs(lbu), ca.fabs(ubu),
-                                    ca.fabs(lba), ca.fabs(uba)))
+    primal, size = _violation(v, a, lbu, ubu, lba, uba)
     lam = 1.0 + ca.mmax(ca.vertcat(ca.fabs(lam_u), ca.fabs(lam_a)))
-    primal = ca.mmax(ca.vertcat(v - ubu, lbu - v, a - uba, lba - a, 0.0))
     comp = ca.mmax(ca.vertcat(
         ca.fmax(lam_u, 0) * ca.fabs(ubu - v),
         ca.fmax(-lam_u, 0) * ca.fabs(v - lbu),
@@ -244,6 +243,16 @@ def kkt_residual(y, g, dual, v, a, lam_u, lam_a, lbu, ubu, lba, uba):
         ca.fmax(-lam_a, 0) * ca.fabs(a - lba)))
     return ca.fmax(stat / scale_g, ca.fmax(primal / size,
                                            comp / (lam * size)))
+
+
+def _violation(v, a, lbu, ubu, lba, uba) -> tuple:
+    """``(primal, size)``: the largest violation of the bounds by ``v``
+    and of the rows by ``a``, and the rows' scale ``1 + max |bound|``
+    (both certificates' feasibility term is their ratio)."""
+    size = 1.0 + ca.mmax(ca.vertcat(ca.fabs(lbu), ca.fabs(ubu),
+                                    ca.fabs(lba), ca.fabs(uba)))
+    primal = ca.mmax(ca.vertcat(v - ubu, lbu - v, a - uba, lba - a, 0.0))
+    return primal, size
 
 
 def capped_residual(y, g, v, a, lbu, ubu, lba, uba):
@@ -257,9 +266,7 @@ def capped_residual(y, g, v, a, lbu, ubu, lba, uba):
     the cost's rise (relative to ``1 + |g|²``). Zero for every iterate
     of the solver in exact arithmetic.
     """
-    size = 1.0 + ca.mmax(ca.vertcat(ca.fabs(lbu), ca.fabs(ubu),
-                                    ca.fabs(lba), ca.fabs(uba)))
-    primal = ca.mmax(ca.vertcat(v - ubu, lbu - v, a - uba, lba - a, 0.0))
+    primal, size = _violation(v, a, lbu, ubu, lba, uba)
     rise = ca.fmax(0.5 * ca.dot(y, y) + ca.dot(g, y), 0.0)
     return ca.fmax(primal / size, rise / (1.0 + ca.dot(g, g)))
 

@@ -55,7 +55,7 @@ static int closed_loop(const char* name, eval_t f, work_t work,
   release(mem);
   rk4_release(pmem);
   /* the error quaternion qf* ⊗ x in double: 2 atan2(|v|, |w|) resolves
-   * what 2 acos(x·qf) cannot (0.04° with float quaternions) */
+   * what 2 acos(x·qf) cannot (about 0.05° with float quaternions) */
   {
     const double w0 = qf[0], w1 = qf[1], w2 = qf[2], w3 = qf[3];
     const double x0 = cl_x[0], x1 = cl_x[1], x2 = cl_x[2], x3 = cl_x[3];
