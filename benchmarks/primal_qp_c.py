@@ -79,9 +79,11 @@ def host_library(out_dir: Path, precision: str = "double") -> ctypes.CDLL:
 def solve_c(lib: ctypes.CDLL, C: np.ndarray, lo: np.ndarray, hi: np.ndarray,
             f: np.ndarray, y0: np.ndarray, side: np.ndarray,
             max_iter: int = NO_CAP, tol: float = TOL["double"],
-            precision: str = "double") -> dict:
+            precision: str = "double", row_len: np.ndarray | None = None
+            ) -> dict:
     """pqp_solve on one QP through ``lib`` (`host_library`): ``y``,
-    ``side``, ``lam``, ``status`` (`STATUS`) and ``iterations``."""
+    ``side``, ``lam``, ``status`` (`STATUS`) and ``iterations``; with
+    ``row_len`` (m,), pqp_solve_len, each row read up to its length."""
     real = np.float32 if precision == "single" else np.float64
     ctype = ctypes.c_float if precision == "single" else ctypes.c_double
     m, n = C.shape
@@ -96,9 +98,14 @@ def solve_c(lib: ctypes.CDLL, C: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     def ptr(a):
         return a.ctypes.data_as(ctypes.c_void_p)
 
-    status = lib.pqp_solve(n, m, *map(ptr, arr), ptr(y), ptr(sd), ptr(lam),
-                           int(max_iter), ctype(tol), ptr(w), ptr(iw),
-                           ctypes.byref(its))
+    tail = (ptr(y), ptr(sd), ptr(lam), int(max_iter), ctype(tol), ptr(w),
+            ptr(iw), ctypes.byref(its))
+    if row_len is None:
+        status = lib.pqp_solve(n, m, *map(ptr, arr), *tail)
+    else:
+        lens = np.ascontiguousarray(row_len, dtype=np.int32)
+        status = lib.pqp_solve_len(n, m, ptr(arr[0]), ptr(lens),
+                                   *map(ptr, arr[1:]), *tail)
     return {"y": y.astype(float), "side": sd.astype(int),
             "lam": lam.astype(float), "status": STATUS[status],
             "iterations": its.value}

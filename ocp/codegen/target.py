@@ -28,6 +28,7 @@ a target export solves every QP with qrqp (generated inline).
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -179,6 +180,12 @@ def build_target(res: ExportResult, progress: bool = False
     if target not in CORES:
         raise InvalidValueError(f"res is not a Cortex-M export ({target!r})")
     core = CORES[target]
+    # the compiler runs in the export folder: a relative folder (adcs
+    # export --out build) would be looked for inside itself
+    res = ExportResult(**{**res.__dict__, "out_dir": res.out_dir.resolve(),
+                          "extras": {**res.extras, "c_sources": [
+                              str(Path(p).resolve())
+                              for p in res.extras["c_sources"]]}})
     out = res.out_dir
     flags = compile_flags(res, core)
     log: list[str] = []
@@ -186,9 +193,10 @@ def build_target(res: ExportResult, progress: bool = False
     sources = [out / f"{SOURCE}.c", *map(Path, res.extras["c_sources"])]
     for src in sources:
         obj = out / f"{src.stem}_{target}.o"
-        # every unit's frames and calls: DAQP's too
+        # every unit's frames and calls: DAQP's too (named relative to
+        # the folder, so that the .su and .ci files name no machine path)
         _cc([*flags, "-fstack-usage", "-fcallgraph-info=su", "-c",
-             str(src), "-o", str(obj)], log, out)
+             os.path.relpath(src, out), "-o", obj.name], log, out)
         objs.append(obj)
     startup = out / f"startup_{target}.o"
     _cc([*flags, "-c", str(out / STARTUP), "-o", str(startup)], log, out)

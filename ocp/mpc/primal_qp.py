@@ -81,6 +81,37 @@ def _ints(values) -> str:
     return ", ".join(str(int(v)) for v in values)
 
 
+def _row_order(N: int, nu: int, nw: int, h: int, sp_g: ca.Sparsity
+               ) -> tuple[list[int], list[int], list[int]]:
+    """``(order, at, length)`` of the wrapper's rows (wrapper.c.in): its
+    columns are G's reversed within each stage, its rows G's sorted stage
+    by stage by where they end once the diagonal blocks' zeros (W⁻¹'s are
+    upper triangular) are counted: bound row i and the momentum row of
+    wheel i (the torque of wheel i is control i) end n_u − i columns into
+    their stage, the rate rows at its end. ``order[r]``: the G row of the
+    wrapper's row r; ``at``: its inverse; ``length``: the wrapper's rows'
+    lengths in G's pattern (the last column, reversed, + 1)."""
+    colind, row = sp_g.get_ccs()
+
+    def key(r: int) -> tuple[int, int, int]:
+        s, i = divmod(r, h)
+        if i < nu:
+            return s, nu - i, 0
+        if i < nu + nw:
+            return s, nu - (i - nu), 1
+        return s, nu + 1, 2
+    order = sorted(range(sp_g.size1()), key=key)
+    at = [0] * len(order)
+    for r, g_row in enumerate(order):
+        at[g_row] = r
+    length = [0] * len(order)
+    for c in range(sp_g.size2()):
+        col = c // nu * nu + nu - 1 - c % nu
+        for r in row[colind[c]:colind[c + 1]]:
+            length[at[r]] = max(length[at[r]], col + 1)
+    return order, at, length
+
+
 def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
                    max_iter: int, precision: str = "double",
                    in_export: bool = False) -> str:
@@ -95,7 +126,9 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     ``G`` (m × n, ``sp_g``) holds the QP's rows stage by stage, h = m / N
     a stage: the bounds on δu_k (n_u), the momenta of δx_{k+1} (n_w),
     then its rates (`condensed_qp.RowLayout`). The wrapper unpacks G
-    into dense rows in its work, spreads the bounds and the warm signs
+    into dense rows in its work, each up to its last column in ``sp_g``
+    (the length `pqp.h`'s ``pqp_solve_len`` reads), spreads the bounds
+    and the warm signs
     in G's order, solves from y = 0 (at most ``max_iter`` iterations)
     and picks the multipliers back. ``in_export``: it includes the
     generated header (casadi_real, casadi_int of the export).
@@ -104,12 +137,16 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     h = m // N
     name = external_name(n, m, max_iter)
     colind, row = sp_g.get_ccs()
+    order, at, length = _row_order(N, nu, nw, h, sp_g)
     tol = PQP_TOL[precision]
     head = ('#include "../adcs_codegen.h"\n' if in_export else
             "#define casadi_real double\n#define casadi_int long long int\n")
     values = {"NAME": name, "HEAD": head, "N": N, "NU": nu, "NW": nw,
               "H": h, "NVAR": n, "M": m, "NA": m - n,
               "COLIND": _ints(colind), "ROW": _ints(row),
+              "ORDER": _ints(order), "AT": _ints(at),
+              "LEN": _ints(length),
+              "HOLES": int(sum(length) != sp_g.nnz()),
               "MAXITER": max_iter, "TOL": repr(tol)}
     text = (PQP_SOURCES / "wrapper.c.in").read_text()
     return re.sub(r"@([A-Z]+)@", lambda k: str(values[k[1]]), text)

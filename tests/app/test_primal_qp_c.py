@@ -87,6 +87,61 @@ def test_warm_start_from_the_optimum_takes_one_iteration(lib, qps):
         assert np.max(np.abs(r["lam"] - ref["lam"])) <= 1e-8
 
 
+def _vertex(rng: np.random.Generator, C: np.ndarray) -> dict:
+    """A QP whose optimum y* is the vertex of C's first n rows at their
+    upper bounds, with multipliers λ > 0 (f = -y* - C_Wᵀλ); the other
+    rows hold well inside their bounds."""
+    m, n = C.shape
+    y = rng.normal(size=n)
+    lam = rng.uniform(0.5, 2.0, n)
+    cy = C @ y
+    hi = np.r_[cy[:n], cy[n:] + 5.0]
+    lo = np.minimum(cy, 0.0) - 5.0
+    return {"C": C, "lo": lo, "hi": hi, "f": -y - C[:n].T @ lam, "y": y,
+            "lam": np.r_[lam, np.zeros(m - n)]}
+
+
+@pytest.mark.parametrize("rows", ["staircase", "dense"])
+def test_warm_factor_by_reflections(lib, rows):
+    """The warm working set's factor comes from Householder reflections
+    of its rows: started at a vertex with its n rows, one KKT solve
+    proves it optimal and gives its multipliers. Staircase rows (each
+    ending at most a stage after the one before, as the step's) take
+    every reflection; dense rows fill the reflections' room after a few
+    and the rest go through the Gram matrix."""
+    rng = np.random.default_rng(11)
+    n = 12
+    for _ in range(10):
+        if rows == "dense":
+            C = rng.normal(size=(2 * n, n))
+        else:
+            T = np.tril(rng.normal(size=(n, n))) + 3 * np.eye(n)
+            pairs = np.kron(np.eye(n // 2), [[1.5, 0.5], [0.5, 1.5]])
+            C = np.vstack([pairs @ T, T])   # rows ending two by two
+        q = _vertex(rng, C)
+        r = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], q["y"],
+                       np.r_[np.ones(n), np.zeros(n)])
+        assert (r["status"], r["iterations"]) == ("optimal", 1)
+        assert np.max(np.abs(r["lam"] - q["lam"])) <= 1e-9
+        assert np.max(np.abs(r["y"] - q["y"])) <= 1e-12
+
+
+def test_given_row_lengths_are_the_scanned_ones(lib, qps):
+    """pqp_solve_len with each row's length (its last nonzero + 1) takes
+    the same path as pqp_solve, which finds them by scanning C."""
+    for q in qps[:5]:
+        m, n = q["C"].shape
+        lens = [max((j + 1 for j in range(n) if c[j] != 0), default=0)
+                for c in q["C"]]
+        a = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], np.zeros(n),
+                       np.zeros(m))
+        b = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], np.zeros(n),
+                       np.zeros(m), row_len=np.array(lens))
+        assert a["iterations"] == b["iterations"]
+        assert np.array_equal(a["y"], b["y"])
+        assert np.array_equal(a["lam"], b["lam"])
+
+
 def test_warm_rows_off_their_bound_or_dependent_are_left_out(lib, qps):
     """Warm sides whose row is not at its bound at the start, or whose
     normal repeats one before it, are dropped: from the optimum with its

@@ -330,3 +330,42 @@ def test_shift_tail_keeps_the_momentum_bound():
     assert np.all(np.abs(z[h0:h0 + 4] + dt * s * u) <= 0.2 + 1e-15)
     assert np.array_equal(np.delete(out, np.s_[u0:u0 + 4]),
                           np.delete(z, np.s_[u0:u0 + 4]))
+
+
+def test_wrapper_rows_end_one_after_another():
+    """The wrapper reverses G's columns within each stage and orders its
+    rows by where they end (`primal_qp._row_order`): on a step's QP,
+    W⁻¹'s diagonal blocks are upper triangular, so a stage's bound row i
+    and its wheel i's momentum row end n_u − i columns into the stage;
+    the rows' ends never decrease, which keeps the warm start's
+    reflections short (pqp.c, warm_factor)."""
+    from ocp.mpc.condensed import qp_factor_function
+    from ocp.mpc.primal_qp import _row_order
+
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    N, nu = 5, model.nu
+    nw = sc.wheels.n_wheels
+    mpc = AttitudeMPC(model, horizon=N, dt=0.5, solver="condensed",
+                      rti=True)
+    x0 = random_states(model, 1, np.random.default_rng(4))[0]
+    z = np.random.default_rng(5).normal(size=mpc.nz) * 0.1
+    winv, rows = (np.array(v) for v in qp_factor_function(mpc)(
+        z, np.r_[x0, 1.0, 0, 0, 0, 0, 0, 0])[:2])
+    h = nu + nw
+    G = np.vstack([np.vstack([winv[s * nu:(s + 1) * nu],
+                              rows[s * nw:(s + 1) * nw]]) for s in range(N)])
+    sp = ca.kron(ca.DM(ca.Sparsity.lower(N), 1.0),
+                 ca.DM.ones(h, nu)).sparsity()
+    order, at, length = _row_order(N, nu, nw, h, sp)
+    assert [order[at[r]] for r in range(N * h)] == list(range(N * h))
+    col = [c // nu * nu + nu - 1 - c % nu for c in range(N * nu)]
+    C = G[order][:, col]
+    ends = [int(np.flatnonzero(c)[-1]) + 1 for c in C]
+    assert all(e <= n for e, n in zip(ends, length))
+    assert ends == sorted(ends)
+    for s in range(N):
+        for i in range(nu):
+            assert ends[at[s * h + i]] == s * nu + nu - i
+        for w in range(nw):
+            assert ends[at[s * h + nu + w]] == s * nu + nu - w

@@ -177,15 +177,23 @@ def test_unknown_target_is_an_error_and_daqp_travels(tmp_path):
     assert any(p.endswith("daqp.c") for p in res.extras["c_sources"])
 
 
-def test_cli_export_target_run_prints_counts_and_memory(tmp_path, capsys):
+def test_cli_export_target_run_prints_counts_and_memory(tmp_path, capsys,
+                                                       monkeypatch):
+    """From a folder named relative to the working directory (the
+    compiler runs inside it), and no machine path in what the build
+    leaves there (gcc's .su and .ci files name the sources)."""
     from adcs.cli import main
 
+    monkeypatch.chdir(tmp_path)
     assert main(["export", "--target", "cortex-m7", "--mpc", "",
-                 "--out", str(tmp_path), "--run"]) == 0
+                 "--out", "flight", "--run"]) == 0
     text = capsys.readouterr().out
     assert "instruction counts, not cycles" in text
     assert "memory on cortex-m7" in text and "min_norm" in text
-    assert (tmp_path / "memory_cortex-m7.json").is_file()
+    out = tmp_path / "flight"
+    assert (out / "memory_cortex-m7.json").is_file()
+    built = [p for p in out.rglob("*") if p.suffix in (".su", ".ci")]
+    assert built and not any(str(tmp_path) in p.read_text() for p in built)
 
 
 def test_m7_condensed_closed_loop_equals_the_host(tmp_path):

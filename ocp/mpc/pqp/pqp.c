@@ -3,7 +3,8 @@
  * algorithm 16.3) for the QP of Hessian I: the working set's step is
  * p = -(r - C_Wᵀ t), M t = C_W r, r = y + f, with the Cholesky factor
  * L of M = C_W C_Wᵀ kept by a row added (one forward solve) or dropped
- * (Givens rotations). See pqp.h. */
+ * (Givens rotations). The warm working set's factor comes from
+ * Householder reflections of its rows instead (warm_factor). See pqp.h. */
 #include "pqp.h"
 
 #include <math.h>
@@ -95,6 +96,98 @@ static void factor_drop(int k, int q, pqp_real* L, pqp_real* v) {
   }
 }
 
+/* Reflect x by the reflections in store[0, used): each is a header
+ * (its first index i times n + 1, plus its length l), beta, then the
+ * l - 1 entries of its vector after the first (which is 1); it acts on
+ * x[i, i + l). */
+static void reflect(int n, const pqp_real* store, long used, pqp_real* x) {
+  const pqp_real* end = store + used;
+  while (store < end) {
+    const int head = (int)store[0], i = head / (n + 1), l = head % (n + 1);
+    const pqp_real* u = store + 2;
+    pqp_real* xi = x + i;
+    pqp_real s = xi[0];
+    int t;
+    for (t = 1; t < l; ++t) s += u[t - 1] * xi[t];
+    s *= store[1];
+    xi[0] -= s;
+    for (t = 1; t < l; ++t) xi[t] -= s * u[t - 1];
+    store += l + 1;
+  }
+}
+
+/* The factor of the warm working set: each row at its bound (in order)
+ * reflected by its predecessors' Householder reflections (Golub & Van
+ * Loan, Matrix Computations, 4th ed., algorithms 5.1.1 and 5.2.1, on
+ * C_Wᵀ): L = R of C_Wᵀ = QR, R's column k the reflected row's first k
+ * entries and the norm of the rest (the entry itself, of either sign,
+ * where the rest is that one entry: no reflection). The rows of the
+ * step's QP are stage by stage, each row's nonzeros a prefix no longer
+ * than the next's by more than a stage, so the reflections are a few
+ * entries long and few: this costs a small share of forming the Gram
+ * matrix (factor_add). They are stored in [store, store + *used);
+ * when they fill it, the rest of the rows go through factor_add. x: n
+ * reals of scratch. Returns the number of rows in ws; *used: the reals
+ * the reflections take, or -1 if they did not reach every row. */
+static int warm_factor(int n, int m, const pqp_real* C, const int* len,
+                       const pqp_real* lo, const pqp_real* hi,
+                       const pqp_real* Cy, const pqp_real* norm,
+                       pqp_real tol, signed char* side, int* ws,
+                       pqp_real* L, pqp_real* store, long* used_out,
+                       pqp_real* x) {
+  const long cap = *used_out;
+  int i, j, k = 0, e = 0, reflecting = 1;
+  long used = 0;
+  for (j = 0; j < m; ++j) {
+    const pqp_real* c = C + (long)j * n;
+    pqp_real b, sigma, x0, mu;
+    int top;
+    if (!side[j]) continue;
+    b = side[j] > 0 ? hi[j] : lo[j];
+    if (k == n || PQP_FABS(Cy[j] - b) > tol * (1 + PQP_FABS(b))) {
+      side[j] = 0;
+      continue;
+    }
+    if (!reflecting) {
+      if (factor_add(n, C, len, ws, k, j, norm[j], L))
+        side[j] = 0;
+      else
+        ws[k++] = j;
+      continue;
+    }
+    top = len[j] > e ? len[j] : e;
+    for (i = 0; i < len[j]; ++i) x[i] = c[i];
+    for (; i < top; ++i) x[i] = 0;
+    reflect(n, store, used, x);
+    sigma = top > k + 1 ? dot(top - k - 1, x + k + 1, x + k + 1) : 0;
+    x0 = top > k ? x[k] : 0;
+    mu = PQP_SQRT(x0 * x0 + sigma);
+    if (mu <= PQP_DEP * PQP_SQRT(norm[j])) {
+      side[j] = 0; /* it depends on the rows before it */
+      continue;
+    }
+    for (i = 0; i < k; ++i) LROW(L, k)[i] = x[i];
+    e = top;
+    if (sigma == 0) {
+      LROW(L, k)[k] = x0; /* nothing to reflect */
+    } else if (used + (top - k) + 1 > cap) {
+      LROW(L, k)[k] = mu; /* no room for its reflection: the rest */
+      reflecting = 0;      /* of the rows through factor_add */
+    } else {
+      /* v = (1, x[k+1, top) / v0) maps x[k, top) to (mu, 0, ...) */
+      const pqp_real v0 = x0 <= 0 ? x0 - mu : -sigma / (x0 + mu);
+      store[used] = (pqp_real)(k * (n + 1) + (top - k));
+      store[used + 1] = 2 * v0 * v0 / (sigma + v0 * v0);
+      for (i = k + 1; i < top; ++i) store[used + 1 + i - k] = x[i] / v0;
+      used += top - k + 1;
+      LROW(L, k)[k] = mu;
+    }
+    ws[k++] = j;
+  }
+  *used_out = reflecting ? used : -1;
+  return k;
+}
+
 /* rows parked at their bound (side ±2) back out of the working set */
 static void unpark(int m, signed char* side) {
   int j;
@@ -106,15 +199,30 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
               const pqp_real* hi, const pqp_real* f, pqp_real* y,
               signed char* side, pqp_real* lam, int max_iter, pqp_real tol,
               pqp_real* w, int* iw, int* iterations) {
-  pqp_real *L = w, *r = L + n * (n + 1) / 2, *p = r + n, *t = p + n,
-           *v = t + n, *Cy = v + n, *Cp = Cy + m, *norm = Cp + m;
+  return pqp_solve_len(n, m, C, 0, lo, hi, f, y, side, lam, max_iter, tol,
+                       w, iw, iterations);
+}
+
+int pqp_solve_len(int n, int m, const pqp_real* C, const int* row_len,
+                  const pqp_real* lo, const pqp_real* hi, const pqp_real* f,
+                  pqp_real* y, signed char* side, pqp_real* lam,
+                  int max_iter, pqp_real tol, pqp_real* w, int* iw,
+                  int* iterations) {
+  /* r, p, v and Cp follow L: the warm start's reflections are stored
+   * there, beyond the rows its factor can take, before they are used */
+  pqp_real *L = w, *r = L + n * (n + 1) / 2, *p = r + n, *v = p + n,
+           *Cp = v + n, *t = Cp + m, *Cy = t + n, *norm = Cy + m;
   int *ws = iw, *len = iw + n;
-  int i, j, k = 0, it, at_zero = 1;
+  int i, j, k = 0, it, at_zero = 1, warm = 0;
+  long reflected;
   for (i = 0; i < n; ++i) at_zero = at_zero && y[i] == 0;
   for (j = 0; j < m; ++j) {
     const pqp_real* c = C + (long)j * n;
-    for (len[j] = n; len[j] > 0 && c[len[j] - 1] == 0; --len[j]) {
-    }
+    if (row_len)
+      len[j] = row_len[j];
+    else
+      for (len[j] = n; len[j] > 0 && c[len[j] - 1] == 0; --len[j]) {
+      }
     lam[j] = 0;
     norm[j] = dot(len[j], c, c);
     Cy[j] = at_zero ? 0 : dot(len[j], c, y);
@@ -123,23 +231,25 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
       return PQP_INFEASIBLE_START;
   }
   /* the warm rows at their bound, independent ones in order */
-  for (j = 0; j < m; ++j) {
-    pqp_real b;
-    if (!side[j]) continue;
-    b = side[j] > 0 ? hi[j] : lo[j];
-    if (k == n || PQP_FABS(Cy[j] - b) > tol * (1 + PQP_FABS(b)) ||
-        factor_add(n, C, len, ws, k, j, norm[j], L)) {
-      side[j] = 0;
-      continue;
-    }
-    ws[k++] = j;
-  }
+  for (j = 0; j < m; ++j) warm += side[j] != 0;
+  if (warm > n) warm = n;
+  reflected = (long)(Cp + m - LROW(L, warm));
+  k = warm_factor(n, m, C, len, lo, hi, Cy, norm, tol, side, ws, L,
+                  LROW(L, warm), &reflected, t);
   /* v = L⁻¹ C_W r, kept from here on: a step leaves C_W r unchanged
-   * (C_W p = 0), a row added appends one entry, one dropped rotates v */
-  for (i = 0; i < n; ++i) r[i] = y[i] + f[i];
-  for (i = 0; i < k; ++i) {
-    v[i] = dot(len[ws[i]], C + (long)ws[i] * n, r) - dot(i, LROW(L, i), v);
-    v[i] /= LROW(L, i)[i];
+   * (C_W p = 0), a row added appends one entry, one dropped rotates v.
+   * C_W = L Qᵀ (the first k columns of warm_factor's Q), so v is the
+   * first k entries of Qᵀ r where every warm row was reflected. */
+  for (i = 0; i < n; ++i) t[i] = y[i] + f[i];
+  if (reflected >= 0) {
+    reflect(n, LROW(L, warm), reflected, t);
+    for (i = 0; i < k; ++i) v[i] = t[i];
+  } else {
+    for (i = 0; i < k; ++i) {
+      v[i] = dot(len[ws[i]], C + (long)ws[i] * n, t) -
+             dot(i, LROW(L, i), v);
+      v[i] /= LROW(L, i)[i];
+    }
   }
   for (it = 1; it <= max_iter; ++it) {
     pqp_real pmax = 0, pnorm = 0, alpha = 1, rmax = 0;
@@ -150,17 +260,34 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
       if (PQP_FABS(r[i]) > rmax) rmax = PQP_FABS(r[i]);
     }
     for (i = 0; i < k; ++i) t[i] = v[i];
-    for (i = k - 1; i >= 0; --i) {
-      const pqp_real* row = LROW(L, i);
-      t[i] /= row[i];
-      for (j = 0; j < i; ++j) t[j] -= row[j] * t[i];
+    /* Lᵀ t = v, two columns of L a pass (the same operations, in the
+     * same order, as one at a time: half the loads and stores of t) */
+    for (i = k - 1; i >= 1; i -= 2) {
+      const pqp_real *a = LROW(L, i), *b = LROW(L, i - 1);
+      const pqp_real ta = t[i] / a[i];
+      const pqp_real tb = (t[i - 1] - a[i - 1] * ta) / b[i - 1];
+      t[i] = ta;
+      t[i - 1] = tb;
+      for (j = 0; j < i - 1; ++j) t[j] = t[j] - a[j] * ta - b[j] * tb;
     }
-    for (i = 0; i < n; ++i) p[i] = -r[i];
-    for (i = 0; i < k; ++i) {
-      const pqp_real* c = C + (long)ws[i] * n;
-      for (j = 0; j < len[ws[i]]; ++j) p[j] += t[i] * c[j];
+    if (i == 0) t[0] /= L[0];
+    /* n independent rows leave no step: p = 0 */
+    for (i = 0; i < n && k < n; ++i) p[i] = -r[i];
+    for (i = 0; i < k && k < n; i += 2) {
+      /* two rows a pass, likewise */
+      const pqp_real *a = C + (long)ws[i] * n, ta = t[i];
+      const int la = len[ws[i]];
+      if (i + 1 < k) {
+        const pqp_real *b = C + (long)ws[i + 1] * n, tb = t[i + 1];
+        const int lb = len[ws[i + 1]], l = la < lb ? la : lb;
+        for (j = 0; j < l; ++j) p[j] = p[j] + ta * a[j] + tb * b[j];
+        for (; j < la; ++j) p[j] += ta * a[j];
+        for (j = l; j < lb; ++j) p[j] += tb * b[j];
+      } else {
+        for (j = 0; j < la; ++j) p[j] += ta * a[j];
+      }
     }
-    for (i = 0; i < n; ++i) {
+    for (i = 0; i < n && k < n; ++i) {
       pqp_real a = PQP_FABS(p[i]);
       if (a > pmax) pmax = a;
       pnorm += p[i] * p[i];

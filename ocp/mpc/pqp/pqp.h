@@ -42,4 +42,13 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
               signed char* side, pqp_real* lam, int max_iter, pqp_real tol,
               pqp_real* w, int* iw, int* iterations);
 
+/* pqp_solve with each row's length given (row_len, m; NULL: found by
+ * scanning C): row j of C is read in columns [0, row_len[j]) only, its
+ * entries beyond taken as zero. */
+int pqp_solve_len(int n, int m, const pqp_real* C, const int* row_len,
+                  const pqp_real* lo, const pqp_real* hi, const pqp_real* f,
+                  pqp_real* y, signed char* side, pqp_real* lam,
+                  int max_iter, pqp_real tol, pqp_real* w, int* iw,
+                  int* iterations);
+
 #endif
