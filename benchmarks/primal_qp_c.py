@@ -60,7 +60,7 @@ TOL = {"double": 1e-10, "single": 1e-4}
 #: Iterations of an uncapped solve.
 NO_CAP = 1000
 #: Statuses of pqp_solve (pqp.h).
-STATUS = ("optimal", "iteration limit", "infeasible start")
+STATUS = ("optimal", "iteration limit", "infeasible start", "invalid input")
 
 
 def host_library(out_dir: Path, precision: str = "double") -> ctypes.CDLL:
@@ -79,14 +79,19 @@ def host_library(out_dir: Path, precision: str = "double") -> ctypes.CDLL:
 def solve_c(lib: ctypes.CDLL, C: np.ndarray, lo: np.ndarray, hi: np.ndarray,
             f: np.ndarray, y0: np.ndarray, side: np.ndarray,
             max_iter: int = NO_CAP, tol: float = TOL["double"],
-            precision: str = "double", row_len: np.ndarray | None = None
-            ) -> dict:
+            precision: str = "double", row_len: np.ndarray | None = None,
+            packed: bool = False) -> dict:
     """pqp_solve on one QP through ``lib`` (`host_library`): ``y``,
-    ``side``, ``lam``, ``status`` (`STATUS`) and ``iterations``; with
-    ``row_len`` (m,), pqp_solve_len, each row read up to its length."""
+    ``side``, ``lam``, ``status`` (`STATUS`) and ``iterations``. With
+    ``row_len`` (m,): pqp_solve_rows, each row read up to its length;
+    ``packed``: the rows so cut, one after the other (row_start)."""
     real = np.float32 if precision == "single" else np.float64
     ctype = ctypes.c_float if precision == "single" else ctypes.c_double
     m, n = C.shape
+    starts = None
+    if packed:
+        starts = np.r_[0, np.cumsum(row_len)[:-1]].astype(np.int32)
+        C = np.concatenate([c[:k] for c, k in zip(C, row_len)])
     arr = [np.ascontiguousarray(a, dtype=real) for a in (C, lo, hi, f)]
     y = np.array(y0, dtype=real)
     sd = np.array(side, dtype=np.int8)
@@ -100,12 +105,13 @@ def solve_c(lib: ctypes.CDLL, C: np.ndarray, lo: np.ndarray, hi: np.ndarray,
 
     tail = (ptr(y), ptr(sd), ptr(lam), int(max_iter), ctype(tol), ptr(w),
             ptr(iw), ctypes.byref(its))
-    if row_len is None:
+    if row_len is None and starts is None:
         status = lib.pqp_solve(n, m, *map(ptr, arr), *tail)
     else:
         lens = np.ascontiguousarray(row_len, dtype=np.int32)
-        status = lib.pqp_solve_len(n, m, ptr(arr[0]), ptr(lens),
-                                   *map(ptr, arr[1:]), *tail)
+        status = lib.pqp_solve_rows(n, m, ptr(arr[0]), None if starts is
+                                    None else ptr(starts), ptr(lens),
+                                    *map(ptr, arr[1:]), *tail)
     return {"y": y.astype(float), "side": sd.astype(int),
             "lam": lam.astype(float), "status": STATUS[status],
             "iterations": its.value}
@@ -172,7 +178,7 @@ static pqp_real C[MMAX * NMAX], lo[MMAX], hi[MMAX], f[NMAX], yref[NMAX];
 static pqp_real y[NMAX], lam[MMAX], w[NMAX * (NMAX + 1) / 2 + 4 * NMAX
                                       + 3 * MMAX];
 static signed char side0[MMAX], side[MMAX];
-static int iw[NMAX + MMAX];
+static int iw[NMAX + 2 * MMAX];
 
 static int read_all(FILE* fh, void* p, size_t size, size_t count) {
   return fread(p, size, count, fh) == count;

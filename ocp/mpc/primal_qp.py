@@ -112,6 +112,25 @@ def _row_order(N: int, nu: int, nw: int, h: int, sp_g: ca.Sparsity
     return order, at, length
 
 
+def _column_runs(sp: ca.Sparsity) -> tuple[list[int], list[int]]:
+    """``(colrun, runs)``: each column's nonzeros as runs of consecutive
+    rows, ``runs`` flat (first row, count) pairs, column c's from pair
+    ``colrun[c]`` to ``colrun[c + 1]`` (one run a column for G's stage
+    blocks)."""
+    colind, row = sp.get_ccs()
+    colrun: list[int] = [0]
+    runs: list[int] = []
+    for c in range(sp.size2()):
+        for r in row[colind[c]:colind[c + 1]]:
+            if runs and len(runs) // 2 > colrun[-1] and \
+                    runs[-2] + runs[-1] == r:
+                runs[-1] += 1
+            else:
+                runs += [r, 1]
+        colrun.append(len(runs) // 2)
+    return colrun, runs
+
+
 def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
                    max_iter: int, precision: str = "double",
                    in_export: bool = False) -> str:
@@ -126,10 +145,9 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     ``G`` (m × n, ``sp_g``) holds the QP's rows stage by stage, h = m / N
     a stage: the bounds on δu_k (n_u), the momenta of δx_{k+1} (n_w),
     then its rates (`condensed_qp.RowLayout`). The wrapper unpacks G
-    into dense rows in its work, each up to its last column in ``sp_g``
-    (the length `pqp.h`'s ``pqp_solve_len`` reads), spreads the bounds
-    and the warm signs
-    in G's order, solves from y = 0 (at most ``max_iter`` iterations)
+    into rows in its work, each up to its last column in ``sp_g`` and
+    packed one after the other (`pqp.h`'s ``pqp_solve_rows``), spreads
+    the bounds and the warm signs in G's order, solves from y = 0 (at most ``max_iter`` iterations)
     and picks the multipliers back. ``in_export``: it includes the
     generated header (casadi_real, casadi_int of the export).
     """
@@ -138,14 +156,18 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     name = external_name(n, m, max_iter)
     colind, row = sp_g.get_ccs()
     order, at, length = _row_order(N, nu, nw, h, sp_g)
+    start = [sum(length[:r]) for r in range(m)]
+    colrun, runs = _column_runs(sp_g)
     tol = PQP_TOL[precision]
     head = ('#include "../adcs_codegen.h"\n' if in_export else
             "#define casadi_real double\n#define casadi_int long long int\n")
     values = {"NAME": name, "HEAD": head, "N": N, "NU": nu, "NW": nw,
               "H": h, "NVAR": n, "M": m, "NA": m - n,
               "COLIND": _ints(colind), "ROW": _ints(row),
-              "ORDER": _ints(order), "AT": _ints(at),
-              "LEN": _ints(length),
+              "ORDER": _ints(order), "LEN": _ints(length),
+              "PACKED": sum(length), "START": _ints(start),
+              "GOES": _ints(start[at[i]] for i in range(m)),
+              "COLRUN": _ints(colrun), "RUNS": _ints(runs),
               "HOLES": int(sum(length) != sp_g.nnz()),
               "MAXITER": max_iter, "TOL": repr(tol)}
     text = (PQP_SOURCES / "wrapper.c.in").read_text()

@@ -127,8 +127,9 @@ def test_warm_factor_by_reflections(lib, rows):
 
 
 def test_given_row_lengths_are_the_scanned_ones(lib, qps):
-    """pqp_solve_len with each row's length (its last nonzero + 1) takes
-    the same path as pqp_solve, which finds them by scanning C."""
+    """pqp_solve_rows with each row's length (its last nonzero + 1),
+    the rows in place or packed one after the other, takes the same path
+    as pqp_solve, which finds the lengths by scanning C."""
     for q in qps[:5]:
         m, n = q["C"].shape
         lens = [max((j + 1 for j in range(n) if c[j] != 0), default=0)
@@ -137,9 +138,12 @@ def test_given_row_lengths_are_the_scanned_ones(lib, qps):
                        np.zeros(m))
         b = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], np.zeros(n),
                        np.zeros(m), row_len=np.array(lens))
-        assert a["iterations"] == b["iterations"]
-        assert np.array_equal(a["y"], b["y"])
-        assert np.array_equal(a["lam"], b["lam"])
+        c = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], np.zeros(n),
+                       np.zeros(m), row_len=np.array(lens), packed=True)
+        for r in (b, c):
+            assert a["iterations"] == r["iterations"]
+            assert np.array_equal(a["y"], r["y"])
+            assert np.array_equal(a["lam"], r["lam"])
 
 
 def test_warm_rows_off_their_bound_or_dependent_are_left_out(lib, qps):
@@ -330,3 +334,28 @@ def test_nearly_dependent_rows_do_not_join(lib):
     assert r["status"] == "optimal"
     assert np.all(v <= hi + 1e-9) and np.all(v >= lo - 1e-9)
     assert np.max(np.abs(r["y"] - ref["x"])) <= 1e-7
+
+
+def test_packed_rows_need_their_lengths(lib):
+    """Rows packed one after the other cannot be scanned for their
+    lengths: pqp_solve_rows refuses them without ``row_len``."""
+    import ctypes
+
+    n, m = 2, 2
+    C = np.ones(3)
+    start = np.array([0, 1], dtype=np.int32)
+    lo, hi, f = -np.ones(m), np.ones(m), np.zeros(n)
+    y, lam = np.zeros(n), np.zeros(m)
+    side = np.zeros(m, dtype=np.int8)
+    w = np.zeros(lib.pqp_work_size(n, m))
+    iw = np.zeros(lib.pqp_iwork_size(n, m), dtype=np.int32)
+    its = ctypes.c_int(-1)
+
+    def ptr(a):
+        return a.ctypes.data_as(ctypes.c_void_p)
+
+    status = lib.pqp_solve_rows(n, m, ptr(C), ptr(start), None, ptr(lo),
+                                ptr(hi), ptr(f), ptr(y), ptr(side), ptr(lam),
+                                10, ctypes.c_double(1e-10), ptr(w), ptr(iw),
+                                ctypes.byref(its))
+    assert pc.STATUS[status] == "invalid input" and its.value == 0

@@ -31,7 +31,7 @@
 
 int pqp_work_size(int n, int m) { return n * (n + 1) / 2 + 4 * n + 3 * m; }
 
-int pqp_iwork_size(int n, int m) { return n + m; }
+int pqp_iwork_size(int n, int m) { return n + 2 * m; }
 
 /* four partial sums: the loop the solver spends its time in, unrolled
  * by hand so that any compiler keeps the FPU busy */
@@ -49,17 +49,18 @@ static pqp_real dot(int n, const pqp_real* a, const pqp_real* b) {
 }
 
 /* Add row j to the factor of the k rows in ws; 0, or 1 if it depends on
- * them (relative to its norm). len: each row's nonzero prefix. */
-static int factor_add(int n, const pqp_real* C, const int* len,
+ * them (relative to its norm). Row i of C: len[i] entries at C +
+ * start[i] (its nonzero prefix). */
+static int factor_add(const pqp_real* C, const int* start, const int* len,
                       const int* ws, int k, int j, pqp_real norm2,
                       pqp_real* L) {
   pqp_real* row = LROW(L, k);
-  const pqp_real* c = C + (long)j * n;
+  const pqp_real* c = C + start[j];
   pqp_real d = norm2;
   int i;
   for (i = 0; i < k; ++i) {
     const int l = len[ws[i]] < len[j] ? len[ws[i]] : len[j];
-    pqp_real v = dot(l, C + (long)ws[i] * n, c);
+    pqp_real v = dot(l, C + start[ws[i]], c);
     v -= dot(i, LROW(L, i), row);
     row[i] = v / LROW(L, i)[i];
     d -= row[i] * row[i];
@@ -129,7 +130,8 @@ static void reflect(int n, const pqp_real* store, long used, pqp_real* x) {
  * when they fill it, the rest of the rows go through factor_add. x: n
  * reals of scratch. Returns the number of rows in ws; *used: the reals
  * the reflections take, or -1 if they did not reach every row. */
-static int warm_factor(int n, int m, const pqp_real* C, const int* len,
+static int warm_factor(int n, int m, const pqp_real* C, const int* start,
+                       const int* len,
                        const pqp_real* lo, const pqp_real* hi,
                        const pqp_real* Cy, const pqp_real* norm,
                        pqp_real tol, signed char* side, int* ws,
@@ -139,7 +141,7 @@ static int warm_factor(int n, int m, const pqp_real* C, const int* len,
   int i, j, k = 0, e = 0, reflecting = 1;
   long used = 0;
   for (j = 0; j < m; ++j) {
-    const pqp_real* c = C + (long)j * n;
+    const pqp_real* c = C + start[j];
     pqp_real b, sigma, x0, mu;
     int top;
     if (!side[j]) continue;
@@ -149,7 +151,7 @@ static int warm_factor(int n, int m, const pqp_real* C, const int* len,
       continue;
     }
     if (!reflecting) {
-      if (factor_add(n, C, len, ws, k, j, norm[j], L))
+      if (factor_add(C, start, len, ws, k, j, norm[j], L))
         side[j] = 0;
       else
         ws[k++] = j;
@@ -199,25 +201,29 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
               const pqp_real* hi, const pqp_real* f, pqp_real* y,
               signed char* side, pqp_real* lam, int max_iter, pqp_real tol,
               pqp_real* w, int* iw, int* iterations) {
-  return pqp_solve_len(n, m, C, 0, lo, hi, f, y, side, lam, max_iter, tol,
-                       w, iw, iterations);
+  return pqp_solve_rows(n, m, C, 0, 0, lo, hi, f, y, side, lam, max_iter,
+                        tol, w, iw, iterations);
 }
 
-int pqp_solve_len(int n, int m, const pqp_real* C, const int* row_len,
-                  const pqp_real* lo, const pqp_real* hi, const pqp_real* f,
-                  pqp_real* y, signed char* side, pqp_real* lam,
-                  int max_iter, pqp_real tol, pqp_real* w, int* iw,
-                  int* iterations) {
+int pqp_solve_rows(int n, int m, const pqp_real* C, const int* row_start,
+                   const int* row_len, const pqp_real* lo,
+                   const pqp_real* hi, const pqp_real* f, pqp_real* y,
+                   signed char* side, pqp_real* lam, int max_iter,
+                   pqp_real tol, pqp_real* w, int* iw, int* iterations) {
   /* r, p, v and Cp follow L: the warm start's reflections are stored
    * there, beyond the rows its factor can take, before they are used */
   pqp_real *L = w, *r = L + n * (n + 1) / 2, *p = r + n, *v = p + n,
            *Cp = v + n, *t = Cp + m, *Cy = t + n, *norm = Cy + m;
-  int *ws = iw, *len = iw + n;
+  int *ws = iw, *len = iw + n, *start = len + m;
   int i, j, k = 0, it, at_zero = 1, warm = 0;
   long reflected;
+  *iterations = 0;
+  if (row_start && !row_len) return PQP_INVALID_INPUT;
   for (i = 0; i < n; ++i) at_zero = at_zero && y[i] == 0;
   for (j = 0; j < m; ++j) {
-    const pqp_real* c = C + (long)j * n;
+    const pqp_real* c;
+    start[j] = row_start ? row_start[j] : j * n;
+    c = C + start[j];
     if (row_len)
       len[j] = row_len[j];
     else
@@ -234,7 +240,7 @@ int pqp_solve_len(int n, int m, const pqp_real* C, const int* row_len,
   for (j = 0; j < m; ++j) warm += side[j] != 0;
   if (warm > n) warm = n;
   reflected = (long)(Cp + m - LROW(L, warm));
-  k = warm_factor(n, m, C, len, lo, hi, Cy, norm, tol, side, ws, L,
+  k = warm_factor(n, m, C, start, len, lo, hi, Cy, norm, tol, side, ws, L,
                   LROW(L, warm), &reflected, t);
   /* v = L⁻¹ C_W r, kept from here on: a step leaves C_W r unchanged
    * (C_W p = 0), a row added appends one entry, one dropped rotates v.
@@ -246,7 +252,7 @@ int pqp_solve_len(int n, int m, const pqp_real* C, const int* row_len,
     for (i = 0; i < k; ++i) v[i] = t[i];
   } else {
     for (i = 0; i < k; ++i) {
-      v[i] = dot(len[ws[i]], C + (long)ws[i] * n, t) -
+      v[i] = dot(len[ws[i]], C + start[ws[i]], t) -
              dot(i, LROW(L, i), v);
       v[i] /= LROW(L, i)[i];
     }
@@ -275,10 +281,10 @@ int pqp_solve_len(int n, int m, const pqp_real* C, const int* row_len,
     for (i = 0; i < n && k < n; ++i) p[i] = -r[i];
     for (i = 0; i < k && k < n; i += 2) {
       /* two rows a pass, likewise */
-      const pqp_real *a = C + (long)ws[i] * n, ta = t[i];
+      const pqp_real *a = C + start[ws[i]], ta = t[i];
       const int la = len[ws[i]];
       if (i + 1 < k) {
-        const pqp_real *b = C + (long)ws[i + 1] * n, tb = t[i + 1];
+        const pqp_real *b = C + start[ws[i + 1]], tb = t[i + 1];
         const int lb = len[ws[i + 1]], l = la < lb ? la : lb;
         for (j = 0; j < l; ++j) p[j] = p[j] + ta * a[j] + tb * b[j];
         for (; j < la; ++j) p[j] += ta * a[j];
@@ -321,7 +327,7 @@ int pqp_solve_len(int n, int m, const pqp_real* C, const int* row_len,
         Cp[j] = 0; /* C_W p = 0: the working rows stay at their bound */
         continue;
       }
-      Cp[j] = dot(len[j], C + (long)j * n, p);
+      Cp[j] = dot(len[j], C + start[j], p);
       if (PQP_FABS(Cp[j]) <= PQP_MOVE * pnorm * PQP_SQRT(norm[j])) continue;
       room = ((Cp[j] > 0 ? hi[j] : lo[j]) - Cy[j]) / Cp[j];
       if (room < alpha) alpha = room > 0 ? room : 0, block = j;
@@ -329,7 +335,7 @@ int pqp_solve_len(int n, int m, const pqp_real* C, const int* row_len,
     for (i = 0; i < n; ++i) y[i] += alpha * p[i];
     for (j = 0; j < m; ++j) Cy[j] += alpha * Cp[j];
     if (block >= 0) {
-      if (k == n || factor_add(n, C, len, ws, k, block, norm[block], L)) {
+      if (k == n || factor_add(C, start, len, ws, k, block, norm[block], L)) {
         /* a row the working set already holds at its bound (in exact
          * arithmetic it could not block): parked, out of the ratio test
          * until a row leaves */
@@ -338,7 +344,7 @@ int pqp_solve_len(int n, int m, const pqp_real* C, const int* row_len,
       }
       side[block] = Cp[block] > 0 ? 1 : -1;
       /* the new entry of v, from c·(y + f) = c·y + c·f */
-      v[k] = Cy[block] + dot(len[block], C + (long)block * n, f) -
+      v[k] = Cy[block] + dot(len[block], C + start[block], f) -
              dot(k, LROW(L, k), v);
       v[k] /= LROW(L, k)[k];
       ws[k++] = block;

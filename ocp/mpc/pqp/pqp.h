@@ -21,6 +21,7 @@ typedef double pqp_real;
 #define PQP_OPTIMAL 0
 #define PQP_ITERATION_LIMIT 1
 #define PQP_INFEASIBLE_START 2
+#define PQP_INVALID_INPUT 3
 
 /* reals and ints of the work arrays for n variables and m rows */
 int pqp_work_size(int n, int m);
@@ -42,13 +43,15 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
               signed char* side, pqp_real* lam, int max_iter, pqp_real tol,
               pqp_real* w, int* iw, int* iterations);
 
-/* pqp_solve with each row's length given (row_len, m; NULL: found by
- * scanning C): row j of C is read in columns [0, row_len[j]) only, its
- * entries beyond taken as zero. */
-int pqp_solve_len(int n, int m, const pqp_real* C, const int* row_len,
-                  const pqp_real* lo, const pqp_real* hi, const pqp_real* f,
-                  pqp_real* y, signed char* side, pqp_real* lam,
-                  int max_iter, pqp_real tol, pqp_real* w, int* iw,
-                  int* iterations);
+/* pqp_solve with C's rows laid out by the caller: row j's entries in
+ * columns [0, row_len[j]) at C + row_start[j] (m each), its entries
+ * beyond taken as zero. row_start NULL: rows of n entries one after the
+ * other (C + j n); row_len NULL: found by scanning C, only so (with
+ * row_start NULL: else PQP_INVALID_INPUT). */
+int pqp_solve_rows(int n, int m, const pqp_real* C, const int* row_start,
+                   const int* row_len, const pqp_real* lo,
+                   const pqp_real* hi, const pqp_real* f, pqp_real* y,
+                   signed char* side, pqp_real* lam, int max_iter,
+                   pqp_real tol, pqp_real* w, int* iw, int* iterations);
 
 #endif
