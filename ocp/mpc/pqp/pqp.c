@@ -98,9 +98,9 @@ static void factor_drop(int k, int q, pqp_real* L, pqp_real* v) {
 }
 
 /* Reflect x by the reflections in store[0, used): each is a header
- * (its first index i times n + 1, plus its length l), beta, then the
- * l - 1 entries of its vector after the first (which is 1); it acts on
- * x[i, i + l). */
+ * (its first index i times n + 1, plus its length l: an integer, exact
+ * in float for n < 4096), beta, then the l - 1 entries of its vector
+ * after the first (which is 1); it acts on x[i, i + l). */
 static void reflect(int n, const pqp_real* store, long used, pqp_real* x) {
   const pqp_real* end = store + used;
   while (store < end) {
@@ -131,12 +131,11 @@ static void reflect(int n, const pqp_real* store, long used, pqp_real* x) {
  * reals of scratch. Returns the number of rows in ws; *used: the reals
  * the reflections take, or -1 if they did not reach every row. */
 static int warm_factor(int n, int m, const pqp_real* C, const int* start,
-                       const int* len,
-                       const pqp_real* lo, const pqp_real* hi,
-                       const pqp_real* Cy, const pqp_real* norm,
-                       pqp_real tol, signed char* side, int* ws,
-                       pqp_real* L, pqp_real* store, long* used_out,
-                       pqp_real* x) {
+                       const int* len, const pqp_real* lo,
+                       const pqp_real* hi, const pqp_real* Cy,
+                       const pqp_real* norm, pqp_real tol, signed char* side,
+                       int* ws, pqp_real* L, pqp_real* store,
+                       long* used_out, pqp_real* x) {
   const long cap = *used_out;
   int i, j, k = 0, e = 0, reflecting = 1;
   long used = 0;
