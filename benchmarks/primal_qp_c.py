@@ -175,10 +175,9 @@ _MAIN = r"""
 #define MMAX @MMAX@
 #define CMAX 8
 static pqp_real C[MMAX * NMAX], lo[MMAX], hi[MMAX], f[NMAX], yref[NMAX];
-static pqp_real y[NMAX], lam[MMAX], w[NMAX * (NMAX + 1) / 2 + 4 * NMAX
-                                      + 3 * MMAX];
+static pqp_real y[NMAX], lam[MMAX], w[PQP_WORK_SIZE(NMAX, MMAX)];
 static signed char side0[MMAX], side[MMAX];
-static int iw[NMAX + 2 * MMAX];
+static int iw[PQP_IWORK_SIZE(NMAX, MMAX)];
 
 static int read_all(FILE* fh, void* p, size_t size, size_t count) {
   return fread(p, size, count, fh) == count;

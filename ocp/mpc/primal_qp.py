@@ -43,6 +43,7 @@ import re
 import shutil
 import tempfile
 import threading
+from itertools import accumulate
 from pathlib import Path
 
 import casadi as ca
@@ -147,8 +148,8 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     then its rates (`condensed_qp.RowLayout`). The wrapper unpacks G
     into rows in its work, each up to its last column in ``sp_g`` and
     packed one after the other (`pqp.h`'s ``pqp_solve_rows``), spreads
-    the bounds and the warm signs in G's order, solves from y = 0 (at most ``max_iter`` iterations)
-    and picks the multipliers back. ``in_export``: it includes the
+    the bounds and the warm signs in G's order, solves from y = 0 (at
+    most ``max_iter`` iterations) and picks the multipliers back. ``in_export``: it includes the
     generated header (casadi_real, casadi_int of the export).
     """
     n, m = sp_g.size2(), sp_g.size1()
@@ -156,7 +157,7 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     name = external_name(n, m, max_iter)
     colind, row = sp_g.get_ccs()
     order, at, length = _row_order(N, nu, nw, h, sp_g)
-    start = [sum(length[:r]) for r in range(m)]
+    start = list(accumulate(length, initial=0))[:m]
     colrun, runs = _column_runs(sp_g)
     tol = PQP_TOL[precision]
     head = ('#include "../adcs_codegen.h"\n' if in_export else

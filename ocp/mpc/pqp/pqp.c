@@ -29,9 +29,9 @@
 /* row i of the packed lower factor (rows of length i + 1) */
 #define LROW(L, i) ((L) + (i) * ((i) + 1) / 2)
 
-int pqp_work_size(int n, int m) { return n * (n + 1) / 2 + 4 * n + 3 * m; }
+int pqp_work_size(int n, int m) { return PQP_WORK_SIZE(n, m); }
 
-int pqp_iwork_size(int n, int m) { return n + 2 * m; }
+int pqp_iwork_size(int n, int m) { return PQP_IWORK_SIZE(n, m); }
 
 /* four partial sums: the loop the solver spends its time in, unrolled
  * by hand so that any compiler keeps the FPU busy */
@@ -276,26 +276,27 @@ int pqp_solve_rows(int n, int m, const pqp_real* C, const int* row_start,
       for (j = 0; j < i - 1; ++j) t[j] = t[j] - a[j] * ta - b[j] * tb;
     }
     if (i == 0) t[0] /= L[0];
-    /* n independent rows leave no step: p = 0 */
-    for (i = 0; i < n && k < n; ++i) p[i] = -r[i];
-    for (i = 0; i < k && k < n; i += 2) {
-      /* two rows a pass, likewise */
-      const pqp_real *a = C + start[ws[i]], ta = t[i];
-      const int la = len[ws[i]];
-      if (i + 1 < k) {
-        const pqp_real *b = C + start[ws[i + 1]], tb = t[i + 1];
-        const int lb = len[ws[i + 1]], l = la < lb ? la : lb;
-        for (j = 0; j < l; ++j) p[j] = p[j] + ta * a[j] + tb * b[j];
-        for (; j < la; ++j) p[j] += ta * a[j];
-        for (j = l; j < lb; ++j) p[j] += tb * b[j];
-      } else {
-        for (j = 0; j < la; ++j) p[j] += ta * a[j];
+    if (k < n) { /* n independent rows leave no step: p = 0 */
+      for (i = 0; i < n; ++i) p[i] = -r[i];
+      for (i = 0; i < k; i += 2) {
+        /* two rows a pass, likewise */
+        const pqp_real *a = C + start[ws[i]], ta = t[i];
+        const int la = len[ws[i]];
+        if (i + 1 < k) {
+          const pqp_real *b = C + start[ws[i + 1]], tb = t[i + 1];
+          const int lb = len[ws[i + 1]], l = la < lb ? la : lb;
+          for (j = 0; j < l; ++j) p[j] = p[j] + ta * a[j] + tb * b[j];
+          for (; j < la; ++j) p[j] += ta * a[j];
+          for (j = l; j < lb; ++j) p[j] += tb * b[j];
+        } else {
+          for (j = 0; j < la; ++j) p[j] += ta * a[j];
+        }
       }
-    }
-    for (i = 0; i < n && k < n; ++i) {
-      pqp_real a = PQP_FABS(p[i]);
-      if (a > pmax) pmax = a;
-      pnorm += p[i] * p[i];
+      for (i = 0; i < n; ++i) {
+        pqp_real a = PQP_FABS(p[i]);
+        if (a > pmax) pmax = a;
+        pnorm += p[i] * p[i];
+      }
     }
     if (pmax <= tol * (1 + rmax)) {
       /* multipliers ν = -t; drop the most wrong-signed */

@@ -23,7 +23,10 @@ typedef double pqp_real;
 #define PQP_INFEASIBLE_START 2
 #define PQP_INVALID_INPUT 3
 
-/* reals and ints of the work arrays for n variables and m rows */
+/* reals and ints of the work arrays for n variables and m rows (the
+ * macros size static arrays) */
+#define PQP_WORK_SIZE(n, m) ((n) * ((n) + 1) / 2 + 4 * (n) + 3 * (m))
+#define PQP_IWORK_SIZE(n, m) ((n) + 2 * (m))
 int pqp_work_size(int n, int m);
 int pqp_iwork_size(int n, int m);
 
