@@ -409,9 +409,9 @@ def _add_export(sub) -> None:
                      default=None,
                      help="QP of the condensed MPC steps: daqp (the "
                      "default) or pqp, the toolbox's primal active set in "
-                     "C started where the step starts (its sources go to "
-                     "pqp/; DAQP stays for steps whose start breaks a "
-                     "bound)")
+                     "C started where the step starts, with a phase one "
+                     "where that start breaks a bound (its sources go to "
+                     "pqp/)")
     exp.add_argument("--qp-max-iter", type=int, default=None,
                      help="with --condensed-qp pqp: its iteration cap per "
                      "QP (default 1000); a capped QP's point keeps every "

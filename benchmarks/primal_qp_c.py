@@ -60,7 +60,8 @@ TOL = {"double": 1e-10, "single": 1e-4}
 #: Iterations of an uncapped solve.
 NO_CAP = 1000
 #: Statuses of pqp_solve (pqp.h).
-STATUS = ("optimal", "iteration limit", "infeasible start", "invalid input")
+STATUS = ("optimal", "iteration limit", "infeasible", "invalid input",
+          "no feasible point")
 
 
 def host_library(out_dir: Path, precision: str = "double") -> ctypes.CDLL:
@@ -80,11 +81,13 @@ def solve_c(lib: ctypes.CDLL, C: np.ndarray, lo: np.ndarray, hi: np.ndarray,
             f: np.ndarray, y0: np.ndarray, side: np.ndarray,
             max_iter: int = NO_CAP, tol: float = TOL["double"],
             precision: str = "double", row_len: np.ndarray | None = None,
-            packed: bool = False) -> dict:
+            packed: bool = False, phase_one: int | None = None) -> dict:
     """pqp_solve on one QP through ``lib`` (`host_library`): ``y``,
     ``side``, ``lam``, ``status`` (`STATUS`) and ``iterations``. With
     ``row_len`` (m,): pqp_solve_rows, each row read up to its length;
-    ``packed``: the rows so cut, one after the other (row_start)."""
+    ``packed``: the rows so cut, one after the other (row_start);
+    ``phase_one``: pqp_solve_rows with that phase-one iteration limit
+    (else pqp_solve's, m + max_iter)."""
     real = np.float32 if precision == "single" else np.float64
     ctype = ctypes.c_float if precision == "single" else ctypes.c_double
     m, n = C.shape
@@ -103,15 +106,18 @@ def solve_c(lib: ctypes.CDLL, C: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     def ptr(a):
         return a.ctypes.data_as(ctypes.c_void_p)
 
-    tail = (ptr(y), ptr(sd), ptr(lam), int(max_iter), ctype(tol), ptr(w),
-            ptr(iw), ctypes.byref(its))
-    if row_len is None and starts is None:
-        status = lib.pqp_solve(n, m, *map(ptr, arr), *tail)
+    head = (ptr(y), ptr(sd), ptr(lam), int(max_iter))
+    tail = (ctype(tol), ptr(w), ptr(iw), ctypes.byref(its))
+    if row_len is None and phase_one is None:
+        status = lib.pqp_solve(n, m, *map(ptr, arr), *head, *tail)
     else:
-        lens = np.ascontiguousarray(row_len, dtype=np.int32)
+        lens = None if row_len is None else ptr(
+            np.ascontiguousarray(row_len, dtype=np.int32))
+        limit = m + max_iter if phase_one is None else phase_one
         status = lib.pqp_solve_rows(n, m, ptr(arr[0]), None if starts is
-                                    None else ptr(starts), ptr(lens),
-                                    *map(ptr, arr[1:]), *tail)
+                                    None else ptr(starts), lens,
+                                    *map(ptr, arr[1:]), *head, int(limit),
+                                    *tail)
     return {"y": y.astype(float), "side": sd.astype(int),
             "lam": lam.astype(float), "status": STATUS[status],
             "iterations": its.value}

@@ -215,6 +215,31 @@ def _memory_text(static_bytes: int) -> str:
     return heap
 
 
+def _pqp_text(solver_sources: list[str]) -> str:
+    """The README's paragraph on the pqp wrappers among the sources ("" if
+    none)."""
+    wrappers = [s for s in solver_sources if s.startswith("pqp/adcs_pqp_")]
+    if not wrappers:
+        return ""
+    cap = min(max_iter_of(Path(w).stem) for w in wrappers)
+    return (
+        " The condensed MPC steps solve their QP with `pqp/pqp.c`, the "
+        "toolbox's primal active set (BSD-3-Clause, `pqp/LICENSE`), "
+        f"called through {', '.join(f'`{w}`' for w in wrappers)} "
+        "(CasADi's calling convention): started from δu = 0 on the "
+        f"shifted plan and the last step's active set, at most {cap} "
+        "iterations, the caller's work only. Where that start breaks a "
+        "bound (a defect, or a measured rate beyond its bound), a phase "
+        "one first moves it to the nearest point that keeps every "
+        f"bound (at most the QP's rows + {cap} iterations; where it "
+        "finds none, the step's `qp_kkt` is infinite and the step is "
+        "refused). A QP stopped at that cap returns a point that keeps "
+        "every bound and lowers the QP's cost: the step applies it, its "
+        "`qp_kkt` is then that point's certificate (bound violation and "
+        "cost rise, not the KKT residual) and its output `qp_capped` is "
+        "1.")
+
+
 def _readme(fns: dict[str, ca.Function],
             samples: dict[str, list[np.ndarray]], plugin: str = "qrqp",
             solver_sources=(), method: str = "conic",
@@ -231,21 +256,7 @@ def _readme(fns: dict[str, ca.Function],
     build_cmd = " ".join(["cc", opt, "-std=c99 -o adcs_driver main.c",
                           f"{SOURCE}.c", *solver_sources, "-lm"])
     solver_text = _solver_text(fns, plugin, method, patched, duty_plugin)
-    wrappers = [s for s in solver_sources if s.startswith("pqp/adcs_pqp_")]
-    if wrappers:
-        cap = min(max_iter_of(Path(w).stem) for w in wrappers)
-        solver_text += (
-            " The condensed MPC steps solve their QP with `pqp/pqp.c`, the "
-            "toolbox's primal active set (BSD-3-Clause, `pqp/LICENSE`), "
-            f"called through {', '.join(f'`{w}`' for w in wrappers)} "
-            "(CasADi's calling convention): started from δu = 0 on the "
-            f"shifted plan and the last step's active set, at most {cap} "
-            "iterations, the caller's work only; a step whose start breaks "
-            "a bound solves its QP with DAQP instead. A QP stopped at that "
-            "cap returns a point that keeps every bound and lowers the "
-            "QP's cost: the step applies it, its `qp_kkt` is then that "
-            "point's certificate (bound violation and cost rise, not the "
-            "KKT residual) and its output `qp_capped` is 1.")
+    solver_text += _pqp_text(solver_sources)
     heap = _memory_text(static_bytes)
     version = ca.__version__  # type: ignore[attr-defined]  # not in stubs
     return f"""# Generated ADCS C code

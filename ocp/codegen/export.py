@@ -444,9 +444,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     condensed_qp_plugin : {None, "daqp", "pqp"}
         QP of the condensed steps: DAQP (None, where `daqp_available`) or
         ``"pqp"``, the toolbox's primal active set in C started where
-        the step starts (`ocp.mpc.primal_qp`; its sources and wrapper go
-        to ``pqp/``, and DAQP stays for the steps where δu = 0 breaks a
-        bound).
+        the step starts, with a phase one where δu = 0 breaks a bound
+        (`ocp.mpc.primal_qp`; its sources and wrapper go to ``pqp/``).
     condensed_qp_max_iter : int, optional
         With ``"pqp"``: its iteration cap (`AttitudeMPC`
         ``solver_options`` ``qp_max_iter``; default 1000). A capped QP's

@@ -272,19 +272,24 @@ def _constrained_qp(rk: dict, qp_in: list, plugin: str, dims: tuple,
     gy = t["gy"]
     bounds = [t[n] for n in ("lbu", "ubu", "lba", "uba")]
     winv, G = factor_rows(rk, A, B, K, Lit, rate_rows)
-    y, lam_u, lam_a, lam, *capped = routed_qp(
+    y, lam_u, lam_a, lam, *flags = routed_qp(
         plugin, N, nu, nw, winv.sparsity(), G.sparsity(), **qp_tols)(
         gy, winv, G, *bounds, t["lam_u0"], t["lam_a0"])
     du, dx = closed_loop(rk, A, B, K, Lit, y)
     a = _rows_of(dx, rate_rows)
     dual = row_adjoint(rk, A, B, K, Lit, lam)
     kkt = kkt_residual(y, gy, dual, du, a, lam_u, lam_a, *bounds)
-    if capped:
-        # a capped point is certified as a feasible descent, not optimal
-        kkt = ca.if_else(capped[0] > 0,
-                         capped_residual(y, gy, du, a, *bounds), kkt)
+    if flags:
+        # a capped point is certified as a feasible descent, not optimal;
+        # no feasible point found: the certificate fails outright
+        capped, infeasible, moved = flags
+        kkt = ca.if_else(capped > 0,
+                         capped_residual(y, gy, du, a, *bounds,
+                                         moved=moved), kkt)
+        kkt = ca.if_else(infeasible > 0, ca.inf, kkt)
+        flags = [capped]
     return ca.Function("cond_qp_full", i,
-                       [du, ca.horzcat(*dx), lam_u, lam_a, kkt, *capped])
+                       [du, ca.horzcat(*dx), lam_u, lam_a, kkt, *flags])
 
 
 def _rows_of(dx: list, rate_rows: bool) -> ca.MX:

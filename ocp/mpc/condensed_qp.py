@@ -111,12 +111,13 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     ``row_tol`` replaces `ROW_TOL` and ``qp_tol`` (qrqp only) its
     ``constr_viol_tol`` / ``dual_inf_tol`` (float exports,
     `ocp.codegen.precision.TOLERANCES`).
-    With ``"pqp"`` the route returns a fifth value, ``capped``: 1 where
-    the solver stopped at ``max_iter`` iterations (`_primal_route`).
+    With ``"pqp"`` the route returns three values more, ``capped`` (1
+    where the solver stopped at ``max_iter`` iterations), ``infeasible``
+    and ``moved`` (`_primal_route`).
     """
     n, na = N * nu, sp_g.size1() - N * nu
     if plugin == "pqp":
-        return _primal_route(N, nu, nw, sp_w, sp_g, row_tol, max_iter)
+        return _primal_route(N, nu, nw, sp_g, max_iter)
     at = RowLayout(N, nu, nw, sp_g.size1() // N)
     g = ca.MX.sym("g", n)
     W = ca.MX.sym("Winv", sp_w)
@@ -183,41 +184,28 @@ def routed_qp(plugin: str, N: int, nu: int, nw: int, sp_w: ca.Sparsity,
     return routed
 
 
-def _primal_route(N: int, nu: int, nw: int, sp_w: ca.Sparsity,
-                  sp_g: ca.Sparsity, row_tol: float,
+def _primal_route(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
                   max_iter: int) -> Callable[..., list]:
     """`routed_qp`'s QP by the primal active set in C (`ocp.mpc.primal_qp`)
     from y = 0 and the warm start's signs, at most ``max_iter``
-    iterations; where y = 0 breaks a bound (no feasible start: a defect,
-    or a rate beyond its bound), by DAQP's route instead (never capped).
-    Returns ``[y, lam_u, lam_a, lam, capped]``: a capped point keeps
-    every bound and lowers the cost from y = 0 (`capped_residual` checks
-    it); in place of multipliers it returns its working set's sides, ±1,
-    the next step's warm start."""
+    iterations; where y = 0 breaks a bound (a defect, or a rate beyond
+    its bound), after a phase one of at most ``max_iter`` iterations to
+    the nearest point that keeps every bound. Returns ``[y, lam_u,
+    lam_a, lam, capped, infeasible, moved]``: a capped point keeps every
+    bound and lowers the cost from where the primal phase started
+    (`capped_residual` checks it); in place of multipliers it returns its
+    working set's sides, ±1, the next step's warm start. ``infeasible``:
+    1 where no point keeping every bound was found (y = 0, no
+    multipliers); ``moved``: 1 where phase one ran."""
     from .primal_qp import qp_external
 
     ext = qp_external(N, nu, nw, sp_g, max_iter)
-    daqp = routed_qp("daqp", N, nu, nw, sp_w, sp_g, row_tol)
-    n, na = N * nu, sp_g.size1() - N * nu
-    ins = [ca.MX.sym(k, sp) for k, sp in (
-        ("g", ca.Sparsity.dense(n)), ("Winv", sp_w), ("G", sp_g),
-        ("lbu", ca.Sparsity.dense(n)), ("ubu", ca.Sparsity.dense(n)),
-        ("lba", ca.Sparsity.dense(na)), ("uba", ca.Sparsity.dense(na)),
-        ("lam_u0", ca.Sparsity.dense(n)), ("lam_a0", ca.Sparsity.dense(na)))]
-    outs = [ca.MX.sym(k, sp) for k, sp in (
-        ("y", ca.Sparsity.dense(n)), ("lam_u", ca.Sparsity.dense(n)),
-        ("lam_a", ca.Sparsity.dense(na)),
-        ("lam", ca.Sparsity.dense(sp_g.size1())))]
-    pick = ca.Function.if_else(
-        "cond_qp_pqp_route",
-        ca.Function("cond_qp_pqp_daqp", ins + outs, daqp(*ins)),
-        ca.Function("cond_qp_pqp_keep", ins + outs, outs))
 
     def primal(*a: Any) -> list:
         g_, _, R_, lbu_, ubu_, lba_, uba_, lu0_, la0_ = a
-        *sol, infeasible, capped = ext(g_, R_, lbu_, ubu_, lba_, uba_, lu0_,
-                                       la0_)
-        return [*pick(infeasible, *a, *sol), capped]
+        *sol, infeasible, capped, moved = ext(g_, R_, lbu_, ubu_, lba_,
+                                              uba_, lu0_, la0_)
+        return [*sol, capped, infeasible, moved]
     return primal
 
 
@@ -255,7 +243,7 @@ def _violation(v, a, lbu, ubu, lba, uba) -> tuple:
     return primal, size
 
 
-def capped_residual(y, g, v, a, lbu, ubu, lba, uba):
+def capped_residual(y, g, v, a, lbu, ubu, lba, uba, *, moved=0):
     """Certificate of a capped QP point y (the primal active set stopped
     at its iteration limit, started from y = 0, the shifted plan).
 
@@ -264,10 +252,12 @@ def capped_residual(y, g, v, a, lbu, ubu, lba, uba):
     ``½|y|² + gᵀy`` is no higher than the start's (0): the largest of the
     row violations (relative to the rows' scale, as `kkt_residual`) and
     the cost's rise (relative to ``1 + |g|²``). Zero for every iterate
-    of the solver in exact arithmetic.
+    of the solver in exact arithmetic. ``moved`` (1 where y = 0 broke a
+    bound and phase one moved the start): the rise is not counted, the
+    primal phase having started from phase one's point, not from 0.
     """
     primal, size = _violation(v, a, lbu, ubu, lba, uba)
-    rise = ca.fmax(0.5 * ca.dot(y, y) + ca.dot(g, y), 0.0)
+    rise = ca.fmax(0.5 * ca.dot(y, y) + ca.dot(g, y), 0.0) * (1 - moved)
     return ca.fmax(primal / size, rise / (1.0 + ca.dot(g, g)))
 
 

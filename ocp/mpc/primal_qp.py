@@ -14,8 +14,12 @@ wrapper in CasADi's calling convention (`wrapper_source`), compiled here
 into a shared library for Python (`qp_external`; needs a C compiler) and
 written into the export folder beside ``pqp.c`` for generated C
 (`copy_sources`). Where y = 0 breaks a bound (a defect the linearisation
-carries, or a rate beyond its bound) it answers y = 0 and flags it, and
-`ocp.mpc.condensed_qp` hands that QP to DAQP's route instead.
+carries, or a rate beyond its bound) the solver's phase one first moves
+the start to the nearest point that keeps every bound (a dual active
+set, Goldfarb & Idnani 1983, at most the iteration limit), and the
+primal phase starts there; where it finds none (inconsistent bounds, or
+the limit reached) the wrapper answers y = 0, flagged, and the step's
+certificate fails. No other QP solver is linked.
 
 Its iteration limit (`AttitudeMPC` ``solver_options={"qp_max_iter":
 k}``, default `QP_ITER_LIMIT`) can cap the QP: every iterate keeps every
@@ -136,9 +140,11 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
                    max_iter: int, precision: str = "double",
                    in_export: bool = False) -> str:
     """C text of the external ``adcs_pqp_<n>x<m>(g, G, lbu, ubu, lba,
-    uba, lam_u0, lam_a0) -> (y, lam_u, lam_a, lam, infeasible, capped)``
-    (`external_name`; ``infeasible``: 1 where y = 0 breaks a bound, and
-    then y = 0 and the multipliers 0; ``capped``: 1 where the solver
+    uba, lam_u0, lam_a0) -> (y, lam_u, lam_a, lam, infeasible, capped,
+    moved)`` (`external_name`; ``infeasible``: 1 where no point keeps
+    every bound, or phase one reached ``max_iter`` first, and then y = 0
+    and the multipliers 0; ``moved``: 1 where y = 0 breaks a bound and
+    phase one ran (pqp.h); ``capped``: 1 where the solver
     stopped at ``max_iter`` iterations, at a point that keeps every bound
     and lowers the cost, with its working set's sides, ±1, in place of
     the multipliers, pqp.h).

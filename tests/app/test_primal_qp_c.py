@@ -208,14 +208,93 @@ def test_capped_solve_is_feasible_and_lowers_the_cost(lib, qps):
             assert np.array_equal(r["lam"], r["side"])
 
 
-def test_infeasible_start_is_refused(lib, qps):
-    q = qps[0]
+def _broken(rng: np.random.Generator, q: dict, rows: int) -> dict:
+    """``q`` with ``rows`` rows' bounds moved past 0, so that y = 0 breaks
+    them (as a defect or a rate beyond its bound does at the step's
+    start)."""
+    lo, hi = q["lo"].copy(), q["hi"].copy()
+    for j in rng.choice(len(lo), rows, replace=False):
+        if rng.random() < 0.5:
+            lo[j] = rng.uniform(0.05, 0.4)
+            hi[j] = lo[j] + rng.uniform(0.2, 1.0)
+        else:
+            hi[j] = -rng.uniform(0.05, 0.4)
+            lo[j] = hi[j] - rng.uniform(0.2, 1.0)
+    return {**q, "lo": lo, "hi": hi}
+
+
+def _daqp(q: dict) -> np.ndarray | None:
+    """DAQP's optimum of ``q`` (None where it finds the rows infeasible)."""
+    import daqp
+
     m, n = q["C"].shape
-    start = np.full(n, 10.0)
-    r = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], start,
+    x, _, flag, _ = daqp.solve(np.eye(n), q["f"], q["C"], q["hi"], q["lo"],
+                               np.zeros(m, dtype=np.int32))
+    assert flag in (1, -1), flag
+    return x if flag == 1 else None
+
+
+def test_phase_one_from_a_start_that_breaks_bounds(lib):
+    """Started where y = 0 breaks one to five rows' bounds: phase one
+    moves it onto them and the primal phase reaches DAQP's optimum (or
+    both find no point that keeps every bound), over 120 QPs."""
+    rng = np.random.default_rng(3)
+    found = {"optimal": 0, "infeasible": 0}
+    for _ in range(120):
+        q = _broken(rng, _qp(rng), int(rng.integers(1, 6)))
+        m, n = q["C"].shape
+        ref = _daqp(q)
+        r = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], np.zeros(n),
+                       np.zeros(m))
+        found[r["status"]] += 1
+        if ref is None:
+            assert r["status"] == "infeasible" and not np.any(r["lam"])
+        else:
+            assert r["status"] == "optimal"
+            assert np.max(np.abs(r["y"] - ref)) <= 1e-9
+    assert min(found.values()) >= 5         # both kinds were met
+
+
+def test_phase_one_is_the_starts_projection(lib):
+    """With f = -y0 the QP's optimum is y0's projection onto the
+    feasible set (0 inside it), which phase one reaches from y0 ≠ 0, its
+    first three rows warm at their bound there (held while their
+    multipliers allow): the primal phase then proves it at once."""
+    rng = np.random.default_rng(5)
+    for _ in range(30):
+        q = _qp(rng)
+        m, n = q["C"].shape
+        y0 = rng.normal(size=n)
+        cy = q["C"] @ y0
+        side = np.zeros(m, dtype=int)
+        side[:3] = np.sign(cy[:3])
+        lo, hi = q["lo"].copy(), q["hi"].copy()
+        for j in range(3):                      # at the bound, 0 inside
+            (hi if cy[j] > 0 else lo)[j] = cy[j]
+        p = {**q, "lo": lo, "hi": hi, "f": -y0}
+        ref = _daqp(p)
+        assert np.any(q["C"] @ y0 > hi) or np.any(q["C"] @ y0 < lo)
+        r = pc.solve_c(lib, p["C"], lo, hi, p["f"], y0, side)
+        assert r["status"] == "optimal"
+        assert np.max(np.abs(r["y"] - ref)) <= 1e-9
+
+
+def test_phase_one_limit_and_crossed_bounds(lib, qps):
+    """Phase one stopped at max_iter before a feasible point, and a row
+    whose bounds cross, are statuses of their own, without multipliers."""
+    rng = np.random.default_rng(9)
+    q = _broken(rng, qps[0], 5)
+    m, n = q["C"].shape
+    r = pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], np.zeros(n),
+                   np.zeros(m), phase_one=1)
+    assert (r["status"], r["iterations"]) == ("no feasible point", 1)
+    assert not np.any(r["lam"])
+    lo = q["lo"].copy()
+    lo[4] = q["hi"][4] + 0.1
+    r = pc.solve_c(lib, q["C"], lo, q["hi"], q["f"], np.zeros(n),
                    np.zeros(m))
-    assert (r["status"], r["iterations"]) == ("infeasible start", 0)
-    assert np.array_equal(r["y"], start)
+    assert (r["status"], r["iterations"]) == ("infeasible", 0)
+    assert not np.any(r["lam"])
 
 
 def test_single_precision_equals_double(tmp_path, lib, qps):
@@ -231,6 +310,18 @@ def test_single_precision_equals_double(tmp_path, lib, qps):
         assert r32["status"] == "optimal"
         scale = np.max(np.abs(r64["y"]))
         assert np.max(np.abs(r32["y"] - r64["y"])) <= 1e-4 * scale
+    rng = np.random.default_rng(4)           # and through phase one
+    for q in qps[:10]:
+        b = _broken(rng, q, 2)
+        m, n = q["C"].shape
+        r64, r32 = (pc.solve_c(lb, b["C"], b["lo"], b["hi"], b["f"],
+                               np.zeros(n), np.zeros(m), tol=pc.TOL[pr],
+                               precision=pr)
+                    for lb, pr in ((lib, "double"), (lib32, "single")))
+        assert r32["status"] == r64["status"]
+        if r64["status"] == "optimal":
+            scale = np.max(np.abs(r64["y"]))
+            assert np.max(np.abs(r32["y"] - r64["y"])) <= 1e-4 * scale
 
 
 def test_the_steps_qps_match_the_twin(lib):
@@ -356,6 +447,6 @@ def test_packed_rows_need_their_lengths(lib):
 
     status = lib.pqp_solve_rows(n, m, ptr(C), ptr(start), None, ptr(lo),
                                 ptr(hi), ptr(f), ptr(y), ptr(side), ptr(lam),
-                                10, ctypes.c_double(1e-10), ptr(w), ptr(iw),
-                                ctypes.byref(its))
+                                10, 10, ctypes.c_double(1e-10), ptr(w),
+                                ptr(iw), ctypes.byref(its))
     assert pc.STATUS[status] == "invalid input" and its.value == 0

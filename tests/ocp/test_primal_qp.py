@@ -59,6 +59,36 @@ def test_pqp_step_flies_daqps_loop(craft, tmp_path):
     assert np.max(np.abs(runs["pqp"]["u"])) >= 0.999 * m_max
 
 
+def test_pqp_step_from_a_rate_beyond_its_bound():
+    """Measured rates beyond the rate bound (0.022 > 0.02 rad/s): the
+    shifted plan breaks rate rows, so each QP of the first steps starts
+    with phase one. Uncapped, the step flies DAQP's loop (1e-9 of
+    m_max); capped at 8, every step is certified and the rates come back
+    within the bound."""
+    from ocp.mpc.condensed import qp_factor_function
+
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    axis = np.array([0.6, 0.0, 0.8])
+    x0 = np.r_[np.cos(0.5), np.sin(0.5) * axis, 0.022, -0.008, 0.004,
+               np.zeros(4)]
+    runs = {}
+    for name, qp, opts in (("daqp", "daqp", {}), ("pqp", "pqp", {}),
+                           ("capped", "pqp", {"qp_max_iter": 8})):
+        mpc = AttitudeMPC(model, horizon=8, dt=0.5, solver="condensed",
+                          rti=True, rate_max=0.02, qp_solver=qp,
+                          solver_options=opts)
+        runs[name] = _loop(mpc, x0, 40)
+    out = qp_factor_function(mpc)(mpc.initial_guess(x0),
+                                  np.r_[x0, 1.0, 0.0, 0.0, 0.0, np.zeros(3)])
+    assert np.any(np.array(out[6]) < 0)         # y = 0 breaks a rate row
+    m_max = float(np.max(sc.wheels.m_max))
+    assert np.max(np.abs(runs["pqp"]["u"] - runs["daqp"]["u"])) <= 1e-9 * m_max
+    for r in runs.values():
+        assert max(r["kkt"]) <= 1e-8
+        assert np.max(np.abs(r["x"][4:7])) <= 0.02 + 1e-8
+
+
 def test_generated_step_calls_the_external(tmp_path):
     """The step's generated C declares and calls the pqp external."""
     sc = load_spacecraft("demo")
@@ -89,14 +119,11 @@ def test_pqp_is_for_the_condensed_step_only():
                     qp_solver="pqp")
 
 
-def test_external_solves_the_posed_qp_and_flags_infeasible_starts():
-    """On a QP the step poses (`qp_factor_function`, a saturating slew's
-    first plan), the external's y is DAQP's optimum; with a bound that
-    y = 0 breaks it answers y = 0 and flags it."""
-    import daqp
-
+def _posed_qp() -> dict:
+    """A QP the step poses (`qp_factor_function`, a saturating slew's
+    first plan, horizon 5), its rows G stage by stage as the external
+    takes them."""
     from ocp.mpc.condensed import qp_factor_function
-    from ocp.mpc.primal_qp import qp_external
 
     sc = load_spacecraft("demo")
     model = rigid_spacecraft(sc.inertia, sc.wheels)
@@ -107,39 +134,84 @@ def test_external_solves_the_posed_qp_and_flags_infeasible_starts():
     winv, rows, g, lbu, ubu, lba, uba = (
         np.array(v) for v in qp_factor_function(mpc)(
             z, np.r_[x, 1.0, 0.0, 0.0, 0.0, np.zeros(3)]))
-    gy = winv.T @ g.ravel()
     n, na = winv.shape[0], rows.shape[0]
     N, nu = 5, sc.wheels.n_wheels
     h = (n + na) // N
-    # G: stage by stage, the bounds' rows (W⁻¹) then the momenta's
     G = np.zeros((n + na, n))
     for k in range(N):
         G[k * h:k * h + nu] = winv[k * nu:(k + 1) * nu]
         G[k * h + nu:(k + 1) * h] = rows[k * (h - nu):(k + 1) * (h - nu)]
-    ext = qp_external(N, nu, sc.wheels.n_wheels,
-                      ca.DM(G).sparsity(), 1000)
-    A = np.vstack([winv, rows])
-    lo, hi = np.r_[lbu.ravel(), lba.ravel()], np.r_[ubu.ravel(), uba.ravel()]
-    ref, _, flag, _ = daqp.solve(np.eye(n), gy, A, hi, lo,
-                                 np.zeros(n + na, dtype=np.int32))
-    assert flag == 1 and np.max(np.abs(A @ ref - np.clip(A @ ref, lo, hi))) < 1e-9
-    args = [gy, ca.DM(G), lbu, ubu, lba, uba, np.zeros(n), np.zeros(na)]
-    y, lam_u, lam_a, lam, infeasible, capped = (np.array(v).ravel()
-                                                for v in ext(*args))
-    assert float(infeasible[0]) == 0.0 and float(capped[0]) == 0.0
+    return {"N": N, "nu": nu, "G": G, "A": np.vstack([winv, rows]),
+            "args": [winv.T @ g.ravel(), ca.DM(G), lbu.ravel(), ubu.ravel(),
+                     lba.ravel(), uba.ravel(), np.zeros(n), np.zeros(na)]}
+
+
+def _daqp(q: dict, args: list) -> np.ndarray:
+    import daqp
+
+    n = q["A"].shape[1]
+    lo, hi = np.r_[args[2], args[4]], np.r_[args[3], args[5]]
+    ref, _, flag, _ = daqp.solve(np.eye(n), np.ravel(args[0]), q["A"], hi,
+                                 lo, np.zeros(len(lo), dtype=np.int32))
+    assert flag == 1
+    return ref
+
+
+def test_external_solves_the_posed_qp():
+    """The external's y is DAQP's optimum; capped at one iteration, a
+    feasible point of lower cost than y = 0, flagged."""
+    from ocp.mpc.primal_qp import qp_external
+
+    q = _posed_qp()
+    N, nu, args, A = q["N"], q["nu"], q["args"], q["A"]
+    lo, hi = np.r_[args[2], args[4]], np.r_[args[3], args[5]]
+    ref = _daqp(q, args)
+    ext = qp_external(N, nu, nu, ca.DM(q["G"]).sparsity(), 1000)
+    y, lam_u, lam_a, lam, infeasible, capped, moved = (
+        np.array(v).ravel() for v in ext(*args))
+    assert (infeasible[0], capped[0], moved[0]) == (0, 0, 0)
     assert np.max(np.abs(y - ref)) <= 1e-9
     assert np.count_nonzero(lam) > 0            # a bound was active
-    # capped at one iteration: a feasible point of lower cost, flagged
-    one = qp_external(N, nu, sc.wheels.n_wheels, ca.DM(G).sparsity(), 1)
-    y1, *_, infeasible, capped = (np.array(v).ravel() for v in one(*args))
-    assert float(capped[0]) == 1.0 and float(infeasible[0]) == 0.0
+    one = qp_external(N, nu, nu, ca.DM(q["G"]).sparsity(), 1)
+    y1, *_, infeasible, capped, moved = (np.array(v).ravel()
+                                         for v in one(*args))
+    assert (infeasible[0], capped[0], moved[0]) == (0, 1, 0)
     assert np.all(A @ y1 <= hi + 1e-12) and np.all(A @ y1 >= lo - 1e-12)
-    assert 0.5 * y1 @ y1 + gy.ravel() @ y1 < 0.0      # below the start's
-    bad = list(args)
-    bad[2] = np.full(n, 1e-3)                   # δu ≥ 1e-3: y = 0 breaks it
-    y, *_, lam, infeasible, capped = (np.array(v).ravel()
-                                      for v in ext(*bad))
-    assert float(infeasible[0]) == 1.0 and float(capped[0]) == 0.0
+    assert 0.5 * y1 @ y1 + args[0] @ y1 < 0.0      # below the start's
+
+
+def test_external_phase_one_from_a_start_that_breaks_bounds():
+    """Bounds that y = 0 breaks (δu ≥ 1e-3 at the first stage, as a
+    defect would): phase one moves the start onto them and the primal
+    phase reaches DAQP's optimum of that QP, flagged ``moved``; capped
+    at 8 iterations it ends feasible. Bounds that no point keeps: flagged
+    infeasible, y = 0 and no multipliers."""
+    from ocp.mpc.primal_qp import qp_external
+
+    q = _posed_qp()
+    N, nu, A = q["N"], q["nu"], q["A"]
+    bad = list(q["args"])
+    bad[2] = bad[2].copy()
+    bad[2][:nu] = 1e-3
+    ref = _daqp(q, bad)
+    sp = ca.DM(q["G"]).sparsity()
+    y, *_, infeasible, capped, moved = (np.array(v).ravel() for v in
+                                        qp_external(N, nu, nu, sp,
+                                                    1000)(*bad))
+    assert (infeasible[0], capped[0], moved[0]) == (0, 0, 1)
+    assert np.max(np.abs(y - ref)) <= 1e-9
+    y2, *_, infeasible, capped, moved = (np.array(v).ravel() for v in
+                                         qp_external(N, nu, nu, sp,
+                                                     8)(*bad))
+    assert (infeasible[0], moved[0]) == (0, 1)
+    lo, hi = np.r_[bad[2], bad[4]], np.r_[bad[3], bad[5]]
+    assert np.all(A @ y2 <= hi + 1e-12) and np.all(A @ y2 >= lo - 1e-12)
+    bad[3] = bad[3].copy()
+    bad[3][0] = 5e-4                            # 1e-3 ≤ δu_0 ≤ 5e-4
+    y, *_, lam, infeasible, capped, moved = (
+        np.array(v).ravel() for v in qp_external(N, nu, nu, sp,
+                                                 1000)(*bad))
+    assert (infeasible[0], capped[0], moved[0]) == (1, 0, 1)
     assert not np.any(y) and not np.any(lam)
 
 

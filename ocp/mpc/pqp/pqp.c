@@ -48,6 +48,40 @@ static pqp_real dot(int n, const pqp_real* a, const pqp_real* b) {
   return (s0 + s1) + (s2 + s3);
 }
 
+/* Lᵀ t = t in place, two columns of L a pass (the same operations, in
+ * the same order, as one at a time: half the loads and stores of t) */
+static void back_solve(int k, const pqp_real* L, pqp_real* t) {
+  int i, j;
+  for (i = k - 1; i >= 1; i -= 2) {
+    const pqp_real *a = LROW(L, i), *b = LROW(L, i - 1);
+    const pqp_real ta = t[i] / a[i];
+    const pqp_real tb = (t[i - 1] - a[i - 1] * ta) / b[i - 1];
+    t[i] = ta;
+    t[i - 1] = tb;
+    for (j = 0; j < i - 1; ++j) t[j] = t[j] - a[j] * ta - b[j] * tb;
+  }
+  if (i == 0) t[0] /= L[0];
+}
+
+/* p += C_Wᵀ t (the k rows in ws), two rows a pass, likewise */
+static void add_rows(const pqp_real* C, const int* start, const int* len,
+                     const int* ws, int k, const pqp_real* t, pqp_real* p) {
+  int i, j;
+  for (i = 0; i < k; i += 2) {
+    const pqp_real *a = C + start[ws[i]], ta = t[i];
+    const int la = len[ws[i]];
+    if (i + 1 < k) {
+      const pqp_real *b = C + start[ws[i + 1]], tb = t[i + 1];
+      const int lb = len[ws[i + 1]], l = la < lb ? la : lb;
+      for (j = 0; j < l; ++j) p[j] = p[j] + ta * a[j] + tb * b[j];
+      for (; j < la; ++j) p[j] += ta * a[j];
+      for (j = l; j < lb; ++j) p[j] += tb * b[j];
+    } else {
+      for (j = 0; j < la; ++j) p[j] += ta * a[j];
+    }
+  }
+}
+
 /* Add row j to the factor of the k rows in ws; 0, or 1 if it depends on
  * them (relative to its norm). Row i of C: len[i] entries at C +
  * start[i] (its nonzero prefix). */
@@ -189,6 +223,112 @@ static int warm_factor(int n, int m, const pqp_real* C, const int* start,
   return k;
 }
 
+/* Phase one: the start's projection onto the feasible set, min ½|y -
+ * y0|² s.t. lo ≤ C y ≤ hi, by the dual active set of Goldfarb & Idnani
+ * (A numerically stable dual method for solving strictly convex
+ * quadratic programs, Math. Programming 27, 1983) for Hessian I: the
+ * most violated row q joins at its broken side s, its multiplier
+ * growing from 0 while y moves along z, c_q's part normal to the
+ * working rows (which stay at their bound); a working row whose
+ * multiplier would change sign leaves first. Starts from the k rows in
+ * ws (at their bound at y0, multipliers 0) and their factor L; rows
+ * join by a forward solve and leave by factor_drop, as in the primal
+ * phase. u, x, r, z: n reals of scratch each; Cz: m. Returns 0 (y
+ * feasible, *k its working rows), PQP_INFEASIBLE (q depends on the
+ * working rows and none can leave: no point keeps every bound) or
+ * PQP_NO_FEASIBLE_POINT (max_iter KKT solves made). */
+static int phase_one(int n, int m, const pqp_real* C, const int* start,
+                     const int* len, const pqp_real* lo, const pqp_real* hi,
+                     const pqp_real* norm, pqp_real tol, pqp_real* y,
+                     pqp_real* Cy, signed char* side, int* ws, int* k_io,
+                     pqp_real* L, pqp_real* u, pqp_real* x, pqp_real* r,
+                     pqp_real* z, pqp_real* Cz, int max_iter, int* its) {
+  int i, j, k = *k_io;
+  for (;;) {
+    pqp_real worst = 0, b = 0, lam = 0;
+    int q = -1, s = 0;
+    for (j = 0; j < m; ++j) { /* the row farthest beyond its bound */
+      pqp_real over;
+      int sj = 0;
+      if (side[j]) continue;
+      if (Cy[j] > hi[j] + tol * (1 + PQP_FABS(hi[j])))
+        over = Cy[j] - hi[j], sj = 1;
+      else if (Cy[j] < lo[j] - tol * (1 + PQP_FABS(lo[j])))
+        over = lo[j] - Cy[j], sj = -1;
+      else
+        continue;
+      if (norm[j] == 0) { /* 0 beyond a bound */
+        *k_io = k;
+        return PQP_INFEASIBLE;
+      }
+      over /= PQP_SQRT(norm[j]);
+      if (over > worst) worst = over, q = j, s = sj;
+    }
+    if (q < 0) break;
+    b = s > 0 ? hi[q] : lo[q];
+    for (;;) {
+      const pqp_real* c = C + start[q];
+      pqp_real d = norm[q], step, room = 0;
+      int block = -1, dep;
+      if (*its >= max_iter) {
+        *k_io = k;
+        return PQP_NO_FEASIBLE_POINT;
+      }
+      ++*its;
+      /* x = L⁻¹ C_W c_q, d = |c_q|² - |x|² = |z|²; r = L⁻ᵀ x */
+      for (i = 0; i < k; ++i) {
+        const int l = len[ws[i]] < len[q] ? len[ws[i]] : len[q];
+        x[i] = (dot(l, C + start[ws[i]], c) - dot(i, LROW(L, i), x)) /
+               LROW(L, i)[i];
+        d -= x[i] * x[i];
+      }
+      for (i = 0; i < k; ++i) r[i] = x[i];
+      back_solve(k, L, r);
+      dep = k == n || d <= PQP_DEP * PQP_DEP * norm[q];
+      for (i = 0; i < k; ++i) /* multipliers that reach 0 first */
+        if (s * r[i] * side[ws[i]] > 0) {
+          const pqp_real ti = u[i] / (s * r[i]);
+          if (block < 0 || ti < room) room = ti, block = i;
+        }
+      if (dep && block < 0) {
+        *k_io = k;
+        return PQP_INFEASIBLE;
+      }
+      step = dep ? room : s * (Cy[q] - b) / d; /* q reaches b */
+      if (block >= 0 && (dep || room < step)) step = room;
+      else block = -1;
+      if (!dep) { /* y += step s z, z = C_Wᵀ r - c_q */
+        for (j = 0; j < n; ++j) z[j] = j < len[q] ? -c[j] : 0;
+        add_rows(C, start, len, ws, k, r, z);
+        for (j = 0; j < n; ++j) y[j] += step * s * z[j];
+        for (j = 0; j < m; ++j)
+          if (!side[j] && j != q) {
+            Cz[j] = dot(len[j], C + start[j], z);
+            Cy[j] += step * s * Cz[j];
+          }
+        Cy[q] -= step * s * d;
+      }
+      for (i = 0; i < k; ++i) u[i] -= step * s * r[i];
+      lam += step * s;
+      if (block < 0) { /* q reaches its bound: it joins */
+        for (i = 0; i < k; ++i) LROW(L, k)[i] = x[i];
+        LROW(L, k)[k] = PQP_SQRT(d);
+        Cy[q] = b;
+        side[q] = (signed char)s;
+        u[k] = lam;
+        ws[k++] = q;
+        break;
+      }
+      side[ws[block]] = 0; /* a multiplier reached 0: its row leaves */
+      factor_drop(k, block, L, x);
+      for (i = block; i < k - 1; ++i) ws[i] = ws[i + 1], u[i] = u[i + 1];
+      --k;
+    }
+  }
+  *k_io = k;
+  return 0;
+}
+
 /* rows parked at their bound (side ±2) back out of the working set */
 static void unpark(int m, signed char* side) {
   int j;
@@ -201,20 +341,23 @@ int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
               signed char* side, pqp_real* lam, int max_iter, pqp_real tol,
               pqp_real* w, int* iw, int* iterations) {
   return pqp_solve_rows(n, m, C, 0, 0, lo, hi, f, y, side, lam, max_iter,
-                        tol, w, iw, iterations);
+                        PQP_PHASE_ONE_LIMIT(m, max_iter), tol, w, iw,
+                        iterations);
 }
 
 int pqp_solve_rows(int n, int m, const pqp_real* C, const int* row_start,
                    const int* row_len, const pqp_real* lo,
                    const pqp_real* hi, const pqp_real* f, pqp_real* y,
                    signed char* side, pqp_real* lam, int max_iter,
-                   pqp_real tol, pqp_real* w, int* iw, int* iterations) {
+                   int max_phase_one, pqp_real tol, pqp_real* w, int* iw,
+                   int* iterations) {
   /* r, p, v and Cp follow L: the warm start's reflections are stored
    * there, beyond the rows its factor can take, before they are used */
   pqp_real *L = w, *r = L + n * (n + 1) / 2, *p = r + n, *v = p + n,
            *Cp = v + n, *t = Cp + m, *Cy = t + n, *norm = Cy + m;
   int *ws = iw, *len = iw + n, *start = len + m;
-  int i, j, k = 0, it, at_zero = 1, warm = 0;
+  int i, j, k = 0, it, at_zero = 1, warm = 0, feasible = 1, first = 0;
+  int crossed = 0;
   long reflected;
   *iterations = 0;
   if (row_start && !row_len) return PQP_INVALID_INPUT;
@@ -231,16 +374,34 @@ int pqp_solve_rows(int n, int m, const pqp_real* C, const int* row_start,
     lam[j] = 0;
     norm[j] = dot(len[j], c, c);
     Cy[j] = at_zero ? 0 : dot(len[j], c, y);
-    if (Cy[j] < lo[j] - tol * (1 + PQP_FABS(lo[j])) ||
-        Cy[j] > hi[j] + tol * (1 + PQP_FABS(hi[j])))
-      return PQP_INFEASIBLE_START;
+    crossed = crossed || lo[j] > hi[j] + tol * (1 + PQP_FABS(hi[j]));
+    feasible = feasible && Cy[j] >= lo[j] - tol * (1 + PQP_FABS(lo[j])) &&
+               Cy[j] <= hi[j] + tol * (1 + PQP_FABS(hi[j]));
   }
+  if (crossed) return PQP_INFEASIBLE; /* a row's bounds cross */
   /* the warm rows at their bound, independent ones in order */
   for (j = 0; j < m; ++j) warm += side[j] != 0;
   if (warm > n) warm = n;
   reflected = (long)(Cp + m - LROW(L, warm));
   k = warm_factor(n, m, C, start, len, lo, hi, Cy, norm, tol, side, ws, L,
                   LROW(L, warm), &reflected, t);
+  if (!feasible) {
+    /* phase one to the start's projection, whose working rows (at
+     * their bound there) are then the primal phase's warm start */
+    const int status = phase_one(n, m, C, start, len, lo, hi, norm, tol,
+                                 y, Cy, side, ws, &k, L, v, t, r, p, Cp,
+                                 max_phase_one, &first);
+    *iterations = first;
+    if (status) {
+      unpark(m, side);
+      return status;
+    }
+    for (j = 0; j < m; ++j) Cy[j] = dot(len[j], C + start[j], y);
+    warm = k;
+    reflected = (long)(Cp + m - LROW(L, warm));
+    k = warm_factor(n, m, C, start, len, lo, hi, Cy, norm, tol, side, ws, L,
+                    LROW(L, warm), &reflected, t);
+  }
   /* v = L⁻¹ C_W r, kept from here on: a step leaves C_W r unchanged
    * (C_W p = 0), a row added appends one entry, one dropped rotates v.
    * C_W = L Qᵀ (the first k columns of warm_factor's Q), so v is the
@@ -265,33 +426,10 @@ int pqp_solve_rows(int n, int m, const pqp_real* C, const int* row_start,
       if (PQP_FABS(r[i]) > rmax) rmax = PQP_FABS(r[i]);
     }
     for (i = 0; i < k; ++i) t[i] = v[i];
-    /* Lᵀ t = v, two columns of L a pass (the same operations, in the
-     * same order, as one at a time: half the loads and stores of t) */
-    for (i = k - 1; i >= 1; i -= 2) {
-      const pqp_real *a = LROW(L, i), *b = LROW(L, i - 1);
-      const pqp_real ta = t[i] / a[i];
-      const pqp_real tb = (t[i - 1] - a[i - 1] * ta) / b[i - 1];
-      t[i] = ta;
-      t[i - 1] = tb;
-      for (j = 0; j < i - 1; ++j) t[j] = t[j] - a[j] * ta - b[j] * tb;
-    }
-    if (i == 0) t[0] /= L[0];
+    back_solve(k, L, t);
     if (k < n) { /* n independent rows leave no step: p = 0 */
       for (i = 0; i < n; ++i) p[i] = -r[i];
-      for (i = 0; i < k; i += 2) {
-        /* two rows a pass, likewise */
-        const pqp_real *a = C + start[ws[i]], ta = t[i];
-        const int la = len[ws[i]];
-        if (i + 1 < k) {
-          const pqp_real *b = C + start[ws[i + 1]], tb = t[i + 1];
-          const int lb = len[ws[i + 1]], l = la < lb ? la : lb;
-          for (j = 0; j < l; ++j) p[j] = p[j] + ta * a[j] + tb * b[j];
-          for (; j < la; ++j) p[j] += ta * a[j];
-          for (j = l; j < lb; ++j) p[j] += tb * b[j];
-        } else {
-          for (j = 0; j < la; ++j) p[j] += ta * a[j];
-        }
-      }
+      add_rows(C, start, len, ws, k, t, p);
       for (i = 0; i < n; ++i) {
         pqp_real a = PQP_FABS(p[i]);
         if (a > pmax) pmax = a;
@@ -309,7 +447,7 @@ int pqp_solve_rows(int n, int m, const pqp_real* C, const int* row_start,
       if (q < 0) {
         for (i = 0; i < k; ++i) lam[ws[i]] = -t[i];
         unpark(m, side);
-        *iterations = it;
+        *iterations = first + it;
         return PQP_OPTIMAL;
       }
       side[ws[q]] = 0;
@@ -354,6 +492,6 @@ int pqp_solve_rows(int n, int m, const pqp_real* C, const int* row_start,
    * the working set's sides instead (±1, the next call's warm start) */
   for (i = 0; i < k; ++i) lam[ws[i]] = side[ws[i]];
   unpark(m, side);
-  *iterations = max_iter;
+  *iterations = first + max_iter;
   return PQP_ITERATION_LIMIT;
 }
