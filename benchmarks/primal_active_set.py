@@ -84,3 +84,75 @@ def solve(H: np.ndarray, g: np.ndarray, C: np.ndarray, lo: np.ndarray,
             W[block] = 1 if Cp[block] > 0 else -1
     return {"x": x, "iterations": max_iter, "optimal": False, "lam": lam,
             "working": W, "path": path}
+
+
+def phase_one(C: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+              y0: np.ndarray, working: dict[int, int], max_iter: int = 1000,
+              tol: float = 1e-10, dep: float = 1e-6) -> dict:
+    """The projection of ``y0`` onto ``lo ≤ Cy ≤ hi`` (min ½|y − y0|²),
+    by the dual active set of Goldfarb & Idnani (1983) for Hessian I, as
+    ``ocp/mpc/pqp/pqp.c``'s phase one takes it: from the rows of
+    ``working`` (at their bound at ``y0``, independent) with multipliers
+    0, the row farthest beyond its bound (distance, beyond ``tol``
+    relative to 1 + |bound|) joins at its broken side while y moves
+    along its part normal to the working rows; a working row whose
+    multiplier would change sign leaves first (of those whose multiplier
+    moves by more than 1e-9 of the largest move). Returns ``y``, the last
+    ``working`` set, ``iterations`` (one per KKT solve: a row joined or
+    left) and ``status``: ``"feasible"``, ``"infeasible"`` (a row
+    depends on the working rows and none can leave) or ``"limit"``.
+    """
+    y = np.array(y0, dtype=float)
+    W = dict(working)
+    u = {j: 0.0 for j in W}
+    norms2 = np.einsum("ij,ij->i", C, C)
+    its = 0
+    while True:
+        Cy = C @ y
+        over_hi = Cy - hi > tol * (1 + np.abs(hi))
+        over_lo = lo - Cy > tol * (1 + np.abs(lo))
+        over = np.where(over_hi, Cy - hi, np.where(over_lo, lo - Cy, 0.0))
+        over[list(W)] = 0.0
+        if not np.any(over > 0):
+            return {"y": y, "working": W, "iterations": its,
+                    "status": "feasible"}
+        q = int(np.argmax(over / np.sqrt(np.maximum(norms2, 1e-300))))
+        s = 1 if over_hi[q] else -1
+        b = hi[q] if s > 0 else lo[q]
+        lam = 0.0
+        while True:
+            if its >= max_iter:
+                return {"y": y, "working": W, "iterations": its,
+                        "status": "limit"}
+            its += 1
+            rows = list(W)
+            Cw = C[rows]
+            r = (np.linalg.solve(Cw @ Cw.T, Cw @ C[q]) if rows
+                 else np.zeros(0))
+            z = C[q] - Cw.T @ r
+            d = float(z @ z)
+            dependent = len(rows) == y.size or d <= dep ** 2 * norms2[q]
+            block, room = None, 0.0
+            moved = 1e-9 * np.max(np.abs(r), initial=0.0)
+            for i, j in enumerate(rows):
+                if s * r[i] * W[j] > moved:
+                    t = u[j] / (s * r[i])
+                    if block is None or t < room:
+                        block, room = j, t
+            if dependent and block is None:
+                return {"y": y, "working": W, "iterations": its,
+                        "status": "infeasible"}
+            step = room if dependent else s * (C[q] @ y - b) / d
+            if block is not None and (dependent or room < step):
+                step = room
+            else:
+                block = None
+            if not dependent:
+                y = y - step * s * z
+            for i, j in enumerate(rows):
+                u[j] -= step * s * r[i]
+            lam += step * s
+            if block is None:
+                W[q], u[q] = s, lam
+                break
+            del W[block], u[block]

@@ -13,7 +13,8 @@
 #define PQP_SQRT sqrtf
 #define PQP_FABS fabsf
 /* a row joins only if its pivot is above PQP_DEP of its norm; the
- * ratio test skips rows moved less than PQP_MOVE of |p||c| */
+ * ratio test skips rows moved less than PQP_MOVE of |p||c|, phase one's
+ * multipliers moved less than PQP_MOVE of the largest move */
 #define PQP_DEP 1e-4f
 #define PQP_MOVE 1e-4f
 #else
@@ -268,7 +269,7 @@ static int phase_one(int n, int m, const pqp_real* C, const int* start,
     b = s > 0 ? hi[q] : lo[q];
     for (;;) {
       const pqp_real* c = C + start[q];
-      pqp_real d = norm[q], step, room = 0;
+      pqp_real d = norm[q], step, room = 0, rmax = 0;
       int block = -1, dep;
       if (*its >= max_iter) {
         *k_io = k;
@@ -285,8 +286,10 @@ static int phase_one(int n, int m, const pqp_real* C, const int* start,
       for (i = 0; i < k; ++i) r[i] = x[i];
       back_solve(k, L, r);
       dep = k == n || d <= PQP_DEP * PQP_DEP * norm[q];
-      for (i = 0; i < k; ++i) /* multipliers that reach 0 first */
-        if (s * r[i] * side[ws[i]] > 0) {
+      for (i = 0; i < k; ++i)
+        if (PQP_FABS(r[i]) > rmax) rmax = PQP_FABS(r[i]);
+      for (i = 0; i < k; ++i) /* multipliers that reach 0 first (a */
+        if (s * r[i] * side[ws[i]] > PQP_MOVE * rmax) { /* moved one) */
           const pqp_real ti = u[i] / (s * r[i]);
           if (block < 0 || ti < room) room = ti, block = i;
         }
