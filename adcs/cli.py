@@ -112,12 +112,14 @@ def _export(args: argparse.Namespace) -> int:
     for p in (res.source, res.header, res.driver, res.makefile,
               res.makefile.with_name("CMakeLists.txt"), res.readme):
         print(f"  wrote {p}")
+    # the folder as the user named it (res.out_dir is resolved)
+    shown = res.source.parent
     if (res.out_dir / "daqp" / "api.c").is_file():
-        print(f"  wrote {res.out_dir / 'daqp'}/ (DAQP's C sources, MIT "
+        print(f"  wrote {shown / 'daqp'}/ (DAQP's C sources, MIT "
               f"licence; static workspace "
               f"{res.extras['daqp_static_bytes']} bytes)")
     if (res.out_dir / "pqp" / "pqp.c").is_file():
-        print(f"  wrote {res.out_dir / 'pqp'}/ (the condensed QP's primal "
+        print(f"  wrote {shown / 'pqp'}/ (the condensed QP's primal "
               "active set and its wrapper, BSD-3-Clause)")
     if variants:
         print("  driver's closed loop: "
@@ -169,13 +171,14 @@ def _export_target(args: argparse.Namespace, res) -> int:
     from ocp.codegen.memory import format_memory
     from ocp.codegen.target import format_counts, run_target
 
+    shown = res.source.parent  # the folder as the user named it
     for name in ("startup_cortex_m.c", "cortex_m.ld", "main_cortex_m.c"):
-        print(f"  wrote {res.out_dir / name}")
+        print(f"  wrote {shown / name}")
     if res.executable is None:
         return 0
-    print(f"  built {res.executable} (arm-none-eabi-gcc -Wall -Wextra "
-          f"-Werror): {res.extras['warnings']} warnings")
-    print(f"  wrote {res.out_dir / f'memory_{args.target}.json'}")
+    print(f"  built {shown / res.executable.name} (arm-none-eabi-gcc "
+          f"-Wall -Wextra -Werror): {res.extras['warnings']} warnings")
+    print(f"  wrote {shown / f'memory_{args.target}.json'}")
     if args.run:
         try:
             times = run_target(res)

@@ -181,7 +181,8 @@ def test_cli_export_target_run_prints_counts_and_memory(tmp_path, capsys,
                                                        monkeypatch):
     """From a folder named relative to the working directory (the
     compiler runs inside it), and no machine path in what the build
-    leaves there (gcc's .su and .ci files name the sources)."""
+    leaves there (gcc's .su and .ci files name the sources) nor in what
+    it prints (the folder as the user named it)."""
     from adcs.cli import main
 
     monkeypatch.chdir(tmp_path)
@@ -190,6 +191,8 @@ def test_cli_export_target_run_prints_counts_and_memory(tmp_path, capsys,
     text = capsys.readouterr().out
     assert "instruction counts, not cycles" in text
     assert "memory on cortex-m7" in text and "min_norm" in text
+    assert "wrote flight/daqp/" in text and "built flight/adcs_driver" in text
+    assert str(tmp_path) not in text
     out = tmp_path / "flight"
     assert (out / "memory_cortex-m7.json").is_file()
     built = [p for p in out.rglob("*") if p.suffix in (".su", ".ci")]
@@ -314,3 +317,30 @@ def test_m4f_single_horizon_7_meets_every_flight_goal(tmp_path):
     assert not any(mem[n]["heap"] for n in res.functions)
     assert times["wheel_qp"]["max"] <= WHEEL_QP_INSTRUCTIONS
     assert times["duty_qp"]["median"] <= DUTY_QP_INSTRUCTIONS
+
+
+@pytest.mark.parametrize("target, precision, horizon", [
+    ("cortex-m7", "double", 6), ("cortex-m4f", "single", 11)])
+def test_capped_pqp_step_meets_every_flight_goal(tmp_path, target,
+                                                 precision, horizon):
+    """With the condensed QP by pqp capped at 8 (no DAQP in the step), the
+    flight set meets every figure of the goal table at horizon 6 in
+    double on the emulated M7 (measured: worst step 285,160, flight set
+    177,024 bytes of flash and 62,480 of RAM) and at horizon 11 in float
+    on the M4F (718,560; 181,616 and 62,740)."""
+    res = export_c(tmp_path / "pqp", "demo", horizon=horizon,
+                   precision=precision, mpc_variants=("mpc_cond_rti_step",),
+                   condensed_qp_plugin="pqp", condensed_qp_max_iter=8,
+                   target=target, build=True, repeats=3)
+    times = run_target(res, timeout=600)
+    loop = times["closed_loop:mpc_cond_rti_step"]
+    steps = np.asarray(loop["steps"])
+    assert np.median(steps) <= GOAL_MEDIAN, np.median(steps)
+    assert steps.max() <= GOAL_WORST, steps.max()
+    assert np.deg2rad(loop["final_error_deg"]) <= M4F_SINGLE_FINAL_ERROR_RAD
+    mem = res.extras["memory"]["functions"]
+    flight = mem["wheel_qp+duty_qp+mpc_cond_rti_step"]
+    assert flight["flash"] <= GOAL_FLASH, flight
+    assert flight["ram"] <= GOAL_RAM, flight
+    assert mem["mpc_cond_rti_step"]["static_ram"] <= 64  # no DAQP workspace
+    assert not any(mem[n]["heap"] for n in res.functions)

@@ -31,8 +31,8 @@ typedef double pqp_real;
 #define PQP_WORK_SIZE(n, m) ((n) * ((n) + 1) / 2 + 4 * (n) + 3 * (m))
 #define PQP_IWORK_SIZE(n, m) ((n) + 2 * (m))
 /* phase one's iteration limit in pqp_solve: each broken row joins once
- * and max_iter rows may leave (phase one rarely drops one: a start
- * that breaks a bound at eight rows took eight iterations) */
+ * and max_iter rows may leave (phase one rarely drops one: starts
+ * beyond a rate bound that broke 8 and 20 rows took 8 and 20) */
 #define PQP_PHASE_ONE_LIMIT(m, max_iter) ((m) + (max_iter))
 int pqp_work_size(int n, int m);
 int pqp_iwork_size(int n, int m);
