@@ -295,15 +295,11 @@ GOAL_MEDIAN, GOAL_WORST = 400_000, 2_000_000
 GOAL_FLASH, GOAL_RAM = 256 * 1024, 64 * 1024
 
 
-def test_m4f_single_horizon_7_meets_every_flight_goal(tmp_path):
-    """In float on the emulated Cortex-M4F at horizon 7 the condensed RTI
-    step and its flight set meet every figure of the goal table: the
-    closed loop's median and worst step, cold included (measured 139,200,
-    655,440 and 432,160 instructions), the flight set's flash and RAM
-    (179,128 and 57,076 bytes), wheel_qp and duty_qp a call, no heap."""
-    res = export_c(tmp_path / "n7", "demo", horizon=7, precision="single",
-                   mpc_variants=("mpc_cond_rti_step",), target="cortex-m4f",
-                   build=True, repeats=10)
+def _meets_the_step_goals(res) -> tuple[dict, dict]:
+    """Run ``res``'s driver on its target and check the closed loop's
+    median and worst step, its final error, the flight set's flash and
+    RAM and that no function calls the heap; returns the counts and the
+    memory report's functions."""
     times = run_target(res, timeout=600)
     loop = times["closed_loop:mpc_cond_rti_step"]
     steps = np.asarray(loop["steps"])
@@ -315,6 +311,19 @@ def test_m4f_single_horizon_7_meets_every_flight_goal(tmp_path):
     assert flight["flash"] <= GOAL_FLASH, flight
     assert flight["ram"] <= GOAL_RAM, flight
     assert not any(mem[n]["heap"] for n in res.functions)
+    return times, mem
+
+
+def test_m4f_single_horizon_7_meets_every_flight_goal(tmp_path):
+    """In float on the emulated Cortex-M4F at horizon 7 the condensed RTI
+    step and its flight set meet every figure of the goal table: the
+    closed loop's median and worst step, cold included (measured 139,200,
+    655,440 and 432,160 instructions), the flight set's flash and RAM
+    (179,128 and 57,076 bytes), wheel_qp and duty_qp a call, no heap."""
+    res = export_c(tmp_path / "n7", "demo", horizon=7, precision="single",
+                   mpc_variants=("mpc_cond_rti_step",), target="cortex-m4f",
+                   build=True, repeats=10)
+    times, _ = _meets_the_step_goals(res)
     assert times["wheel_qp"]["max"] <= WHEEL_QP_INSTRUCTIONS
     assert times["duty_qp"]["median"] <= DUTY_QP_INSTRUCTIONS
 
@@ -332,15 +341,5 @@ def test_capped_pqp_step_meets_every_flight_goal(tmp_path, target,
                    precision=precision, mpc_variants=("mpc_cond_rti_step",),
                    condensed_qp_plugin="pqp", condensed_qp_max_iter=8,
                    target=target, build=True, repeats=3)
-    times = run_target(res, timeout=600)
-    loop = times["closed_loop:mpc_cond_rti_step"]
-    steps = np.asarray(loop["steps"])
-    assert np.median(steps) <= GOAL_MEDIAN, np.median(steps)
-    assert steps.max() <= GOAL_WORST, steps.max()
-    assert np.deg2rad(loop["final_error_deg"]) <= M4F_SINGLE_FINAL_ERROR_RAD
-    mem = res.extras["memory"]["functions"]
-    flight = mem["wheel_qp+duty_qp+mpc_cond_rti_step"]
-    assert flight["flash"] <= GOAL_FLASH, flight
-    assert flight["ram"] <= GOAL_RAM, flight
+    _, mem = _meets_the_step_goals(res)
     assert mem["mpc_cond_rti_step"]["static_ram"] <= 64  # no DAQP workspace
-    assert not any(mem[n]["heap"] for n in res.functions)
