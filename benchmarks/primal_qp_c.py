@@ -81,13 +81,15 @@ def solve_c(lib: ctypes.CDLL, C: np.ndarray, lo: np.ndarray, hi: np.ndarray,
             f: np.ndarray, y0: np.ndarray, side: np.ndarray,
             max_iter: int = NO_CAP, tol: float = TOL["double"],
             precision: str = "double", row_len: np.ndarray | None = None,
-            packed: bool = False, phase_one: int | None = None) -> dict:
+            packed: bool = False, phase_one: int | None = None,
+            fill: float = 0.0) -> dict:
     """pqp_solve on one QP through ``lib`` (`host_library`): ``y``,
     ``side``, ``lam``, ``status`` (`STATUS`) and ``iterations``. With
     ``row_len`` (m,): pqp_solve_rows, each row read up to its length;
     ``packed``: the rows so cut, one after the other (row_start);
     ``phase_one``: pqp_solve_rows with that phase-one iteration limit
-    (else pqp_solve's, m + max_iter)."""
+    (else pqp_solve's, m + max_iter); ``fill``: the work arrays' values
+    before the call (NaN: any read of work not written first shows)."""
     real = np.float32 if precision == "single" else np.float64
     ctype = ctypes.c_float if precision == "single" else ctypes.c_double
     m, n = C.shape
@@ -99,8 +101,9 @@ def solve_c(lib: ctypes.CDLL, C: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     y = np.array(y0, dtype=real)
     sd = np.array(side, dtype=np.int8)
     lam = np.zeros(m, dtype=real)
-    w = np.zeros(lib.pqp_work_size(n, m), dtype=real)
-    iw = np.zeros(lib.pqp_iwork_size(n, m), dtype=np.int32)
+    w = np.full(lib.pqp_work_size(n, m), fill, dtype=real)
+    iw = np.full(lib.pqp_iwork_size(n, m), 0 if fill == 0 else -99999,
+                 dtype=np.int32)
     its = ctypes.c_int(0)
 
     def ptr(a):

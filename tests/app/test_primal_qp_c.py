@@ -289,6 +289,37 @@ def test_phase_one_is_the_starts_projection(lib):
         assert np.max(np.abs(r["y"] - ref)) <= 1e-9
 
 
+def test_no_work_is_read_before_it_is_written(lib, qps):
+    """Work arrays full of NaN (and ints of garbage) before the call give
+    the answers of zeroed ones, bit for bit: the solver reads only what
+    it wrote, warm, cold and through phase one with warm rows (whose
+    multipliers once came from whatever the work held: an exported
+    closed loop, its work shared with other functions, then stalled)."""
+    rng = np.random.default_rng(8)
+    cases = []
+    for q in qps[:6]:
+        m, n = q["C"].shape
+        ref = _twin(q)
+        cases += [(q, np.zeros(n), np.zeros(m)),
+                  (q, ref["x"], _sides(m, ref["working"]))]
+        b = _broken(rng, q, 3)
+        y0 = rng.normal(size=n)
+        cy = q["C"] @ y0
+        side = np.zeros(m, dtype=int)
+        side[:3] = np.sign(cy[:3])
+        lo, hi = b["lo"].copy(), b["hi"].copy()
+        for j in range(3):
+            (hi if cy[j] > 0 else lo)[j] = cy[j]
+        cases.append(({**b, "lo": lo, "hi": hi}, y0, side))
+    for q, y0, side in cases:
+        runs = [pc.solve_c(lib, q["C"], q["lo"], q["hi"], q["f"], y0, side,
+                           fill=fill) for fill in (0.0, np.nan)]
+        assert runs[0]["status"] == runs[1]["status"]
+        assert runs[0]["iterations"] == runs[1]["iterations"]
+        assert np.array_equal(runs[0]["y"], runs[1]["y"])
+        assert np.array_equal(runs[0]["lam"], runs[1]["lam"])
+
+
 def test_phase_one_limit_and_crossed_bounds(lib, qps):
     """Phase one stopped at max_iter before a feasible point, and a row
     whose bounds cross, are statuses of their own, without multipliers."""

@@ -245,6 +245,7 @@ static int phase_one(int n, int m, const pqp_real* C, const int* start,
                      pqp_real* L, pqp_real* u, pqp_real* x, pqp_real* r,
                      pqp_real* z, pqp_real* Cz, int max_iter, int* its) {
   int i, j, k = *k_io;
+  for (i = 0; i < k; ++i) u[i] = 0; /* the warm rows' multipliers */
   for (;;) {
     pqp_real worst = 0, b = 0, lam = 0;
     int q = -1, s = 0;
