@@ -334,9 +334,9 @@ def test_capped_pqp_step_meets_every_flight_goal(tmp_path, target,
                                                  precision, horizon):
     """With the condensed QP by pqp capped at 8 (no DAQP in the step), the
     flight set meets every figure of the goal table at horizon 6 in
-    double on the emulated M7 (measured: worst step 285,160, flight set
+    double on the emulated M7 (measured: worst step 284,800, flight set
     177,024 bytes of flash and 62,480 of RAM) and at horizon 11 in float
-    on the M4F (718,560; 181,616 and 62,740)."""
+    on the M4F (718,560; 181,680 and 62,740)."""
     res = export_c(tmp_path / "pqp", "demo", horizon=horizon,
                    precision=precision, mpc_variants=("mpc_cond_rti_step",),
                    condensed_qp_plugin="pqp", condensed_qp_max_iter=8,
