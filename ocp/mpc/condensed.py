@@ -279,6 +279,7 @@ def _constrained_qp(rk: dict, qp_in: list, plugin: str, dims: tuple,
     a = _rows_of(dx, rate_rows)
     dual = row_adjoint(rk, A, B, K, Lit, lam)
     kkt = kkt_residual(y, gy, dual, du, a, lam_u, lam_a, *bounds)
+    capped_out = []
     if flags:
         # a capped point is certified as a feasible descent, not optimal;
         # no feasible point found: the certificate fails outright
@@ -287,9 +288,9 @@ def _constrained_qp(rk: dict, qp_in: list, plugin: str, dims: tuple,
                          capped_residual(y, gy, du, a, *bounds,
                                          moved=moved), kkt)
         kkt = ca.if_else(infeasible > 0, ca.inf, kkt)
-        flags = [capped]
+        capped_out = [capped]
     return ca.Function("cond_qp_full", i,
-                       [du, ca.horzcat(*dx), lam_u, lam_a, kkt, *flags])
+                       [du, ca.horzcat(*dx), lam_u, lam_a, kkt, *capped_out])
 
 
 def _rows_of(dx: list, rate_rows: bool) -> ca.MX:
