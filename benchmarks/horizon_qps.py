@@ -56,6 +56,7 @@ from scipy import sparse
 from tqdm.auto import tqdm
 
 from benchmarks import primal_active_set
+from benchmarks.riccati_active_set import stage_qp_function
 from benchmarks.mpc_worst_case import random_states
 from ocp.models.rigid import rigid_spacecraft
 from ocp.mpc import AttitudeMPC
@@ -130,10 +131,13 @@ def add_loop_arguments(ap: argparse.ArgumentParser) -> None:
 
 
 def collect(horizon: int, draws: int, steps: int, seed: int,
-            spacecraft: str = "demo") -> dict:
+            spacecraft: str = "demo", stagewise: bool = False) -> dict:
     """The QPs of ``draws`` closed loops of ``steps`` steps, with the
-    step's answer δu, and the scales of their rows."""
+    step's answer δu, and the scales of their rows; ``stagewise``: each
+    QP also kept stage by stage (``"stage"``,
+    `benchmarks.riccati_active_set.stage_qp_function`)."""
     sc, model, mpc, qp = study_setup(horizon, spacecraft)
+    pose = stage_qp_function(mpc) if stagewise else None
     N, nu, nw = horizon, model.nu, sc.wheels.n_wheels
     rk4 = model.rk4_step(1)
     qf, tau = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
@@ -156,6 +160,8 @@ def collect(horizon: int, draws: int, steps: int, seed: int,
                         "lo": np.r_[lbu.ravel(), lba.ravel()],
                         "hi": np.r_[ubu.ravel(), uba.ravel()],
                         "du": z[controls] - z0[controls]})
+            if pose is not None:
+                qps[-1]["stage"] = pose(z0, np.r_[x, qf, tau])
             x = np.asarray(rk4(x, np.array(out[0]).ravel(), tau,
                                0.5)).ravel()
     return {"qps": qps, "scale": row_scales(sc, mpc), "N": N, "nu": nu,
