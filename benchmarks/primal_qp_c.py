@@ -37,21 +37,17 @@ import shutil
 import struct
 import subprocess
 import tempfile
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 from tqdm.auto import tqdm
 
-from benchmarks import primal_active_set
+from benchmarks import emulated_solver, primal_active_set
+from benchmarks.emulated_solver import qp_rows, run_driver
 from benchmarks.horizon_qps import (add_loop_arguments, collect, run_daqp,
                                     shift_stages, stage_parts)
-from ocp.codegen.memory import call_graph, section_sizes, worst_stack
-from ocp.codegen.result import OPT_FLAGS
 from ocp.mpc.primal_qp import PQP_SOURCES
-from ocp.codegen.target import (CORES, CROSS_CC, INSTRUCTIONS_PER_TICK,
-                                QEMU, TARGET_WARNINGS, target_head,
-                                toolchain_missing)
+from ocp.codegen.target import CORES, TARGET_WARNINGS
 
 #: The C solver's folder (pqp.c, pqp.h), shipped with ocp.mpc.
 PQP_DIR = PQP_SOURCES
@@ -59,6 +55,8 @@ PQP_DIR = PQP_SOURCES
 TOL = {"double": 1e-10, "single": 1e-4}
 #: Iterations of an uncapped solve.
 NO_CAP = 1000
+#: pqp's float build.
+PQP_SINGLE = "-DPQP_SINGLE_PRECISION"
 #: Statuses of pqp_solve (pqp.h).
 STATUS = ("optimal", "iteration limit", "infeasible", "invalid input",
           "no feasible point")
@@ -240,63 +238,22 @@ int main(void) {
 """
 
 
-def _template(name: str) -> str:
-    return (resources.files("ocp.codegen") / "templates" / name).read_text(
-        encoding="utf-8")
-
-
 def run_target(problems: list[dict], caps: list[int], target: str,
                precision: str, timeout: float = 3600.0) -> list[dict]:
     """Build pqp.c and its driver for ``target`` and run it on qemu; per
     QP and cap (``-1``: the warm factorisation alone) its
     ``instructions``, ``iterations``, ``status`` and ``err`` (max |y −
     y_ref|)."""
-    why = toolchain_missing()
-    if why:
-        raise RuntimeError(why)
-    core = CORES[target]
     m, n = problems[0]["C"].shape
     caps = [NO_CAP if cap == 0 else cap for cap in caps]
     with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp)
-        write_problems(out / "qps.bin", problems, caps, precision)
-        real = "float" if precision == "single" else "double"
-        # the driver head's types: no generated code here
-        (out / "adcs_codegen.h").write_text(
-            f"typedef {real} casadi_real;\ntypedef long long casadi_int;\n")
-        main = _MAIN.replace("@NMAX@", str(n)).replace("@MMAX@", str(m))
-        (out / "main.c").write_text(target_head() + main.replace(
-            "@TOL@", repr(TOL[precision])))
-        for name in ("startup_cortex_m.c", "cortex_m.ld"):
-            (out / name).write_text(_template(name))
-        define = ["-DPQP_SINGLE_PRECISION"] if precision == "single" else []
-        flags = [*OPT_FLAGS, *core.cpu_flags, *TARGET_WARNINGS, *define,
-                 f"-I{PQP_DIR}"]
-        subprocess.run([CROSS_CC, *flags, "main.c", str(PQP_DIR / "pqp.c"),
-                        "startup_cortex_m.c", "-nostartfiles",
-                        "--specs=rdimon.specs", "-Tcortex_m.ld",
-                        "-Wl,--gc-sections", "-lm", "-o", "pqp.elf"],
-                       cwd=out, check=True, capture_output=True, text=True)
-        proc = subprocess.run(
-            [QEMU, "-M", core.machine, "-nographic", "-semihosting-config",
-             "enable=on,target=native", "-icount", "shift=0", "-kernel",
-             "pqp.elf"], cwd=out, capture_output=True, text=True,
-            timeout=timeout)
-    if proc.returncode != 0 or "ERROR" in proc.stdout:
-        raise RuntimeError(f"target driver failed: {proc.stdout[-2000:]}"
-                           f"{proc.stderr[-2000:]}")
-    rows = []
-    for line in proc.stdout.splitlines():
-        if not line.startswith("QP "):
-            continue
-        part = dict(kv.split("=") for kv in line.split()[2:])
-        rows.append({"qp": int(line.split()[1]), "cap": int(part["cap"]),
-                     "instructions": int(part["ticks"])
-                     * INSTRUCTIONS_PER_TICK,
-                     "iterations": int(part["iterations"]),
-                     "status": STATUS[int(part["status"])],
-                     "err": float(part["err"])})
-    return rows
+        write_problems(Path(tmp) / "qps.bin", problems, caps, precision)
+        data = (Path(tmp) / "qps.bin").read_bytes()
+    main = _MAIN.replace("@NMAX@", str(n)).replace("@MMAX@", str(m)).replace(
+        "@TOL@", repr(TOL[precision]))
+    out = run_driver(main, PQP_DIR / "pqp.c", data, target, precision,
+                     PQP_SINGLE, timeout)
+    return qp_rows(out, STATUS)
 
 
 def solver_memory(target: str, precision: str = "double") -> dict:
@@ -305,20 +262,8 @@ def solver_memory(target: str, precision: str = "double") -> dict:
     graph, `ocp.codegen.memory.worst_stack`), whether that is
     ``bounded`` and the ``library`` functions it calls (their frames not
     counted)."""
-    core = CORES[target]
-    define = ["-DPQP_SINGLE_PRECISION"] if precision == "single" else []
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp)
-        subprocess.run([CROSS_CC, *OPT_FLAGS, *core.cpu_flags,
-                        *TARGET_WARNINGS, *define, "-fstack-usage",
-                        "-fcallgraph-info=su", "-c", str(PQP_DIR / "pqp.c"),
-                        "-o", "pqp.o"], cwd=out, check=True,
-                       capture_output=True, text=True)
-        frames, edges = call_graph((out / "pqp.ci").read_text())
-        sizes = section_sizes(out / "pqp.o", "arm-none-eabi-size")
-    stack, bounded, library = worst_stack("pqp_solve", frames, edges)
-    return {"flash": sizes.get("text", 0) + sizes.get("rodata", 0),
-            "stack": stack, "bounded": bounded, "library": library}
+    return emulated_solver.solver_memory(PQP_DIR / "pqp.c", "pqp_solve",
+                                         target, precision, PQP_SINGLE)
 
 
 def _stats(v) -> str:

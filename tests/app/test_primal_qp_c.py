@@ -9,16 +9,14 @@ and both Cortex-M cores, and the target build gives the host's answers.
 
 from __future__ import annotations
 
-import subprocess
 
 import numpy as np
 import pytest
 
 from benchmarks import primal_active_set
 from benchmarks import primal_qp_c as pc
-from ocp.codegen.result import OPT_FLAGS
-from ocp.codegen.target import (CORES, CROSS_CC, TARGET_WARNINGS,
-                                toolchain_missing)
+from benchmarks.emulated_solver import compile_object, undefined_symbols
+from ocp.codegen.target import CORES, toolchain_missing
 
 
 def _qp(rng: np.random.Generator, stages: int = 6, wheels: int = 2,
@@ -392,17 +390,12 @@ def test_the_steps_qps_match_the_twin(lib):
 def test_target_build_is_clean_and_heap_free(tmp_path, target, precision):
     """C99 under -Wall -Wextra -Werror for the core; the object calls no
     allocator."""
-    define = ["-DPQP_SINGLE_PRECISION"] if precision == "single" else []
     obj = tmp_path / "pqp.o"
-    proc = subprocess.run([CROSS_CC, *OPT_FLAGS, *CORES[target].cpu_flags,
-                           *TARGET_WARNINGS, *define, "-c",
-                           str(pc.PQP_DIR / "pqp.c"), "-o", str(obj)],
-                          capture_output=True, text=True)
+    proc = compile_object(pc.PQP_DIR / "pqp.c", target, precision,
+                          pc.PQP_SINGLE, obj)
     assert proc.returncode == 0 and not proc.stderr, proc.stderr
-    undefined = subprocess.run(["arm-none-eabi-nm", "-u", str(obj)],
-                               capture_output=True, text=True,
-                               check=True).stdout.split()
-    assert not {"malloc", "calloc", "realloc", "free"} & set(undefined)
+    undefined = undefined_symbols(obj)
+    assert not {"malloc", "calloc", "realloc", "free"} & undefined
     if precision == "single":
         assert "sqrt" not in undefined
     # flight-sized: a few kB of code, a bounded stack of a few hundred

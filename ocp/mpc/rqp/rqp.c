@@ -1,0 +1,557 @@
+/* SPDX-License-Identifier: BSD-3-Clause (LICENSE beside this file) */
+/* Primal active set (Nocedal & Wright, Numerical Optimization, 2nd ed.,
+ * algorithm 16.3) on the stage-wise QP of rqp.h. A working set's
+ * equality QP is one backward recursion: at stage k the working boxes of
+ * the stage and the rows passed back to x_{k+1}, each an equality row on
+ * (x_k, u_k) through the dynamics, are split by Gram-Schmidt on their
+ * u-parts (rows that constrain u_k eliminate a direction of it; the
+ * others, less their kept parts, are rows on x_k alone, passed back:
+ * Laine & Tomlin, Efficient computation of feedback control for
+ * equality-constrained LQR, ICRA 2019), the free directions of u_k
+ * minimise the cost-to-go, and u_k = K_k x_k + k_k. A change at stage k
+ * refactors stages k…0; the multipliers come from one forward sweep. */
+#include "rqp.h"
+
+#include <math.h>
+
+#ifdef RQP_SINGLE_PRECISION
+#define RQP_SQRT sqrtf
+#define RQP_FABS fabsf
+#define RQP_RANK 1e-5f /* a row's u-part below this of its norm: none */
+#define RQP_DEP 1e-5f  /* a row on x below this of its norm: dependent */
+#define RQP_MOVE 1e-5f /* the ratio test skips boxes moved less */
+#else
+#define RQP_SQRT sqrt
+#define RQP_FABS fabs
+#define RQP_RANK 1e-9
+#define RQP_DEP 1e-9
+#define RQP_MOVE 1e-9
+#endif
+
+#define RQP_DEPENDENT (-1)
+
+/* the work arrays (caller's w and iw), carved in rqp_solve */
+typedef struct {
+  rqp_real *P, *p, *K, *k, *H, *h;      /* per stage */
+  rqp_real *Us, *Xs, *V, *dV;          /* per stage: iterate, boxes */
+  rqp_real *Cx, *Cu, *c, *Qa, *Ra, *beta, *Hb, *hb, *M; /* one stage */
+  rqp_real *Fx, *f0, *V2, *Muu, *Mux, *mu, *red, *T1, *T2, *v1, *v2, *nu_;
+  int *nH, *acc, *dep, *rowbox, rmax;
+} work;
+
+#include "rqp_kernels.h"
+
+/* box b's value at (u, x): s_b (u, x)[i_b] */
+static rqp_real box_value(const rqp_problem *qp, int b, const rqp_real *u,
+                          const rqp_real *x) {
+  const int i = qp->box[b];
+  return qp->scale[b] * (i < qp->nu ? u[i] : x[i - qp->nu]);
+}
+
+/* Stage k's rows on (x_k, u_k): the fixed inputs, the working boxes (in
+ * box order), the nH rows H x_{k+1} = h passed back to x_{k+1}. */
+static int stage_rows(const rqp_problem *qp, int k, const signed char *side,
+                      const rqp_real *u, const rqp_real *H,
+                      const rqp_real *h, int nH, work *ws) {
+  const int nx = qp->nx, nu = qp->nu;
+  const sparse A = stage_A(qp, k), B = stage_B(qp, k);
+  const rqp_real *d = qp->d + k * nx;
+  int r = 0, i, j, b;
+  for (i = 0; i < nu; ++i)
+    if (qp->fixed[i]) {
+      for (j = 0; j < nx; ++j) ws->Cx[r * nx + j] = 0;
+      for (j = 0; j < nu; ++j) ws->Cu[r * nu + j] = j == i;
+      ws->c[r] = u[i];
+      ws->rowbox[r++] = -1;
+    }
+  for (b = 0; b < qp->nb; ++b) {
+    const int s = side[k * qp->nb + b], ib = qp->box[b];
+    const rqp_real sc = qp->scale[b],
+                   bound = s > 0 ? qp->hi[k * qp->nb + b] : qp->lo[k * qp->nb + b];
+    if (s != 1 && s != -1) continue;
+    if (ib < nu) {
+      for (j = 0; j < nx; ++j) ws->Cx[r * nx + j] = 0;
+      for (j = 0; j < nu; ++j) ws->Cu[r * nu + j] = j == ib ? sc : 0;
+      ws->c[r] = bound;
+    } else {
+      const int ix = ib - nu;
+      row_sparse(A, ix, ws->Cx + r * nx);
+      row_sparse(B, ix, ws->Cu + r * nu);
+      for (j = 0; j < nx; ++j) ws->Cx[r * nx + j] *= sc;
+      for (j = 0; j < nu; ++j) ws->Cu[r * nu + j] *= sc;
+      ws->c[r] = bound - sc * d[ix];
+    }
+    ws->rowbox[r++] = b;
+  }
+  if (nH) {
+    mul_sparse(nH, nx, H, A, ws->Cx + r * nx);
+    mul_sparse(nH, nx, H, B, ws->Cu + r * nu);
+  }
+  for (i = 0; i < nH; ++i) {
+    ws->c[r] = h[i] - dot(nx, H + i * nx, d);
+    ws->rowbox[r++] = -2;
+  }
+  return r;
+}
+
+/* Gram-Schmidt on the rows' u-parts (the twin's _split): *na kept rows
+ * (acc), C_u[acc] = RaᵀQaᵀ with Qa's columns (nu × na, stored column by
+ * column) orthonormal; *nd others (dep), C_u[dep] = beta C_u[acc]. */
+static void split(int r, int nu, work *ws, int *na, int *nd) {
+  int i, j, t, a = 0, e = 0;
+  for (i = 0; i < r; ++i) {
+    const rqp_real *row = ws->Cu + i * nu;
+    rqp_real *res = ws->v1, *co = ws->v2, norm, rnorm = RQP_SQRT(
+        dot(nu, row, row));
+    for (t = 0; t < a; ++t) co[t] = dot(nu, ws->Qa + t * nu, row);
+    for (j = 0; j < nu; ++j) {
+      res[j] = row[j];
+      for (t = 0; t < a; ++t) res[j] -= ws->Qa[t * nu + j] * co[t];
+    }
+    norm = RQP_SQRT(dot(nu, res, res));
+    if (a < nu && norm > RQP_RANK * (rnorm > 1 ? rnorm : 1)) {
+      for (t = 0; t < a; ++t) ws->Ra[t * nu + a] = co[t];
+      ws->Ra[a * nu + a] = norm;
+      for (j = 0; j < nu; ++j) ws->Qa[a * nu + j] = res[j] / norm;
+      ws->acc[a++] = i;
+    } else {
+      /* beta: R beta = co, R upper triangular (a × a, stride nu) */
+      for (t = a - 1; t >= 0; --t) {
+        rqp_real s = co[t];
+        for (j = t + 1; j < a; ++j) s -= ws->Ra[t * nu + j] * co[j];
+        co[t] = s / ws->Ra[t * nu + t];
+      }
+      /* on the rows kept before it: zero on those kept after */
+      for (t = 0; t < nu; ++t) ws->beta[e * nu + t] = t < a ? co[t] : 0;
+      ws->dep[e++] = i;
+    }
+  }
+  *na = a;
+  *nd = e;
+}
+
+/* The dependent rows less their kept parts, made orthonormal in order:
+ * Hout = M Hb (M lower triangular nd × nd, stride nx), hout = M hb.
+ * Returns RQP_DEPENDENT where one vanishes or reaches x_0. */
+static int pass_back(int k, int nx, int nu, int na, int nd, work *ws,
+                     rqp_real *Hout, rqp_real *hout) {
+  int i, j, t;
+  for (i = 0; i < nd; ++i) {
+    const int di = ws->dep[i];
+    rqp_real *hb = ws->Hb + i * nx, *co = ws->v2, norm, big = 1;
+    for (j = 0; j < nx; ++j) {
+      hb[j] = ws->Cx[di * nx + j];
+      for (t = 0; t < na; ++t)
+        hb[j] -= ws->beta[i * nu + t] * ws->Cx[ws->acc[t] * nx + j];
+      if (RQP_FABS(ws->Cx[di * nx + j]) > big)
+        big = RQP_FABS(ws->Cx[di * nx + j]);
+    }
+    ws->hb[i] = ws->c[di];
+    for (t = 0; t < na; ++t) ws->hb[i] -= ws->beta[i * nu + t] * ws->c[ws->acc[t]];
+    for (t = 0; t < i; ++t) co[t] = dot(nx, Hout + t * nx, hb);
+    for (j = 0; j < nx; ++j) {
+      rqp_real s = hb[j];
+      for (t = 0; t < i; ++t) s -= co[t] * Hout[t * nx + j];
+      ws->v1[j] = s;
+    }
+    norm = RQP_SQRT(dot(nx, ws->v1, ws->v1));
+    if (k == 0 || norm <= RQP_DEP * big) return RQP_DEPENDENT;
+    for (j = 0; j < nx; ++j) Hout[i * nx + j] = ws->v1[j] / norm;
+    for (j = 0; j < i; ++j) {
+      rqp_real s = 0;
+      for (t = j; t < i; ++t) s += co[t] * ws->M[t * nx + j];
+      ws->M[i * nx + j] = -s / norm;
+    }
+    ws->M[i * nx + i] = 1 / norm;
+    hout[i] = 0;
+    for (j = 0; j <= i; ++j) hout[i] += ws->M[i * nx + j] * ws->hb[j];
+  }
+  return 0;
+}
+
+/* Stage k of the recursion: from the cost-to-go (Pin, pin) at x_{k+1}
+ * and the rows passed back there, the law u_k = K x_k + k, the
+ * cost-to-go at x_k and the rows passed back to it (stored at k). */
+static int stage_factor(const rqp_problem *qp, int k, const signed char *side,
+                        const rqp_real *u, const rqp_real *Pin,
+                        const rqp_real *pin, const rqp_real *Hin,
+                        const rqp_real *hin, int nHin, work *ws) {
+  const int nx = qp->nx, nu = qp->nu;
+  const sparse A = stage_A(qp, k), B = stage_B(qp, k);
+  const rqp_real *d = qp->d + k * nx, *g = qp->g + k * nu;
+  rqp_real *K = ws->K + k * nu * nx, *kk = ws->k + k * nu,
+           *P = ws->P + k * nx * nx, *p = ws->p + k * nx;
+  const int r = stage_rows(qp, k, side, u, Hin, hin, nHin, ws);
+  int na, nd, nf = 0, i, j, t;
+  split(r, nu, ws, &na, &nd);
+  if (nd > nx) return RQP_DEPENDENT;
+  /* Raᵀ Z = rows' x-parts and c (forward substitution), Fx = -Qa Z */
+  for (j = 0; j <= nx; ++j) {
+    for (t = 0; t < na; ++t) {
+      rqp_real s = j < nx ? ws->Cx[ws->acc[t] * nx + j] : ws->c[ws->acc[t]];
+      for (i = 0; i < t; ++i) s -= ws->Ra[i * nu + t] * ws->v2[i];
+      ws->v2[t] = s / ws->Ra[t * nu + t];
+    }
+    for (i = 0; i < nu; ++i) {
+      rqp_real s = 0;
+      for (t = 0; t < na; ++t) s += ws->Qa[t * nu + i] * ws->v2[t];
+      if (j < nx)
+        ws->Fx[i * nx + j] = -s;
+      else
+        ws->f0[i] = s;
+    }
+  }
+  /* the free directions: unit vectors less their parts on Qa and on
+   * the directions taken before them (kept where ≥ 1/2 is left) */
+  for (j = 0; j < nu && na + nf < nu; ++j) {
+    for (i = 0; i < nu; ++i) ws->v1[i] = i == j;
+    for (t = 0; t < na; ++t) {
+      const rqp_real s = ws->Qa[t * nu + j];
+      for (i = 0; i < nu; ++i) ws->v1[i] -= s * ws->Qa[t * nu + i];
+    }
+    for (t = 0; t < nf; ++t) {
+      const rqp_real s = ws->V2[t * nu + j];
+      for (i = 0; i < nu; ++i) ws->v1[i] -= s * ws->V2[t * nu + i];
+    }
+    {
+      const rqp_real n = RQP_SQRT(dot(nu, ws->v1, ws->v1));
+      if (n > (rqp_real)0.5) {
+        for (i = 0; i < nu; ++i) ws->V2[nf * nu + i] = ws->v1[i] / n;
+        ++nf;
+      }
+    }
+  }
+  /* Muu = R + BᵀPB, Mux = BᵀPA, mu = g + Bᵀ(Pd + p); T2 = AᵀPA */
+  mul_sparse(nx, nx, Pin, A, ws->T1);              /* P A (nx × nx) */
+  tmul_sparse(A, nx, ws->T1, 1, ws->T2);           /* AᵀPA */
+  tmul_sparse(B, nx, ws->T1, 0, ws->Mux);          /* BᵀPA */
+  mul_sparse(nx, nx, Pin, B, ws->T1);              /* P B (nx × nu) */
+  tmul_sparse(B, nu, ws->T1, 1, ws->Muu);          /* BᵀPB */
+  for (i = 0; i < nu; ++i) ws->Muu[i * nu + i] += qp->R[i];
+  matvec(nx, nx, Pin, d, ws->hb);                  /* P d, kept */
+  for (i = 0; i < nx; ++i) ws->v1[i] = ws->hb[i] + pin[i];
+  tvec_sparse(B, ws->v1, ws->mu);
+  for (i = 0; i < nu; ++i) ws->mu[i] += g[i];
+  for (i = 0; i < nu * nx; ++i) K[i] = ws->Fx[i];
+  for (i = 0; i < nu; ++i) kk[i] = ws->f0[i];
+  if (nf) {
+    /* red = V2ᵀ Muu V2 = L Lᵀ; K -= V2 red⁻¹ V2ᵀ(Muu Fx + Mux), k likewise */
+    rqp_real *L = ws->red;
+    for (i = 0; i < nf; ++i)
+      for (j = 0; j <= i; ++j) {
+        rqp_real s = 0;
+        int a, b;
+        for (a = 0; a < nu; ++a)
+          for (b = 0; b < nu; ++b)
+            s += ws->V2[i * nu + a] * ws->Muu[a * nu + b] * ws->V2[j * nu + b];
+        for (t = 0; t < j; ++t) s -= L[i * nu + t] * L[j * nu + t];
+        L[i * nu + j] = i == j ? RQP_SQRT(s) : s / L[j * nu + j];
+      }
+    for (j = 0; j <= nx; ++j) {
+      /* v1 = Muu col + Mux col (or Muu f0 + mu), v2 = V2ᵀ v1, solved */
+      for (i = 0; i < nu; ++i) {
+        rqp_real s = j < nx ? ws->Mux[i * nx + j] : ws->mu[i];
+        for (t = 0; t < nu; ++t)
+          s += ws->Muu[i * nu + t] * (j < nx ? ws->Fx[t * nx + j] : ws->f0[t]);
+        ws->v1[i] = s;
+      }
+      for (i = 0; i < nf; ++i) {
+        rqp_real s = dot(nu, ws->V2 + i * nu, ws->v1);
+        for (t = 0; t < i; ++t) s -= L[i * nu + t] * ws->v2[t];
+        ws->v2[i] = s / L[i * nu + i];
+      }
+      for (i = nf - 1; i >= 0; --i) {
+        rqp_real s = ws->v2[i];
+        for (t = i + 1; t < nf; ++t) s -= L[t * nu + i] * ws->v2[t];
+        ws->v2[i] = s / L[i * nu + i];
+      }
+      for (i = 0; i < nu; ++i) {
+        rqp_real s = 0;
+        for (t = 0; t < nf; ++t) s += ws->V2[t * nu + i] * ws->v2[t];
+        if (j < nx)
+          K[i * nx + j] -= s;
+        else
+          kk[i] -= s;
+      }
+    }
+  }
+  /* P = AᵀPA + KᵀMux + MuxᵀK + KᵀMuuK (= Aclᵀ Pin Acl + KᵀRK, Acl =
+   * A + BK) (+ Q_{k-1}): Fx takes Muu K */
+  matmul(nu, nu, nx, ws->Muu, K, ws->Fx);
+  for (i = 0; i < nx; ++i)
+    for (j = i; j < nx; ++j) {
+      rqp_real s = ws->T2[i * nx + j];
+      for (t = 0; t < nu; ++t)
+        s += K[t * nx + i] * (ws->Mux[t * nx + j] + ws->Fx[t * nx + j]) +
+             ws->Mux[t * nx + i] * K[t * nx + j];
+      P[i * nx + j] = P[j * nx + i] = s;
+    }
+  /* p = Aᵀv + Kᵀ(Muu k + mu), v = P (B k + d) + pin = PB k + Pd + pin */
+  matvec(nx, nu, ws->T1, kk, ws->v1);
+  for (i = 0; i < nx; ++i) ws->v1[i] += ws->hb[i] + pin[i];
+  tvec_sparse(A, ws->v1, p);
+  matvec(nu, nu, ws->Muu, kk, ws->v2);
+  for (i = 0; i < nu; ++i) ws->v2[i] += ws->mu[i];
+  for (j = 0; j < nx; ++j) {
+    rqp_real s = 0;
+    for (t = 0; t < nu; ++t) s += K[t * nx + j] * ws->v2[t];
+    p[j] += s;
+  }
+  if (k > 0) {
+    for (i = 0; i < nx * nx; ++i) P[i] += qp->Q[(k - 1) * nx * nx + i];
+    for (i = 0; i < nx; ++i) p[i] += qp->q[(k - 1) * nx + i];
+  }
+  ws->nH[k] = nd;
+  return pass_back(k, nx, nu, na, nd, ws, ws->H + k * nx * nx,
+                   ws->h + k * nx);
+}
+
+/* The recursion from stage top down to 0 (stages above keep theirs). */
+static int factor(const rqp_problem *qp, const signed char *side,
+                  const rqp_real *U, int top, work *ws, long *stages) {
+  const int N = qp->N, nx = qp->nx, nu = qp->nu;
+  int k;
+  for (k = top; k >= 0; --k) {
+    const int last = k == N - 1;
+    const rqp_real *Pin = last ? qp->Q + k * nx * nx : ws->P + (k + 1) * nx * nx;
+    const rqp_real *pin = last ? qp->q + k * nx : ws->p + (k + 1) * nx;
+    ++*stages;
+    if (stage_factor(qp, k, side, U + k * nu, Pin, pin,
+                     last ? 0 : ws->H + (k + 1) * nx * nx,
+                     last ? 0 : ws->h + (k + 1) * nx,
+                     last ? 0 : ws->nH[k + 1], ws))
+      return RQP_DEPENDENT;
+  }
+  return 0;
+}
+
+/* (Us, Xs): the working set's optimum, x_0 = 0 rolled forward */
+static void forward(const rqp_problem *qp, work *ws) {
+  const int nx = qp->nx, nu = qp->nu;
+  int k, i;
+  for (k = 0; k < qp->N; ++k) {
+    const rqp_real *x = k ? ws->Xs + (k - 1) * nx : 0;
+    rqp_real *u = ws->Us + k * nu, *xn = ws->Xs + k * nx;
+    for (i = 0; i < nu; ++i)
+      u[i] = ws->k[k * nu + i] + (x ? dot(nx, ws->K + (k * nu + i) * nx, x) : 0);
+    for (i = 0; i < nx; ++i) xn[i] = qp->d[k * nx + i];
+    vec_sparse(stage_B(qp, k), u, xn);
+    if (x) vec_sparse(stage_A(qp, k), x, xn);
+  }
+}
+
+/* The working boxes' multipliers at (Us, Xs), the working set's optimum
+ * (lam, N × nb; zero off the working set): forward over the stages, the
+ * rows' multipliers ν solving C_uᵀν = -(R u_k + g_k + Bᵀ∇V_{k+1}) with
+ * those of the rows passed back to x_k (η) fixed by stage k - 1. */
+static void multipliers(const rqp_problem *qp, const signed char *side,
+                        rqp_real *lam, work *ws) {
+  const int N = qp->N, nx = qp->nx, nu = qp->nu, nb = qp->nb;
+  rqp_real *eta = ws->v1 + (nx > nu ? nx : nu); /* beside v1's scratch */
+  int k, i, t, ne = 0;
+  for (i = 0; i < N * nb; ++i) lam[i] = 0;
+  for (k = 0; k < N; ++k) {
+    const int last = k == N - 1;
+    const rqp_real *Pin = last ? qp->Q + k * nx * nx : ws->P + (k + 1) * nx * nx;
+    const rqp_real *pin = last ? qp->q + k * nx : ws->p + (k + 1) * nx;
+    const rqp_real *u = ws->Us + k * nu, *x = ws->Xs + k * nx;
+    const int r = stage_rows(qp, k, side, u, last ? 0 : ws->H + (k + 1) * nx * nx,
+                             last ? 0 : ws->h + (k + 1) * nx,
+                             last ? 0 : ws->nH[k + 1], ws);
+    int na, nd;
+    split(r, nu, ws, &na, &nd);
+    /* the stored rows of x_k are this stage's; pass_back again for M */
+    pass_back(k ? k : 1, nx, nu, na, nd, ws, ws->T1, ws->T2);
+    /* rho = R u + g + Bᵀ(Pin x + pin), into mu */
+    matvec(nx, nx, Pin, x, ws->v2);
+    for (i = 0; i < nx; ++i) ws->v2[i] += pin[i];
+    tvec_sparse(stage_B(qp, k), ws->v2, ws->mu);
+    for (i = 0; i < nu; ++i) ws->mu[i] += qp->R[i] * u[i] + qp->g[k * nu + i];
+    for (i = 0; i < r; ++i) ws->nu_[i] = 0;
+    /* ν_dep = Mᵀ η */
+    for (i = 0; i < nd; ++i) {
+      rqp_real s = 0;
+      for (t = i; t < nd && t < ne; ++t) s += ws->M[t * nx + i] * eta[t];
+      ws->nu_[ws->dep[i]] = s;
+    }
+    /* ν_acc = Ra⁻¹ Qaᵀ(-rho) - betaᵀ ν_dep (back substitution) */
+    for (t = na - 1; t >= 0; --t) {
+      rqp_real s = -dot(nu, ws->Qa + t * nu, ws->mu);
+      int j;
+      for (j = t + 1; j < na; ++j) s -= ws->Ra[t * nu + j] * ws->v2[j];
+      ws->v2[t] = s / ws->Ra[t * nu + t];
+    }
+    for (t = 0; t < na; ++t) {
+      rqp_real s = ws->v2[t];
+      for (i = 0; i < nd; ++i) s -= ws->beta[i * nu + t] * ws->nu_[ws->dep[i]];
+      ws->nu_[ws->acc[t]] = s;
+    }
+    ne = 0;
+    for (i = 0; i < r; ++i) {
+      if (ws->rowbox[i] >= 0) lam[k * nb + ws->rowbox[i]] = ws->nu_[i];
+      if (ws->rowbox[i] == -2) eta[ne++] = ws->nu_[i];
+    }
+  }
+}
+
+/* the work arrays' layout for these sizes: reals, ints */
+static int layout(int N, int nx, int nu, int nb, rqp_real *w, int *iw,
+                  work *ws, int *ni) {
+  const int rmax = nu + nb + nx, big = nx > nu ? nx : nu;
+  const int vlen = 2 * (big > rmax ? big : rmax);
+  rqp_real *at = w;
+  int *it = iw;
+#define TAKE(f, n) (ws->f = w ? at : 0, at += (n))
+  TAKE(P, N * nx * nx); TAKE(p, N * nx); TAKE(K, N * nu * nx);
+  TAKE(k, N * nu); TAKE(H, N * nx * nx); TAKE(h, N * nx);
+  TAKE(Us, N * nu); TAKE(Xs, N * nx); TAKE(V, N * nb); TAKE(dV, N * nb);
+  TAKE(Cx, rmax * nx); TAKE(Cu, rmax * nu); TAKE(c, rmax);
+  TAKE(Qa, nu * nu); TAKE(Ra, nu * nu); TAKE(beta, rmax * nu);
+  TAKE(Hb, rmax * nx); TAKE(hb, rmax); TAKE(M, nx * nx);
+  TAKE(Fx, nu * nx); TAKE(f0, nu); TAKE(V2, nu * nu); TAKE(Muu, nu * nu);
+  TAKE(Mux, nu * nx); TAKE(mu, nu); TAKE(red, nu * nu);
+  TAKE(T1, nx * nx); TAKE(T2, nx * nx); TAKE(v1, vlen); TAKE(v2, vlen);
+  TAKE(nu_, rmax);
+#undef TAKE
+  ws->nH = iw ? it : 0; it += N;
+  ws->acc = iw ? it : 0; it += nu;
+  ws->dep = iw ? it : 0; it += rmax;
+  ws->rowbox = iw ? it : 0; it += rmax;
+  ws->rmax = rmax;
+  *ni = (int)(it - iw);
+  return (int)(at - w);
+}
+
+int rqp_work_size(int N, int nx, int nu, int nb) {
+  work ws;
+  int ni;
+  return layout(N, nx, nu, nb, 0, 0, &ws, &ni);
+}
+
+int rqp_iwork_size(int N, int nx, int nu, int nb) {
+  work ws;
+  int ni;
+  layout(N, nx, nu, nb, 0, 0, &ws, &ni);
+  return ni;
+}
+
+/* the boxes' values at (U, X) into V (N × nb) */
+static void values(const rqp_problem *qp, const rqp_real *U,
+                   const rqp_real *X, rqp_real *V) {
+  int k, b;
+  for (k = 0; k < qp->N; ++k)
+    for (b = 0; b < qp->nb; ++b)
+      V[k * qp->nb + b] = box_value(qp, b, U + k * qp->nu, X + k * qp->nx);
+}
+
+/* the warm boxes at their bound at the start, factored together, or
+ * one at a time in stage order where they are dependent */
+static void warm_start(const rqp_problem *qp, const rqp_real *U,
+                       signed char *side, work *ws, long *stages) {
+  const int N = qp->N, nb = qp->nb;
+  int i;
+  for (i = 0; i < N * nb; ++i) {
+    const rqp_real bound = side[i] > 0 ? qp->hi[i] : qp->lo[i];
+    if (side[i] != 1 && side[i] != -1) {
+      side[i] = 0;
+      continue;
+    }
+    if (RQP_FABS(ws->V[i] - bound) > (rqp_real)1e-9 * (1 + RQP_FABS(bound)))
+      side[i] = 0;
+  }
+  if (!factor(qp, side, U, N - 1, ws, stages)) return;
+  for (i = 0; i < N * nb; ++i) /* parked: ±2, not in the working set */
+    side[i] = (signed char)(2 * side[i]);
+  factor(qp, side, U, N - 1, ws, stages);
+  for (i = 0; i < N * nb; ++i) {
+    if (!side[i]) continue;
+    side[i] = (signed char)(side[i] / 2);
+    if (factor(qp, side, U, N - 1, ws, stages)) {
+      side[i] = 0;
+      factor(qp, side, U, N - 1, ws, stages);
+    }
+  }
+}
+
+int rqp_solve(const rqp_problem *qp, rqp_real *U, rqp_real *X,
+              signed char *side, rqp_real *lam, int max_iter, rqp_real tol,
+              rqp_real *w, int *iw, int *iterations, long *stages) {
+  const int N = qp->N, nx = qp->nx, nu = qp->nu, nb = qp->nb;
+  const int nv = N * nb;
+  work ws;
+  int it, i, ni;
+  *iterations = 0;
+  *stages = 0;
+  if (N < 1 || nx < 1 || nu < 1 || nb < 0 || max_iter < 0) return RQP_INVALID_INPUT;
+  for (i = 0; i < nb; ++i)
+    if (qp->box[i] < 0 || qp->box[i] >= nu + nx) return RQP_INVALID_INPUT;
+  layout(N, nx, nu, nb, w, iw, &ws, &ni);
+  for (i = 0; i < nv; ++i) lam[i] = 0;
+  values(qp, U, X, ws.V);
+  warm_start(qp, U, side, &ws, stages);
+  for (it = 1; it <= max_iter; ++it) {
+    rqp_real dmax = 0, vmax = 0, alpha = 1;
+    int block = -1, s = 0;
+    forward(qp, &ws);
+    for (i = 0; i < N * nu; ++i) ws.Us[i] -= U[i]; /* the step, for now */
+    for (i = 0; i < N * nx; ++i) ws.Xs[i] -= X[i];
+    values(qp, ws.Us, ws.Xs, ws.dV);
+    for (i = 0; i < nv; ++i) {
+      if (RQP_FABS(ws.dV[i]) > dmax) dmax = RQP_FABS(ws.dV[i]);
+      if (RQP_FABS(ws.V[i]) > vmax) vmax = RQP_FABS(ws.V[i]);
+    }
+    if (dmax <= tol * (1 + vmax)) {
+      /* the working set's optimum: its multipliers; drop the most
+       * wrong-signed (negative at an upper bound, positive at a lower) */
+      rqp_real worst = 0, lmax = 0;
+      int q = -1;
+      for (i = 0; i < N * nu; ++i) ws.Us[i] += U[i];
+      for (i = 0; i < N * nx; ++i) ws.Xs[i] += X[i];
+      multipliers(qp, side, lam, &ws);
+      for (i = 0; i < nv; ++i)
+        if (RQP_FABS(lam[i]) > lmax) lmax = RQP_FABS(lam[i]);
+      for (i = 0; i < nv; ++i)
+        if ((side[i] == 1 || side[i] == -1) && -lam[i] * side[i] > worst)
+          worst = -lam[i] * side[i], q = i;
+      if (q < 0 || worst <= tol * (1 + lmax)) {
+        for (i = 0; i < N * nu; ++i) U[i] = ws.Us[i];
+        for (i = 0; i < N * nx; ++i) X[i] = ws.Xs[i];
+        for (i = 0; i < nv; ++i)
+          if (side[i] == 2 || side[i] == -2) side[i] = 0;
+        *iterations = it;
+        return RQP_OPTIMAL;
+      }
+      side[q] = 0;
+      for (i = 0; i < nv; ++i) /* a box left: the parked ones back */
+        if (side[i] == 2 || side[i] == -2) side[i] = 0;
+      factor(qp, side, U, q / nb, &ws, stages);
+      for (i = 0; i < nv; ++i) lam[i] = 0;
+      continue;
+    }
+    /* the ratio test over the boxes outside the working set */
+    for (i = 0; i < nv; ++i) {
+      rqp_real room;
+      if (side[i] || RQP_FABS(ws.dV[i]) <= RQP_MOVE * dmax) continue;
+      room = ((ws.dV[i] > 0 ? qp->hi[i] : qp->lo[i]) - ws.V[i]) / ws.dV[i];
+      if (room < alpha) {
+        alpha = room > 0 ? room : 0;
+        block = i;
+        s = ws.dV[i] > 0 ? 1 : -1;
+      }
+    }
+    for (i = 0; i < N * nu; ++i) U[i] += alpha * ws.Us[i];
+    for (i = 0; i < N * nx; ++i) X[i] += alpha * ws.Xs[i];
+    for (i = 0; i < nv; ++i) ws.V[i] += alpha * ws.dV[i];
+    if (block < 0) continue;
+    side[block] = (signed char)s;
+    if (factor(qp, side, U, block / nb, &ws, stages)) {
+      /* at its bound already, held there by the set: parked */
+      side[block] = (signed char)(2 * s);
+      factor(qp, side, U, block / nb, &ws, stages);
+    }
+  }
+  for (i = 0; i < nv; ++i)
+    if (side[i] == 2 || side[i] == -2) side[i] = 0;
+  *iterations = max_iter;
+  return RQP_ITERATION_LIMIT;
+}
