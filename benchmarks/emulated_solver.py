@@ -29,9 +29,11 @@ def _template(name: str) -> str:
 
 
 def run_driver(main: str, source: Path, data: bytes, target: str,
-               precision: str, define: str, timeout: float = 3600.0) -> str:
+               precision: str, define: str, timeout: float = 3600.0,
+               extra: tuple[str, ...] = ()) -> str:
     """Build ``main`` (the driver's C after the target head) with the
-    solver ``source`` (``define`` set in a float build) for ``target``,
+    solver ``source`` (``define`` set in a float build, ``extra`` flags
+    in every build) for ``target``,
     run it on qemu with ``data`` as its file ``qps.bin``, and return what
     it printed (RuntimeError where it failed or printed ``ERROR``)."""
     why = toolchain_missing()
@@ -49,7 +51,7 @@ def run_driver(main: str, source: Path, data: bytes, target: str,
         for name in ("startup_cortex_m.c", "cortex_m.ld"):
             (out / name).write_text(_template(name))
         flags = [*OPT_FLAGS, *core.cpu_flags, *TARGET_WARNINGS,
-                 *([define] if precision == "single" else []),
+                 *([define] if precision == "single" else []), *extra,
                  f"-I{source.parent}"]
         subprocess.run([CROSS_CC, *flags, "main.c", str(source),
                         "startup_cortex_m.c", "-nostartfiles",
@@ -107,7 +109,7 @@ def undefined_symbols(obj: Path) -> set[str]:
 
 
 def solver_memory(source: Path, entry: str, target: str, precision: str,
-                  define: str) -> dict:
+                  define: str, extra: tuple[str, ...] = ()) -> dict:
     """``source`` compiled for ``target`` alone: its ``flash`` (text +
     rodata, bytes), the deepest ``stack`` from ``entry`` (gcc's frames
     and call graph, `ocp.codegen.memory.worst_stack`), whether that is
@@ -117,7 +119,7 @@ def solver_memory(source: Path, entry: str, target: str, precision: str,
         out = Path(tmp)
         obj = out / "solver.o"
         compile_object(source, target, precision, define, obj,
-                       ("-fstack-usage", "-fcallgraph-info=su")
+                       ("-fstack-usage", "-fcallgraph-info=su", *extra)
                        ).check_returncode()
         frames, edges = call_graph((out / "solver.ci").read_text())
         sizes = section_sizes(obj, "arm-none-eabi-size")

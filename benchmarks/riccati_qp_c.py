@@ -88,13 +88,23 @@ def pattern(M: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             M[:, rows, col_of])
 
 
-def host_library(out_dir: Path, precision: str = "double") -> ctypes.CDLL:
-    """rqp.c built by the host's cc as a shared library in ``out_dir``."""
+def sizes_flags(nx: int, nu: int) -> tuple[str, ...]:
+    """The flags that compile rqp.c for n_x states and n_u inputs (its
+    stage loops then of fixed length, unrolled)."""
+    return (f"-DRQP_NX={nx}", f"-DRQP_NU={nu}")
+
+
+def host_library(out_dir: Path, precision: str = "double",
+                 sizes: tuple[int, int] | None = None) -> ctypes.CDLL:
+    """rqp.c built by the host's cc as a shared library in ``out_dir``
+    (``sizes``: for that (n_x, n_u) only, `sizes_flags`)."""
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
         raise RuntimeError("no C compiler (cc) on this machine")
-    lib = Path(out_dir) / f"librqp_{precision}.so"
+    tag = f"_{sizes[0]}x{sizes[1]}" if sizes else ""
+    lib = Path(out_dir) / f"librqp_{precision}{tag}.so"
     define = [RQP_SINGLE] if precision == "single" else []
+    define += list(sizes_flags(*sizes)) if sizes else []
     subprocess.run([cc, "-O2", "-shared", "-fPIC", *TARGET_WARNINGS, *define,
                     str(RQP_DIR / "rqp.c"), "-lm", "-o", str(lib)],
                    check=True, capture_output=True, text=True)
@@ -295,7 +305,7 @@ def run_target(probs: list[dict], caps: list[int], target: str,
                    ("@TOL@", repr(TOL[precision]))):
         main = main.replace(key, str(v))
     out = run_driver(main, RQP_DIR / "rqp.c", data, target, precision,
-                     RQP_SINGLE, timeout)
+                     RQP_SINGLE, timeout, sizes_flags(nx, nu))
     return qp_rows(out, STATUS, ("iterations", "stages"))
 
 
@@ -307,12 +317,15 @@ def _sizes(N: int, nx: int, nu: int, nb: int) -> tuple[int, int]:
                 lib.rqp_iwork_size(N, nx, nu, nb))
 
 
-def solver_memory(target: str, precision: str = "double") -> dict:
-    """rqp.c compiled for ``target`` alone: its ``flash`` (text + rodata,
-    bytes) and the deepest ``stack`` from `rqp_solve` (gcc's frames and
-    call graph), whether ``bounded``, and the ``library`` calls."""
+def solver_memory(target: str, precision: str = "double",
+                  sizes: tuple[int, int] = (11, 4)) -> dict:
+    """rqp.c compiled for ``target`` alone, for ``sizes`` (n_x, n_u; the
+    demo craft's by default): its ``flash`` (text + rodata, bytes) and
+    the deepest ``stack`` from `rqp_solve` (gcc's frames and call graph),
+    whether ``bounded``, and the ``library`` calls."""
     return emulated_solver.solver_memory(RQP_DIR / "rqp.c", "rqp_solve",
-                                         target, precision, RQP_SINGLE)
+                                         target, precision, RQP_SINGLE,
+                                         sizes_flags(*sizes))
 
 
 def _stats(v) -> str:
@@ -342,7 +355,7 @@ def report(probs: list[dict], rows: list[dict], caps: list[int],
             f"| {name} | {_stats([x['instructions'] for x in r])} | "
             f"{_stats([x['iterations'] for x in r])} | "
             f"{_stats([x['stages'] / N for x in r])} | {err:.1e} |")
-    mem = solver_memory(target, precision)
+    mem = solver_memory(target, precision, (nx, nu))
     work, iwork = _sizes(N, nx, nu, nb)
     size = 4 if precision == "single" else 8
     lines += ["", f"rqp.c on the {target}: {mem['flash']:,} bytes of flash, "

@@ -18,9 +18,13 @@ from benchmarks.emulated_solver import compile_object, undefined_symbols
 from ocp.codegen.target import CORES, toolchain_missing
 
 
-@pytest.fixture(scope="module")
-def lib(tmp_path_factory):
-    return rc.host_library(tmp_path_factory.mktemp("rqp"))
+@pytest.fixture(scope="module", params=[None, (11, 4)],
+                ids=["any-size", "fixed-size"])
+def lib(request, tmp_path_factory):
+    """rqp.c for any size, and compiled for the demo craft's n_x = 11,
+    n_u = 4 (its loops unrolled), as the benchmark builds it."""
+    return rc.host_library(tmp_path_factory.mktemp("rqp"),
+                           sizes=request.param)
 
 
 @pytest.fixture(scope="module")
@@ -59,13 +63,25 @@ def test_capped_points_keep_every_box(lib, probs):
                                    atol=1e-12)
 
 
-def test_a_dependent_warm_box_is_held_out(lib):
+def _chain_started_where_both_boxes_hold():
     from tests.app.test_riccati_active_set import _chain
-    at = replace(_chain(), u0=np.array([[1.0], [0.0]]), x0=np.ones((2, 1)))
+    return replace(_chain(), u0=np.array([[1.0], [0.0]]),
+                   x0=np.ones((2, 1)))
+
+
+def test_a_dependent_warm_box_is_held_out(tmp_path):
+    lib = rc.host_library(tmp_path)
+    at = _chain_started_where_both_boxes_hold()
     got = rc.solve_c(lib, at, {(0, 0): 1, (0, 1): 1})
     assert got["status"] == "optimal"
     np.testing.assert_array_equal(got["side"], [[1, 0], [0, 1]])
     np.testing.assert_allclose(got["U"].ravel(), [1.0, 0.0], atol=1e-12)
+
+
+def test_a_build_for_one_size_refuses_another(tmp_path):
+    lib = rc.host_library(tmp_path, sizes=(11, 4))
+    got = rc.solve_c(lib, _chain_started_where_both_boxes_hold())
+    assert got["status"] == "invalid input" and got["iterations"] == 0
 
 
 def test_a_box_on_no_component_is_refused(lib, probs):

@@ -30,13 +30,26 @@
 
 #define RQP_DEPENDENT (-1)
 
+/* sizes known when compiled (-DRQP_NX=…, -DRQP_NU=…) let the compiler
+ * unroll the stage's loops; rqp_solve then refuses other sizes */
+#ifdef RQP_NX
+#define NX_OF(qp) RQP_NX
+#else
+#define NX_OF(qp) ((qp)->nx)
+#endif
+#ifdef RQP_NU
+#define NU_OF(qp) RQP_NU
+#else
+#define NU_OF(qp) ((qp)->nu)
+#endif
+
 /* the work arrays (caller's w and iw), carved in rqp_solve */
 typedef struct {
   rqp_real *P, *p, *K, *k, *H, *h;      /* per stage */
   rqp_real *Us, *Xs, *V, *dV;          /* per stage: iterate, boxes */
   rqp_real *Cx, *Cu, *c, *Qa, *Ra, *beta, *Hb, *hb, *M; /* one stage */
   rqp_real *Fx, *f0, *V2, *Muu, *Mux, *mu, *red, *T1, *T2, *v1, *v2, *nu_;
-  int *nH, *acc, *dep, *rowbox, rmax;
+  int *nH, *acc, *dep, *rowbox, *xrow, rmax;
 } work;
 
 #include "rqp_kernels.h"
@@ -45,7 +58,7 @@ typedef struct {
 static rqp_real box_value(const rqp_problem *qp, int b, const rqp_real *u,
                           const rqp_real *x) {
   const int i = qp->box[b];
-  return qp->scale[b] * (i < qp->nu ? u[i] : x[i - qp->nu]);
+  return qp->scale[b] * (i < NU_OF(qp) ? u[i] : x[i - NU_OF(qp)]);
 }
 
 /* Stage k's rows on (x_k, u_k): the fixed inputs, the working boxes (in
@@ -53,10 +66,11 @@ static rqp_real box_value(const rqp_problem *qp, int b, const rqp_real *u,
 static int stage_rows(const rqp_problem *qp, int k, const signed char *side,
                       const rqp_real *u, const rqp_real *H,
                       const rqp_real *h, int nH, work *ws) {
-  const int nx = qp->nx, nu = qp->nu;
+  const int nx = NX_OF(qp), nu = NU_OF(qp);
   const sparse A = stage_A(qp, k), B = stage_B(qp, k);
   const rqp_real *d = qp->d + k * nx;
-  int r = 0, i, j, b;
+  int r = 0, i, j, b, t, nxb = 0;
+  for (i = 0; i < nx; ++i) ws->xrow[i] = -1;
   for (i = 0; i < nu; ++i)
     if (qp->fixed[i]) {
       for (j = 0; j < nx; ++j) ws->Cx[r * nx + j] = 0;
@@ -75,14 +89,30 @@ static int stage_rows(const rqp_problem *qp, int k, const signed char *side,
       ws->c[r] = bound;
     } else {
       const int ix = ib - nu;
-      row_sparse(A, ix, ws->Cx + r * nx);
-      row_sparse(B, ix, ws->Cu + r * nu);
-      for (j = 0; j < nx; ++j) ws->Cx[r * nx + j] *= sc;
-      for (j = 0; j < nu; ++j) ws->Cu[r * nu + j] *= sc;
+      if (ws->xrow[ix] < 0) { /* filled below, in one pass over A, B */
+        ws->xrow[ix] = r;
+        ++nxb;
+        ws->nu_[r] = sc;
+        for (j = 0; j < nx; ++j) ws->Cx[r * nx + j] = 0;
+        for (j = 0; j < nu; ++j) ws->Cu[r * nu + j] = 0;
+      } else {  /* a second box on the component */
+        row_sparse(A, ix, ws->Cx + r * nx);
+        row_sparse(B, ix, ws->Cu + r * nu);
+        for (j = 0; j < nx; ++j) ws->Cx[r * nx + j] *= sc;
+        for (j = 0; j < nu; ++j) ws->Cu[r * nu + j] *= sc;
+      }
       ws->c[r] = bound - sc * d[ix];
     }
     ws->rowbox[r++] = b;
   }
+  for (j = 0; nxb && j < nx; ++j)
+    for (t = A.col[j]; t < A.col[j + 1]; ++t)
+      if ((i = ws->xrow[A.row[t]]) >= 0)
+        ws->Cx[i * nx + j] = ws->nu_[i] * A.v[t];
+  for (j = 0; nxb && j < nu; ++j)
+    for (t = B.col[j]; t < B.col[j + 1]; ++t)
+      if ((i = ws->xrow[B.row[t]]) >= 0)
+        ws->Cu[i * nu + j] = ws->nu_[i] * B.v[t];
   if (nH) {
     mul_sparse(nH, nx, H, A, ws->Cx + r * nx);
     mul_sparse(nH, nx, H, B, ws->Cu + r * nu);
@@ -169,6 +199,44 @@ static int pass_back(int k, int nx, int nu, int na, int nd, work *ws,
   return 0;
 }
 
+/* A stage without rows: K = -Muu⁻¹Mux, k = -Muu⁻¹mu and P = AᵀPA -
+ * GᵀG, G = L⁻¹Mux (Muu = L Lᵀ); T2 holds AᵀPA */
+static void free_stage(int nx, int nu, work *ws, rqp_real *K, rqp_real *kk,
+                       rqp_real *P) {
+  rqp_real *L = ws->red, *G = ws->Fx;
+  int i, j, t;
+  for (i = 0; i < nu; ++i)
+    for (j = 0; j <= i; ++j) {
+      rqp_real s = ws->Muu[i * nu + j];
+      for (t = 0; t < j; ++t) s -= L[i * nu + t] * L[j * nu + t];
+      L[i * nu + j] = i == j ? RQP_SQRT(s) : s / L[j * nu + j];
+    }
+  for (j = 0; j <= nx; ++j) {
+    /* column j of G = L⁻¹[Mux | mu], then of K = -L⁻ᵀG */
+    for (i = 0; i < nu; ++i) {
+      rqp_real s = j < nx ? ws->Mux[i * nx + j] : ws->mu[i];
+      for (t = 0; t < i; ++t) s -= L[i * nu + t] * ws->v2[t];
+      ws->v2[i] = s / L[i * nu + i];
+      if (j < nx) G[i * nx + j] = ws->v2[i];
+    }
+    for (i = nu - 1; i >= 0; --i) {
+      rqp_real s = ws->v2[i];
+      for (t = i + 1; t < nu; ++t) s -= L[t * nu + i] * ws->v2[t];
+      ws->v2[i] = s / L[i * nu + i];
+      if (j < nx)
+        K[i * nx + j] = -ws->v2[i];
+      else
+        kk[i] = -ws->v2[i];
+    }
+  }
+  for (i = 0; i < nx; ++i)
+    for (j = i; j < nx; ++j) {
+      rqp_real s = ws->T2[i * nx + j];
+      for (t = 0; t < nu; ++t) s -= G[t * nx + i] * G[t * nx + j];
+      P[i * nx + j] = P[j * nx + i] = s;
+    }
+}
+
 /* Stage k of the recursion: from the cost-to-go (Pin, pin) at x_{k+1}
  * and the rows passed back there, the law u_k = K x_k + k, the
  * cost-to-go at x_k and the rows passed back to it (stored at k). */
@@ -176,7 +244,7 @@ static int stage_factor(const rqp_problem *qp, int k, const signed char *side,
                         const rqp_real *u, const rqp_real *Pin,
                         const rqp_real *pin, const rqp_real *Hin,
                         const rqp_real *hin, int nHin, work *ws) {
-  const int nx = qp->nx, nu = qp->nu;
+  const int nx = NX_OF(qp), nu = NU_OF(qp);
   const sparse A = stage_A(qp, k), B = stage_B(qp, k);
   const rqp_real *d = qp->d + k * nx, *g = qp->g + k * nu;
   rqp_real *K = ws->K + k * nu * nx, *kk = ws->k + k * nu,
@@ -223,69 +291,75 @@ static int stage_factor(const rqp_problem *qp, int k, const signed char *side,
   }
   /* Muu = R + BᵀPB, Mux = BᵀPA, mu = g + Bᵀ(Pd + p); T2 = AᵀPA */
   mul_sparse(nx, nx, Pin, A, ws->T1);              /* P A (nx × nx) */
-  tmul_sparse(A, nx, ws->T1, 1, ws->T2);           /* AᵀPA */
-  tmul_sparse(B, nx, ws->T1, 0, ws->Mux);          /* BᵀPA */
+  tmul_sparse(A, nx, ws->T1, ws->T2);           /* AᵀPA */
+  tmul_sparse(B, nx, ws->T1, ws->Mux);          /* BᵀPA */
   mul_sparse(nx, nx, Pin, B, ws->T1);              /* P B (nx × nu) */
-  tmul_sparse(B, nu, ws->T1, 1, ws->Muu);          /* BᵀPB */
+  tmul_sparse(B, nu, ws->T1, ws->Muu);          /* BᵀPB */
   for (i = 0; i < nu; ++i) ws->Muu[i * nu + i] += qp->R[i];
   matvec(nx, nx, Pin, d, ws->hb);                  /* P d, kept */
   for (i = 0; i < nx; ++i) ws->v1[i] = ws->hb[i] + pin[i];
   tvec_sparse(B, ws->v1, ws->mu);
   for (i = 0; i < nu; ++i) ws->mu[i] += g[i];
-  for (i = 0; i < nu * nx; ++i) K[i] = ws->Fx[i];
-  for (i = 0; i < nu; ++i) kk[i] = ws->f0[i];
-  if (nf) {
-    /* red = V2ᵀ Muu V2 = L Lᵀ; K -= V2 red⁻¹ V2ᵀ(Muu Fx + Mux), k likewise */
-    rqp_real *L = ws->red;
-    for (i = 0; i < nf; ++i)
-      for (j = 0; j <= i; ++j) {
-        rqp_real s = 0;
-        int a, b;
-        for (a = 0; a < nu; ++a)
-          for (b = 0; b < nu; ++b)
-            s += ws->V2[i * nu + a] * ws->Muu[a * nu + b] * ws->V2[j * nu + b];
-        for (t = 0; t < j; ++t) s -= L[i * nu + t] * L[j * nu + t];
-        L[i * nu + j] = i == j ? RQP_SQRT(s) : s / L[j * nu + j];
+  if (!r) {
+    free_stage(nx, nu, ws, K, kk, P);
+  } else {
+    for (i = 0; i < nu * nx; ++i) K[i] = ws->Fx[i];
+    for (i = 0; i < nu; ++i) kk[i] = ws->f0[i];
+    if (nf) {
+      /* red = V2ᵀ Muu V2 = L Lᵀ; K -= V2 red⁻¹ V2ᵀ(Muu Fx + Mux), k likewise */
+      rqp_real *L = ws->red;
+      for (i = 0; i < nf; ++i)
+        for (j = 0; j <= i; ++j) {
+          rqp_real s = 0;
+          int a, b;
+          for (a = 0; a < nu; ++a)
+            for (b = 0; b < nu; ++b)
+              s += ws->V2[i * nu + a] * ws->Muu[a * nu + b] * ws->V2[j * nu + b];
+          for (t = 0; t < j; ++t) s -= L[i * nu + t] * L[j * nu + t];
+          L[i * nu + j] = i == j ? RQP_SQRT(s) : s / L[j * nu + j];
+        }
+      for (j = 0; j <= nx; ++j) {
+        /* v1 = Muu col + Mux col (or Muu f0 + mu), v2 = V2ᵀ v1, solved */
+        for (i = 0; i < nu; ++i) {
+          rqp_real s = j < nx ? ws->Mux[i * nx + j] : ws->mu[i];
+          for (t = 0; t < nu; ++t)
+            s += ws->Muu[i * nu + t] * (j < nx ? ws->Fx[t * nx + j] : ws->f0[t]);
+          ws->v1[i] = s;
+        }
+        for (i = 0; i < nf; ++i) {
+          rqp_real s = dot(nu, ws->V2 + i * nu, ws->v1);
+          for (t = 0; t < i; ++t) s -= L[i * nu + t] * ws->v2[t];
+          ws->v2[i] = s / L[i * nu + i];
+        }
+        for (i = nf - 1; i >= 0; --i) {
+          rqp_real s = ws->v2[i];
+          for (t = i + 1; t < nf; ++t) s -= L[t * nu + i] * ws->v2[t];
+          ws->v2[i] = s / L[i * nu + i];
+        }
+        for (i = 0; i < nu; ++i) {
+          rqp_real s = 0;
+          for (t = 0; t < nf; ++t) s += ws->V2[t * nu + i] * ws->v2[t];
+          if (j < nx)
+            K[i * nx + j] -= s;
+          else
+            kk[i] -= s;
+        }
       }
-    for (j = 0; j <= nx; ++j) {
-      /* v1 = Muu col + Mux col (or Muu f0 + mu), v2 = V2ᵀ v1, solved */
-      for (i = 0; i < nu; ++i) {
-        rqp_real s = j < nx ? ws->Mux[i * nx + j] : ws->mu[i];
+    }
+    /* P = AᵀPA + KᵀZ + ZᵀK, Z = Mux + ½ Muu K (= Aclᵀ Pin Acl + KᵀRK,
+     * Acl = A + BK) (+ Q_{k-1}): Fx takes Z */
+    matmul(nu, nu, nx, ws->Muu, K, ws->Fx);
+    for (i = 0; i < nu * nx; ++i)
+      ws->Fx[i] = ws->Mux[i] + (rqp_real)0.5 * ws->Fx[i];
+    for (i = 0; i < nx; ++i)
+      for (j = i; j < nx; ++j) {
+        rqp_real s = ws->T2[i * nx + j];
         for (t = 0; t < nu; ++t)
-          s += ws->Muu[i * nu + t] * (j < nx ? ws->Fx[t * nx + j] : ws->f0[t]);
-        ws->v1[i] = s;
+          s += K[t * nx + i] * ws->Fx[t * nx + j] +
+               ws->Fx[t * nx + i] * K[t * nx + j];
+        P[i * nx + j] = P[j * nx + i] = s;
       }
-      for (i = 0; i < nf; ++i) {
-        rqp_real s = dot(nu, ws->V2 + i * nu, ws->v1);
-        for (t = 0; t < i; ++t) s -= L[i * nu + t] * ws->v2[t];
-        ws->v2[i] = s / L[i * nu + i];
-      }
-      for (i = nf - 1; i >= 0; --i) {
-        rqp_real s = ws->v2[i];
-        for (t = i + 1; t < nf; ++t) s -= L[t * nu + i] * ws->v2[t];
-        ws->v2[i] = s / L[i * nu + i];
-      }
-      for (i = 0; i < nu; ++i) {
-        rqp_real s = 0;
-        for (t = 0; t < nf; ++t) s += ws->V2[t * nu + i] * ws->v2[t];
-        if (j < nx)
-          K[i * nx + j] -= s;
-        else
-          kk[i] -= s;
-      }
-    }
   }
-  /* P = AᵀPA + KᵀMux + MuxᵀK + KᵀMuuK (= Aclᵀ Pin Acl + KᵀRK, Acl =
-   * A + BK) (+ Q_{k-1}): Fx takes Muu K */
-  matmul(nu, nu, nx, ws->Muu, K, ws->Fx);
-  for (i = 0; i < nx; ++i)
-    for (j = i; j < nx; ++j) {
-      rqp_real s = ws->T2[i * nx + j];
-      for (t = 0; t < nu; ++t)
-        s += K[t * nx + i] * (ws->Mux[t * nx + j] + ws->Fx[t * nx + j]) +
-             ws->Mux[t * nx + i] * K[t * nx + j];
-      P[i * nx + j] = P[j * nx + i] = s;
-    }
   /* p = Aᵀv + Kᵀ(Muu k + mu), v = P (B k + d) + pin = PB k + Pd + pin */
   matvec(nx, nu, ws->T1, kk, ws->v1);
   for (i = 0; i < nx; ++i) ws->v1[i] += ws->hb[i] + pin[i];
@@ -309,7 +383,7 @@ static int stage_factor(const rqp_problem *qp, int k, const signed char *side,
 /* The recursion from stage top down to 0 (stages above keep theirs). */
 static int factor(const rqp_problem *qp, const signed char *side,
                   const rqp_real *U, int top, work *ws, long *stages) {
-  const int N = qp->N, nx = qp->nx, nu = qp->nu;
+  const int N = qp->N, nx = NX_OF(qp), nu = NU_OF(qp);
   int k;
   for (k = top; k >= 0; --k) {
     const int last = k == N - 1;
@@ -327,7 +401,7 @@ static int factor(const rqp_problem *qp, const signed char *side,
 
 /* (Us, Xs): the working set's optimum, x_0 = 0 rolled forward */
 static void forward(const rqp_problem *qp, work *ws) {
-  const int nx = qp->nx, nu = qp->nu;
+  const int nx = NX_OF(qp), nu = NU_OF(qp);
   int k, i;
   for (k = 0; k < qp->N; ++k) {
     const rqp_real *x = k ? ws->Xs + (k - 1) * nx : 0;
@@ -346,7 +420,7 @@ static void forward(const rqp_problem *qp, work *ws) {
  * those of the rows passed back to x_k (η) fixed by stage k - 1. */
 static void multipliers(const rqp_problem *qp, const signed char *side,
                         rqp_real *lam, work *ws) {
-  const int N = qp->N, nx = qp->nx, nu = qp->nu, nb = qp->nb;
+  const int N = qp->N, nx = NX_OF(qp), nu = NU_OF(qp), nb = qp->nb;
   rqp_real *eta = ws->v1 + (nx > nu ? nx : nu); /* beside v1's scratch */
   int k, i, t, ne = 0;
   for (i = 0; i < N * nb; ++i) lam[i] = 0;
@@ -417,6 +491,7 @@ static int layout(int N, int nx, int nu, int nb, rqp_real *w, int *iw,
   ws->acc = iw ? it : 0; it += nu;
   ws->dep = iw ? it : 0; it += rmax;
   ws->rowbox = iw ? it : 0; it += rmax;
+  ws->xrow = iw ? it : 0; it += nx;
   ws->rmax = rmax;
   *ni = (int)(it - iw);
   return (int)(at - w);
@@ -441,7 +516,7 @@ static void values(const rqp_problem *qp, const rqp_real *U,
   int k, b;
   for (k = 0; k < qp->N; ++k)
     for (b = 0; b < qp->nb; ++b)
-      V[k * qp->nb + b] = box_value(qp, b, U + k * qp->nu, X + k * qp->nx);
+      V[k * qp->nb + b] = box_value(qp, b, U + k * NU_OF(qp), X + k * NX_OF(qp));
 }
 
 /* the warm boxes at their bound at the start, factored together, or
@@ -476,13 +551,15 @@ static void warm_start(const rqp_problem *qp, const rqp_real *U,
 int rqp_solve(const rqp_problem *qp, rqp_real *U, rqp_real *X,
               signed char *side, rqp_real *lam, int max_iter, rqp_real tol,
               rqp_real *w, int *iw, int *iterations, long *stages) {
-  const int N = qp->N, nx = qp->nx, nu = qp->nu, nb = qp->nb;
+  const int N = qp->N, nx = NX_OF(qp), nu = NU_OF(qp), nb = qp->nb;
   const int nv = N * nb;
   work ws;
   int it, i, ni;
   *iterations = 0;
   *stages = 0;
-  if (N < 1 || nx < 1 || nu < 1 || nb < 0 || max_iter < 0) return RQP_INVALID_INPUT;
+  if (N < 1 || nx < 1 || nu < 1 || nb < 0 || max_iter < 0 ||
+      qp->nx != nx || qp->nu != nu)
+    return RQP_INVALID_INPUT;
   for (i = 0; i < nb; ++i)
     if (qp->box[i] < 0 || qp->box[i] >= nu + nx) return RQP_INVALID_INPUT;
   layout(N, nx, nu, nb, w, iw, &ws, &ni);

@@ -51,30 +51,31 @@ static sparse stage_sparse(const int *col, const int *row,
 #define stage_A(qp, k) stage_sparse((qp)->a_col, (qp)->a_row, (qp)->A, (qp)->nx, k)
 #define stage_B(qp, k) stage_sparse((qp)->b_col, (qp)->b_row, (qp)->B, (qp)->nu, k)
 
-/* out (m × S.ncol) = M (m × n, row-major) S */
+/* out (m × S.ncol) = M (m × n, row-major) S: a column of M scaled per
+ * nonzero (loops of m, fixed when the sizes are) */
 static void mul_sparse(int m, int n, const rqp_real *M, sparse S,
                        rqp_real *out) {
   int i, j, t;
+  for (i = 0; i < m * S.ncol; ++i) out[i] = 0;
   for (j = 0; j < S.ncol; ++j)
-    for (i = 0; i < m; ++i) {
-      rqp_real s = 0;
-      for (t = S.col[j]; t < S.col[j + 1]; ++t) s += M[i * n + S.row[t]] * S.v[t];
-      out[i * S.ncol + j] = s;
+    for (t = S.col[j]; t < S.col[j + 1]; ++t) {
+      const rqp_real *Mr = M + S.row[t], v = S.v[t];
+      for (i = 0; i < m; ++i) out[i * S.ncol + j] += Mr[i * n] * v;
     }
 }
 
-/* out (S.ncol × n) = Sᵀ M (M: S's rows × n); sym: out symmetric (n =
- * S.ncol), its upper triangle formed and mirrored */
-static void tmul_sparse(sparse S, int n, const rqp_real *M, int sym,
-                        rqp_real *out) {
+/* out (S.ncol × n) = Sᵀ M (M: S's rows × n): a row of M scaled per
+ * nonzero */
+static void tmul_sparse(sparse S, int n, const rqp_real *M, rqp_real *out) {
   int i, j, t;
-  for (j = 0; j < S.ncol; ++j)
-    for (i = sym ? j : 0; i < n; ++i) {
-      rqp_real s = 0;
-      for (t = S.col[j]; t < S.col[j + 1]; ++t) s += S.v[t] * M[S.row[t] * n + i];
-      out[j * n + i] = s;
-      if (sym) out[i * n + j] = s;
+  for (j = 0; j < S.ncol; ++j) {
+    rqp_real *o = out + j * n;
+    for (i = 0; i < n; ++i) o[i] = 0;
+    for (t = S.col[j]; t < S.col[j + 1]; ++t) {
+      const rqp_real *Mr = M + S.row[t] * n, v = S.v[t];
+      for (i = 0; i < n; ++i) o[i] += v * Mr[i];
     }
+  }
 }
 
 /* y (S.ncol) = Sᵀ x */
