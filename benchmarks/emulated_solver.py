@@ -30,10 +30,10 @@ def _template(name: str) -> str:
 
 def run_driver(main: str, source: Path, data: bytes, target: str,
                precision: str, define: str, timeout: float = 3600.0,
-               extra: tuple[str, ...] = ()) -> str:
+               extra: tuple[str, ...] = (), generated: str = "") -> str:
     """Build ``main`` (the driver's C after the target head) with the
     solver ``source`` (``define`` set in a float build, ``extra`` flags
-    in every build) for ``target``,
+    in every build; ``generated``: C compiled beside it) for ``target``,
     run it on qemu with ``data`` as its file ``qps.bin``, and return what
     it printed (RuntimeError where it failed or printed ``ERROR``)."""
     why = toolchain_missing()
@@ -50,10 +50,12 @@ def run_driver(main: str, source: Path, data: bytes, target: str,
         (out / "main.c").write_text(target_head() + main)
         for name in ("startup_cortex_m.c", "cortex_m.ld"):
             (out / name).write_text(_template(name))
+        (out / "generated.c").write_text(generated)
         flags = [*OPT_FLAGS, *core.cpu_flags, *TARGET_WARNINGS,
                  *([define] if precision == "single" else []), *extra,
                  f"-I{source.parent}"]
         subprocess.run([CROSS_CC, *flags, "main.c", str(source),
+                        *(["generated.c"] if generated else []),
                         "startup_cortex_m.c", "-nostartfiles",
                         "--specs=rdimon.specs", "-Tcortex_m.ld",
                         "-Wl,--gc-sections", "-lm", "-o", "solver.elf"],

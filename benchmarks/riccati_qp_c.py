@@ -38,6 +38,7 @@ from benchmarks.emulated_solver import qp_rows, run_driver
 from benchmarks.horizon_qps import add_loop_arguments, collect
 from benchmarks.riccati_active_set import StageQP, solve
 from benchmarks.riccati_qps import feasible_start, shifted
+from ocp.codegen.patches import patch_unused_parameters
 from ocp.codegen.target import CORES, TARGET_WARNINGS
 from ocp.mpc.primal_qp import PQP_SOURCES
 
@@ -47,6 +48,8 @@ RQP_DIR = PQP_SOURCES.parent / "rqp"
 TOL = {"double": 1e-10, "single": 1e-4}
 #: Iterations of an uncapped solve.
 NO_CAP = 100_000
+#: rqp.c's hook for the generated stage products (`products_source`).
+PRODUCTS_FLAG = "-DRQP_PRODUCTS=rqp_products"
 #: rqp's float build.
 RQP_SINGLE = "-DRQP_SINGLE_PRECISION"
 #: Statuses of rqp_solve (rqp.h).
@@ -74,11 +77,22 @@ class _Problem(ctypes.Structure):
                                        "fixed")]
 
 
-def pattern(M: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+Masks = tuple[np.ndarray, np.ndarray]
+
+
+def common_masks(qps: list[StageQP]) -> Masks:
+    """The patterns of A and B (boolean n_x × n_x and n_x × n_u) that
+    hold every stage's nonzeros of every QP in ``qps``."""
+    return (np.any([np.any(q.A != 0, axis=0) for q in qps], axis=0),
+            np.any([np.any(q.B != 0, axis=0) for q in qps], axis=0))
+
+
+def pattern(M: np.ndarray, mask: np.ndarray | None = None
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(col, row, values)``: the stages' matrices M (N, r, c) as the
-    nonzeros (N, nnz) of one compressed-column pattern, the union of
-    their nonzeros."""
-    nz = np.any(M != 0, axis=0)
+    nonzeros (N, nnz) of one compressed-column pattern: ``mask``'s, or
+    the union of their nonzeros."""
+    nz = np.any(M != 0, axis=0) if mask is None else mask
     rows, cols = [], [0]
     for j in range(M.shape[2]):
         rows += list(np.flatnonzero(nz[:, j]))
@@ -94,19 +108,88 @@ def sizes_flags(nx: int, nu: int) -> tuple[str, ...]:
     return (f"-DRQP_NX={nx}", f"-DRQP_NU={nu}")
 
 
+def products_source(masks: Masks, precision: str = "double",
+                    name: str = "rqp_products") -> str:
+    """C of the stage's products that rqp.c takes from ``-DRQP_PRODUCTS``
+    (AᵀPA, BᵀPA, BᵀPB, P·B, P·d from P and one stage's A, B, d), CasADi
+    straight-line code for the patterns ``masks`` of A and B
+    (`common_masks`), symmetric results formed once and mirrored."""
+    import casadi as ca
+
+    nx, nu = masks[1].shape
+    a_col, a_row, _ = pattern(np.zeros((1, nx, nx)), masks[0])
+    b_col, b_row, _ = pattern(np.zeros((1, nx, nu)), masks[1])
+    pf = ca.SX.sym("P", nx * nx)
+    P = ca.SX(nx, nx)
+    for i in range(nx):
+        for j in range(nx):
+            P[i, j] = pf[max(i, j) * nx + min(i, j)]
+    a, b = ca.SX.sym("A", int(a_col[-1])), ca.SX.sym("B", int(b_col[-1]))
+    A = ca.SX(ca.Sparsity(nx, nx, a_col.tolist(), a_row.tolist()), a)
+    B = ca.SX(ca.Sparsity(nx, nu, b_col.tolist(), b_row.tolist()), b)
+    d = ca.SX.sym("d", nx)
+
+    def sym(M):
+        n = M.shape[0]
+        out = ca.SX(n, n)
+        for i in range(n):
+            for j in range(i + 1):
+                out[i, j] = out[j, i] = M[i, j]
+        return out
+
+    def rows(M):            # row-major, dense
+        return ca.densify(ca.vec(M.T))
+    PA, PB = ca.mtimes(P, A), ca.mtimes(P, B)
+    f = ca.Function(f"{name}_fn", [pf, a, b, d],
+        [rows(sym(ca.mtimes(A.T, PA))), rows(ca.mtimes(B.T, PA)),
+         rows(sym(ca.mtimes(B.T, PB))), rows(PB), ca.mtimes(P, d)],
+        {"cse": True})
+    real = "float" if precision == "single" else "double"
+    with tempfile.TemporaryDirectory() as tmp:
+        cg = ca.CodeGenerator(f"{name}.c", {"casadi_real": real,
+                                            "casadi_int": "int"})
+        cg.add(f)
+        cg.generate(tmp + "/")
+        code, _ = patch_unused_parameters(
+            (Path(tmp) / f"{name}.c").read_text())
+    if "w[" in code:
+        raise RuntimeError("the generated products use a work array")
+    return code + f"""
+void {name}(const casadi_real* P, const casadi_real* A, const casadi_real* B,
+            const casadi_real* d, casadi_real* AtPA, casadi_real* BtPA,
+            casadi_real* BtPB, casadi_real* PB, casadi_real* Pd) {{
+  const casadi_real* arg[4];
+  casadi_real* res[5];
+  arg[0] = P; arg[1] = A; arg[2] = B; arg[3] = d;
+  res[0] = AtPA; res[1] = BtPA; res[2] = BtPB; res[3] = PB; res[4] = Pd;
+  {name}_fn(arg, res, 0, 0, 0);  /* straight-line: no work array */
+}}
+"""
+
+
 def host_library(out_dir: Path, precision: str = "double",
-                 sizes: tuple[int, int] | None = None) -> ctypes.CDLL:
+                 sizes: tuple[int, int] | None = None,
+                 products: Masks | None = None) -> ctypes.CDLL:
     """rqp.c built by the host's cc as a shared library in ``out_dir``
-    (``sizes``: for that (n_x, n_u) only, `sizes_flags`)."""
+    (``sizes``: for that (n_x, n_u) only, `sizes_flags`; ``products``:
+    with the stage products generated for those patterns of A and B,
+    `products_source`: solve with the same ``masks``)."""
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
         raise RuntimeError("no C compiler (cc) on this machine")
     tag = f"_{sizes[0]}x{sizes[1]}" if sizes else ""
+    tag += "_gen" if products is not None else ""
     lib = Path(out_dir) / f"librqp_{precision}{tag}.so"
     define = [RQP_SINGLE] if precision == "single" else []
     define += list(sizes_flags(*sizes)) if sizes else []
+    extra: list[str] = []
+    if products is not None:
+        gen = Path(out_dir) / "rqp_products.c"
+        gen.write_text(products_source(products, precision))
+        define.append(PRODUCTS_FLAG)
+        extra.append(str(gen))
     subprocess.run([cc, "-O2", "-shared", "-fPIC", *TARGET_WARNINGS, *define,
-                    str(RQP_DIR / "rqp.c"), "-lm", "-o", str(lib)],
+                    str(RQP_DIR / "rqp.c"), *extra, "-lm", "-o", str(lib)],
                    check=True, capture_output=True, text=True)
     dll = ctypes.CDLL(str(lib))
     real = ctypes.c_float if precision == "single" else ctypes.c_double
@@ -118,10 +201,11 @@ def host_library(out_dir: Path, precision: str = "double",
     return dll
 
 
-def _arrays(qp: StageQP, real) -> dict[str, np.ndarray]:
+def _arrays(qp: StageQP, real, masks: Masks | None = None
+            ) -> dict[str, np.ndarray]:
     box, scale = boxes(qp)
-    a_col, a_row, A = pattern(qp.A)
-    b_col, b_row, B = pattern(qp.B)
+    a_col, a_row, A = pattern(qp.A, None if masks is None else masks[0])
+    b_col, b_row, B = pattern(qp.B, None if masks is None else masks[1])
     ints = {"a_col": a_col, "a_row": a_row, "b_col": b_col, "b_row": b_row,
             "box": box, "fixed": qp.fixed.astype(np.int32)}
     reals = {"A": A, "B": B, "d": qp.d, "Q": qp.Q, "q": qp.q, "R": qp.R,
@@ -139,14 +223,16 @@ _FIELDS = ("a_col", "a_row", "b_col", "b_row", "A", "B", "d", "Q", "q",
 def solve_c(lib: ctypes.CDLL, qp: StageQP,
             working: dict[tuple[int, int], int] | None = None,
             max_iter: int = NO_CAP, precision: str = "double",
-            box: np.ndarray | None = None) -> dict:
+            box: np.ndarray | None = None, masks: Masks | None = None
+            ) -> dict:
     """rqp_solve on one QP through ``lib`` (`host_library`), from the
     QP's start and the warm boxes ``working`` (``box``: the boxes'
-    components given instead of `boxes`'): ``U``, ``X``, ``side`` (N,
-    n_b), ``lam``, ``status``, ``iterations`` and ``stages``."""
+    components given instead of `boxes`'; ``masks``: A's and B's
+    patterns, a build's with generated products): ``U``, ``X``, ``side``
+    (N, n_b), ``lam``, ``status``, ``iterations`` and ``stages``."""
     real = np.float32 if precision == "single" else np.float64
     N, nx, nu, nb = qp.dims
-    arr = _arrays(qp, real)
+    arr = _arrays(qp, real, masks)
     if box is not None:
         arr["box"] = np.ascontiguousarray(box, dtype=np.int32)
     prob = _Problem(N, nx, nu, nb, *(arr[k].ctypes.data for k in _FIELDS))
@@ -191,7 +277,8 @@ def problems(c: dict, cap: int) -> list[dict]:
 
 
 def write_problems(path: Path, probs: list[dict], caps: list[int],
-                   precision: str = "double") -> None:
+                   precision: str = "double", masks: Masks | None = None
+                   ) -> None:
     """The QPs as the target driver reads them: a header (count, N, n_x,
     n_u, n_b, caps), then per QP its arrays (reals little-endian, the
     boxes' indices and the fixed inputs as int32, the warm sides int8)."""
@@ -202,7 +289,7 @@ def write_problems(path: Path, probs: list[dict], caps: list[int],
         fh.write(struct.pack(f"<{len(caps)}i", *caps))
         for p in probs:
             qp = p["qp"]
-            arr = _arrays(qp, real)
+            arr = _arrays(qp, real, masks)
             fh.write(struct.pack("<2i", arr["a_row"].size, arr["b_row"].size))
             for key in _FIELDS:
                 fh.write(arr[key].astype("<i4" if arr[key].dtype == np.int32
@@ -288,24 +375,29 @@ int main(void) {
 
 
 def run_target(probs: list[dict], caps: list[int], target: str,
-               precision: str, timeout: float = 3600.0) -> list[dict]:
+               precision: str, timeout: float = 3600.0,
+               generated: bool = False) -> list[dict]:
     """Build rqp.c and its driver for ``target`` and run it on qemu; per
     QP and cap (``-1``: the warm working set's recursion alone) its
     ``instructions``, ``iterations``, ``status``, ``stages`` and ``err``
-    (max |δu − the twin's uncapped δu|)."""
+    (max |δu − the twin's uncapped δu|). ``generated``: with the stage
+    products generated for the QPs' patterns (`products_source`)."""
     N, nx, nu, nb = probs[0]["qp"].dims
     caps = [NO_CAP if cap == 0 else cap for cap in caps]
     work, iwork = _sizes(N, nx, nu, nb)
+    masks = common_masks([p["qp"] for p in probs])
     with tempfile.TemporaryDirectory() as tmp:
-        write_problems(Path(tmp) / "qps.bin", probs, caps, precision)
+        write_problems(Path(tmp) / "qps.bin", probs, caps, precision, masks)
         data = (Path(tmp) / "qps.bin").read_bytes()
     main = _MAIN
     for key, v in (("@N@", N), ("@NX@", nx), ("@NU@", nu), ("@NB@", nb),
                    ("@WORK@", work), ("@IWORK@", iwork),
                    ("@TOL@", repr(TOL[precision]))):
         main = main.replace(key, str(v))
+    gen = products_source(masks, precision) if generated else ""
     out = run_driver(main, RQP_DIR / "rqp.c", data, target, precision,
-                     RQP_SINGLE, timeout, sizes_flags(nx, nu))
+                     RQP_SINGLE, timeout, sizes_flags(nx, nu)
+                     + ((PRODUCTS_FLAG,) if generated else ()), gen)
     return qp_rows(out, STATUS, ("iterations", "stages"))
 
 
@@ -336,8 +428,18 @@ def _stats(v) -> str:
             f"{a.max():,.0f}")
 
 
+def products_memory(masks: Masks, target: str, precision: str) -> dict:
+    """The generated stage products (`products_source`) for ``target``:
+    their ``flash`` (text + rodata, bytes) and deepest ``stack``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        src = Path(tmp) / "rqp_products.c"
+        src.write_text(products_source(masks, precision))
+        return emulated_solver.solver_memory(src, "rqp_products", target,
+                                             precision, RQP_SINGLE)
+
+
 def report(probs: list[dict], rows: list[dict], caps: list[int],
-           target: str, precision: str) -> str:
+           target: str, precision: str, generated: bool = False) -> str:
     """The tables of `main`."""
     N, nx, nu, nb = probs[0]["qp"].dims
     lines = [f"{len(probs)} QPs at N = {N} ({nx} states, {nu} inputs, {nb} "
@@ -358,6 +460,12 @@ def report(probs: list[dict], rows: list[dict], caps: list[int],
     mem = solver_memory(target, precision, (nx, nu))
     work, iwork = _sizes(N, nx, nu, nb)
     size = 4 if precision == "single" else 8
+    if generated:
+        gen = products_memory(common_masks([p["qp"] for p in probs]),
+                              target, precision)
+        lines += ["", f"The generated stage products: {gen['flash']:,} "
+                  f"bytes of flash, stack {gen['stack']:,} bytes (beside "
+                  f"rqp.c's, whose own loops for them are then unused)."]
     lines += ["", f"rqp.c on the {target}: {mem['flash']:,} bytes of flash, "
               f"work {work * size + iwork * 4:,} bytes ({work:,} reals, "
               f"{iwork:,} ints), stack {mem['stack']:,} bytes"
@@ -372,6 +480,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--target", default="cortex-m7", choices=sorted(CORES))
     ap.add_argument("--precision", default="double",
                     choices=("double", "single"))
+    ap.add_argument("--generated", action="store_true",
+                    help="the stage products as CasADi straight-line code "
+                    "for the craft's patterns")
     ap.add_argument("--caps", default="8,0",
                     help="iteration caps, 0 for none (default 8,0); the "
                     "first is the warm sets' loop's")
@@ -380,8 +491,10 @@ def main(argv: list[str] | None = None) -> None:
     c = collect(args.horizon, args.draws, args.steps, args.seed,
                 args.spacecraft, stagewise=True)
     probs = problems(c, caps[0])
-    rows = run_target(probs, caps, args.target, args.precision)
-    print(report(probs, rows, caps, args.target, args.precision))
+    rows = run_target(probs, caps, args.target, args.precision,
+                      generated=args.generated)
+    print(report(probs, rows, caps, args.target, args.precision,
+                 args.generated))
 
 
 if __name__ == "__main__":

@@ -53,6 +53,19 @@ def test_c_takes_the_twins_path(lib, probs):
     assert constrained >= 5
 
 
+def test_generated_stage_products_take_the_same_path(tmp_path, probs):
+    """rqp.c with the stage products as CasADi straight-line code for
+    the QPs' patterns (-DRQP_PRODUCTS) makes the twin's decisions."""
+    masks = rc.common_masks([p["qp"] for p in probs])
+    gen = rc.host_library(tmp_path, sizes=(11, 4), products=masks)
+    for p in probs:
+        for cap in (2, rc.NO_CAP):
+            got = rc.solve_c(gen, p["qp"], p["warm"], cap, masks=masks)
+            ref = solve(p["qp"], p["warm"], max_iter=cap)
+            assert got["iterations"] == ref["iterations"]
+            np.testing.assert_allclose(got["U"], ref["U"], atol=1e-12)
+
+
 def test_capped_points_keep_every_box(lib, probs):
     for p in probs:
         qp = p["qp"]
@@ -122,8 +135,11 @@ def test_target_build_is_clean_and_heap_free(tmp_path, target, precision):
 
 @pytest.mark.skipif(toolchain_missing() is not None,
                     reason=str(toolchain_missing()))
-def test_emulated_m7_gives_the_host_answers(probs):
-    rows = rc.run_target(probs[:4], [1, 0], "cortex-m7", "double")
+@pytest.mark.parametrize("generated", [False, True],
+                         ids=["loops", "generated-products"])
+def test_emulated_m7_gives_the_host_answers(probs, generated):
+    rows = rc.run_target(probs[:4], [1, 0], "cortex-m7", "double",
+                         generated=generated)
     assert len(rows) == 3 * 4
     for i in range(4):
         got = {r["cap"]: r for r in rows if r["qp"] == i}

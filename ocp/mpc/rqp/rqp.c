@@ -30,6 +30,15 @@
 
 #define RQP_DEPENDENT (-1)
 
+#ifdef RQP_PRODUCTS
+/* the stage's products, generated for the craft's patterns: from P
+ * (nx × nx, row-major, symmetric) and the stage's A, B (nonzeros) and d,
+ * AᵀPA (nx × nx), BᵀPA (nu × nx), BᵀPB (nu × nu), P B (nx × nu) and P d */
+void RQP_PRODUCTS(const rqp_real *P, const rqp_real *A, const rqp_real *B,
+                  const rqp_real *d, rqp_real *AtPA, rqp_real *BtPA,
+                  rqp_real *BtPB, rqp_real *PB, rqp_real *Pd);
+#endif
+
 /* sizes known when compiled (-DRQP_NX=…, -DRQP_NU=…) let the compiler
  * unroll the stage's loops; rqp_solve then refuses other sizes */
 #ifdef RQP_NX
@@ -290,13 +299,17 @@ static int stage_factor(const rqp_problem *qp, int k, const signed char *side,
     }
   }
   /* Muu = R + BᵀPB, Mux = BᵀPA, mu = g + Bᵀ(Pd + p); T2 = AᵀPA */
+#ifdef RQP_PRODUCTS
+  RQP_PRODUCTS(Pin, A.v, B.v, d, ws->T2, ws->Mux, ws->Muu, ws->T1, ws->hb);
+#else
   mul_sparse(nx, nx, Pin, A, ws->T1);              /* P A (nx × nx) */
   tmul_sparse(A, nx, ws->T1, ws->T2);           /* AᵀPA */
   tmul_sparse(B, nx, ws->T1, ws->Mux);          /* BᵀPA */
   mul_sparse(nx, nx, Pin, B, ws->T1);              /* P B (nx × nu) */
   tmul_sparse(B, nu, ws->T1, ws->Muu);          /* BᵀPB */
-  for (i = 0; i < nu; ++i) ws->Muu[i * nu + i] += qp->R[i];
   matvec(nx, nx, Pin, d, ws->hb);                  /* P d, kept */
+#endif
+  for (i = 0; i < nu; ++i) ws->Muu[i * nu + i] += qp->R[i];
   for (i = 0; i < nx; ++i) ws->v1[i] = ws->hb[i] + pin[i];
   tvec_sparse(B, ws->v1, ws->mu);
   for (i = 0; i < nu; ++i) ws->mu[i] += g[i];

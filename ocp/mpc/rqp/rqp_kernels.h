@@ -64,6 +64,7 @@ static void mul_sparse(int m, int n, const rqp_real *M, sparse S,
     }
 }
 
+#ifndef RQP_PRODUCTS /* else generated for the craft */
 /* out (S.ncol × n) = Sᵀ M (M: S's rows × n): a row of M scaled per
  * nonzero */
 static void tmul_sparse(sparse S, int n, const rqp_real *M, rqp_real *out) {
@@ -77,6 +78,7 @@ static void tmul_sparse(sparse S, int n, const rqp_real *M, rqp_real *out) {
     }
   }
 }
+#endif
 
 /* y (S.ncol) = Sᵀ x */
 static void tvec_sparse(sparse S, const rqp_real *x, rqp_real *y) {
