@@ -53,7 +53,8 @@ PRODUCTS_FLAG = "-DRQP_PRODUCTS=rqp_products"
 #: rqp's float build.
 RQP_SINGLE = "-DRQP_SINGLE_PRECISION"
 #: Statuses of rqp_solve (rqp.h).
-STATUS = {0: "optimal", 1: "iteration limit", 3: "invalid input"}
+STATUS = {0: "optimal", 1: "iteration limit", 2: "infeasible start",
+          3: "invalid input"}
 
 
 def boxes(qp: StageQP) -> tuple[np.ndarray, np.ndarray]:

@@ -91,6 +91,23 @@ def test_a_dependent_warm_box_is_held_out(tmp_path):
     np.testing.assert_allclose(got["U"].ravel(), [1.0, 0.0], atol=1e-12)
 
 
+def test_a_start_beyond_a_box_or_nan_is_refused(lib, probs):
+    """No phase one yet: a start that breaks a box is refused, and a NaN
+    start or bound is invalid input."""
+    qp = probs[0]["qp"]
+    hi = qp.hi.copy()
+    v = qp.values(qp.u0, qp.x0)
+    hi[0, 0] = v[0, 0] - 1e-3                # the start beyond it
+    got = rc.solve_c(lib, replace(qp, hi=hi))
+    assert got["status"] == "infeasible start" and got["iterations"] == 0
+    u0 = qp.u0.copy()
+    u0[1, 0] = np.nan
+    assert rc.solve_c(lib, replace(qp, u0=u0))["status"] == "invalid input"
+    lo = qp.lo.copy()
+    lo[2, 3] = np.nan
+    assert rc.solve_c(lib, replace(qp, lo=lo))["status"] == "invalid input"
+
+
 def test_a_build_for_one_size_refuses_another(tmp_path):
     lib = rc.host_library(tmp_path, sizes=(11, 4))
     got = rc.solve_c(lib, _chain_started_where_both_boxes_hold())

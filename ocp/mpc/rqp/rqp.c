@@ -404,6 +404,12 @@ int rqp_solve(const rqp_problem *qp, rqp_real *U, rqp_real *X,
   layout(N, nx, nu, nb, w, iw, &ws, &ni);
   for (i = 0; i < nv; ++i) lam[i] = 0;
   values(qp, U, X, ws.V);
+  for (i = 0; i < nv; ++i) {
+    const rqp_real v = ws.V[i], lo = qp->lo[i], hi = qp->hi[i];
+    if (v != v || lo != lo || hi != hi) return RQP_INVALID_INPUT;
+    if (v > hi + tol * (1 + RQP_FABS(hi)) || v < lo - tol * (1 + RQP_FABS(lo)))
+      return RQP_INFEASIBLE_START;
+  }
   warm_start(qp, U, side, &ws, stages);
   for (it = 1; it <= max_iter; ++it) {
     rqp_real dmax = 0, vmax = 0, alpha = 1;

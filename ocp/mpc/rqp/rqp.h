@@ -26,6 +26,7 @@ typedef double rqp_real;
 /* return values of rqp_solve */
 #define RQP_OPTIMAL 0
 #define RQP_ITERATION_LIMIT 1 /* a feasible point, not yet optimal */
+#define RQP_INFEASIBLE_START 2 /* the start breaks a box: no phase one */
 #define RQP_INVALID_INPUT 3
 
 /* the problem, stage after stage: A and B as the nonzeros of one
@@ -54,7 +55,9 @@ int rqp_work_size(int N, int nx, int nu, int nb);
 int rqp_iwork_size(int N, int nx, int nu, int nb);
 
 /* Solve from (U, X) (N × nu and N × nx: in, a start that keeps every
- * box and the dynamics; out, the last iterate). side (N × nb; in: the
+ * box, beyond tol relative to 1 + |bound| RQP_INFEASIBLE_START, and the
+ * dynamics; out, the last iterate; a start or bound that is NaN:
+ * RQP_INVALID_INPUT). side (N × nb; in: the
  * warm working set's sides, -1 lower, 1 upper, 0 not in it: boxes not
  * at their bound at the start, or dependent on those before them, are
  * left out; out: the last working set). lam (N × nb; out: the
