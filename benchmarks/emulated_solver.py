@@ -50,7 +50,8 @@ def run_driver(main: str, source: Path, data: bytes, target: str,
         (out / "main.c").write_text(target_head() + main)
         for name in ("startup_cortex_m.c", "cortex_m.ld"):
             (out / name).write_text(_template(name))
-        (out / "generated.c").write_text(generated)
+        if generated:
+            (out / "generated.c").write_text(generated)
         flags = [*OPT_FLAGS, *core.cpu_flags, *TARGET_WARNINGS,
                  *([define] if precision == "single" else []), *extra,
                  f"-I{source.parent}"]

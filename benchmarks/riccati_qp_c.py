@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import ctypes
+import functools
 import shutil
 import struct
 import subprocess
@@ -37,7 +38,7 @@ from benchmarks import emulated_solver
 from benchmarks.emulated_solver import qp_rows, run_driver
 from benchmarks.horizon_qps import add_loop_arguments, collect
 from benchmarks.riccati_active_set import StageQP, solve
-from benchmarks.riccati_qps import feasible_start, shifted
+from benchmarks.riccati_qps import NO_CAP, carried
 from ocp.codegen.patches import patch_unused_parameters
 from ocp.codegen.target import CORES, TARGET_WARNINGS
 from ocp.mpc.primal_qp import PQP_SOURCES
@@ -46,8 +47,6 @@ from ocp.mpc.primal_qp import PQP_SOURCES
 RQP_DIR = PQP_SOURCES.parent / "rqp"
 #: The solver's step and sign tolerance (in box widths).
 TOL = {"double": 1e-10, "single": 1e-4}
-#: Iterations of an uncapped solve.
-NO_CAP = 100_000
 #: rqp.c's hook for the generated stage products (`products_source`).
 PRODUCTS_FLAG = "-DRQP_PRODUCTS=rqp_products"
 #: rqp's float build.
@@ -260,21 +259,11 @@ def solve_c(lib: ctypes.CDLL, qp: StageQP,
 def problems(c: dict, cap: int) -> list[dict]:
     """The QPs of ``c`` (`collect` with ``stagewise=True``) whose start
     keeps every box, each with the warm working set the twin's loop
-    capped at ``cap`` (0: none) carried to it, and the twin's answer
-    uncapped from there (``U_ref``)."""
-    out, last = [], None
-    for q in c["qps"]:
-        qp = q["stage"]
-        if q["step"] == 0 or not feasible_start(qp):
-            last = None
-            if not feasible_start(qp):
-                continue
-        warm = shifted(last) if last else {}
-        r = solve(qp, warm, max_iter=cap or NO_CAP)
-        last = r["working"]
-        out.append({"qp": qp, "warm": warm,
-                    "U_ref": solve(qp, warm, max_iter=NO_CAP)["U"]})
-    return out
+    capped at ``cap`` (0: none) carried to it (`riccati_qps.carried`),
+    and the twin's answer uncapped from there (``U_ref``)."""
+    return [{"qp": q["stage"], "warm": warm,
+             "U_ref": solve(q["stage"], warm, max_iter=NO_CAP)["U"]}
+            for q, warm, r in carried(c, cap) if r is not None]
 
 
 def write_problems(path: Path, probs: list[dict], caps: list[int],
@@ -402,6 +391,7 @@ def run_target(probs: list[dict], caps: list[int], target: str,
     return qp_rows(out, STATUS, ("iterations", "stages"))
 
 
+@functools.lru_cache(maxsize=None)
 def _sizes(N: int, nx: int, nu: int, nb: int) -> tuple[int, int]:
     """rqp's work sizes (reals, ints), from a host build of rqp.c."""
     with tempfile.TemporaryDirectory() as tmp:

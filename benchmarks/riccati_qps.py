@@ -35,6 +35,8 @@ from benchmarks.riccati_active_set import StageQP, dense_qp, solve
 
 #: DAQP's primal tolerance for the reference answers.
 DAQP_TOL = 1e-12
+#: Iterations of an uncapped solve.
+NO_CAP = 100_000
 
 
 def shifted(working: dict[tuple[int, int], int]) -> dict[tuple[int, int], int]:
@@ -60,31 +62,46 @@ def run_daqp(qp: StageQP) -> np.ndarray:
     return x.reshape(qp.dims[0], -1)
 
 
-def run_cap(c: dict, cap: int) -> dict:
-    """The twin on every QP with a feasible start, capped at ``cap``
-    iterations (0: none), warm-started from its own last working set."""
-    out: dict = {"iterations": [], "recursions": [], "working": [],
-                 "dependent": 0, "error": 0.0, "step_error": 0.0,
-                 "left_out": 0, "passed_back": 0}
+def carried(c: dict, cap: int, progress: bool = False):
+    """The twin over the QPs of ``c`` in loop order, capped at ``cap``
+    iterations (0: none), each warm-started from the working set its own
+    last QP ended with, moved one stage ahead (none at a loop's first
+    step, or after a QP left out). Yields ``(q, warm, result)`` per QP,
+    ``result`` None where the start breaks a box (left out)."""
     last: dict | None = None
-    for q in tqdm(c["qps"], desc=f"cap {cap or 'none'}", disable=None,
-                  leave=False):
+    for q in tqdm(c["qps"], desc=f"cap {cap or 'none'}", leave=False,
+                  disable=None if progress else True):
         qp = q["stage"]
         if q["step"] == 0:
             last = None
         if not feasible_start(qp):
-            out["left_out"] += 1
             last = None
+            yield q, {}, None
             continue
-        r = solve(qp, shifted(last) if last else None,
-                  max_iter=cap or 100_000)
+        warm = shifted(last) if last else {}
+        r = solve(qp, warm, max_iter=cap or NO_CAP)
+        last = r["working"]
+        yield q, warm, r
+
+
+def run_cap(c: dict, cap: int) -> dict:
+    """The twin on every QP with a feasible start, capped at ``cap``
+    iterations (0: none), warm-started from its own last working set
+    (`carried`)."""
+    out: dict = {"iterations": [], "recursions": [], "working": [],
+                 "dependent": 0, "error": 0.0, "step_error": 0.0,
+                 "left_out": 0, "passed_back": 0}
+    for q, _, r in carried(c, cap, progress=True):
+        qp = q["stage"]
+        if r is None:
+            out["left_out"] += 1
+            continue
         N = qp.dims[0]
         out["iterations"].append(r["iterations"])
         out["recursions"].append(r["factored"] / N)
         out["working"].append(len(r["working"]))
         out["dependent"] += r["dependent"]
         out["passed_back"] = max(out["passed_back"], r["passed_back"])
-        last = r["working"]
         if r["optimal"]:
             m_max = c["m_max"].reshape(N, -1)
             out["error"] = max(out["error"], float(np.max(

@@ -58,7 +58,7 @@ typedef struct {
   rqp_real *Us, *Xs, *V, *dV;          /* per stage: iterate, boxes */
   rqp_real *Cx, *Cu, *c, *Qa, *Ra, *beta, *Hb, *hb, *M; /* one stage */
   rqp_real *Fx, *f0, *V2, *Muu, *Mux, *mu, *red, *T1, *T2, *v1, *v2, *nu_;
-  int *nH, *acc, *dep, *rowbox, *xrow, rmax;
+  int *nH, *acc, *dep, *rowbox, *xrow;
 } work;
 
 #include "rqp_kernels.h"
@@ -274,7 +274,7 @@ static void multipliers(const rqp_problem *qp, const signed char *side,
     int na, nd;
     split(r, nu, ws, &na, &nd);
     /* the stored rows of x_k are this stage's; pass_back again for M */
-    pass_back(k ? k : 1, nx, nu, na, nd, ws, ws->T1, ws->T2);
+    pass_back(k, nx, nu, na, nd, ws, ws->T1, ws->T2);
     /* rho = R u + g + Bᵀ(Pin x + pin), into mu */
     matvec(nx, nx, Pin, x, ws->v2);
     for (i = 0; i < nx; ++i) ws->v2[i] += pin[i];
@@ -331,7 +331,6 @@ static int layout(int N, int nx, int nu, int nb, rqp_real *w, int *iw,
   ws->dep = iw ? it : 0; it += rmax;
   ws->rowbox = iw ? it : 0; it += rmax;
   ws->xrow = iw ? it : 0; it += nx;
-  ws->rmax = rmax;
   *ni = (int)(it - iw);
   return (int)(at - w);
 }
