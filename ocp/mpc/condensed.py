@@ -414,13 +414,14 @@ def condensed_step_functions(mpc: Any, plugin: str | None = None,
 
 
 def check_qp_max_iter(plugin: str, qp_max_iter: Any) -> int:
-    """The QP's iteration limit: ``qp_max_iter`` (pqp only, a positive
-    int) or `condensed_qp.QP_ITER_LIMIT`."""
+    """The QP's iteration limit: ``qp_max_iter`` (the primal active sets
+    pqp and rqp only, a positive int) or `condensed_qp.QP_ITER_LIMIT`."""
     if qp_max_iter is None:
         return QP_ITER_LIMIT
-    if plugin != "pqp":
+    if plugin not in ("pqp", "rqp"):
         raise InvalidValueError(
-            "solver_options 'qp_max_iter' caps qp_solver='pqp' only (a "
+            "solver_options 'qp_max_iter' caps qp_solver='pqp' or 'rqp' "
+            "only (a "
             f"capped {plugin} point is not feasible), got qp_solver "
             f"{plugin!r}")
     if isinstance(qp_max_iter, bool) or not isinstance(

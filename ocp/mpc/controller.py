@@ -138,15 +138,18 @@ class AttitudeMPC:
         code-generatable conic (qrqp by default); with ``rti`` its QP
         point is certified too and a step that fails goes to the full
         SQP.
-    qp_solver : {"qrqp", "daqp", "pqp"}, optional
+    qp_solver : {"qrqp", "daqp", "pqp", "rqp"}, optional
         Conic of ``"sqpmethod"`` (default ``"qrqp"``) or of
-        ``"condensed"`` (default daqp where the casadi wheel has it);
-        None with ``"stagewise"``. ``"pqp"`` (``"condensed"`` only): the
-        toolbox's primal active set in C (`ocp.mpc.primal_qp`), warm-
-        started where the step starts; it needs a C compiler. With
-        ``solver_options={"qp_max_iter": k}`` it is capped: a step may
-        apply a feasible, cost-lowering point that is not its QP's
-        optimum (status ``"...:qp_capped"``, `ocp.mpc.condensed`).
+        ``"condensed"`` (default daqp where the casadi wheel has it).
+        ``"pqp"`` (``"condensed"`` only): the toolbox's primal active set
+        in C (`ocp.mpc.primal_qp`), warm-started where the step starts;
+        it needs a C compiler. ``"stagewise"`` takes None (its Riccati
+        interior point) or ``"rqp"``: the Riccati active set in C
+        (`ocp.mpc.riccati_qp`, memory linear in the horizon; no move
+        blocks; needs a C compiler). With ``solver_options={"qp_max_iter":
+        k}`` pqp or rqp is capped: a step may apply a feasible,
+        cost-lowering point that is not its QP's optimum (status
+        ``"...:qp_capped"``, `ocp.mpc.condensed`).
     rti : bool
         Real-time iteration: one full SQP step per sample (``"sqpmethod"``
         only). When that step leaves the applied command or the next
@@ -231,11 +234,15 @@ class AttitudeMPC:
         if solver not in available_mpc_solvers():
             raise SolverNotFound(solver, available_mpc_solvers(),
                                  f"the CasADi plugin {solver!r} is missing")
-        if solver == "stagewise" and qp_solver is not None:
+        if solver == "stagewise" and qp_solver not in (None, "rqp"):
             raise InvalidValueError(
-                "solver='stagewise' solves its QP itself (a Riccati "
-                f"interior point): qp_solver must be None, got {qp_solver!r}")
+                "solver='stagewise' solves its QP itself: qp_solver None "
+                "(a Riccati interior point) or 'rqp' (the Riccati active "
+                f"set in C), got {qp_solver!r}")
         qp_solver = resolve_qp_solver(solver, qp_solver)
+        if qp_solver == "rqp" and move_blocks is not None:
+            raise InvalidValueError(
+                "qp_solver='rqp' takes no move_blocks (use qp_solver=None)")
         if rti and solver not in ("sqpmethod", *OWN_SQP_SOLVERS):
             raise InvalidValueError(
                 "rti=True needs solver='sqpmethod', 'condensed' or "
@@ -245,8 +252,8 @@ class AttitudeMPC:
         self.wheels = model.wheels
         self.horizon = int(horizon)
         self.solver = solver
-        self.qp_solver = qp_solver if solver in ("sqpmethod",
-                                                 "condensed") else ""
+        self.qp_solver = qp_solver if solver in (
+            "sqpmethod", "condensed") or qp_solver == "rqp" else ""
         self.rti = bool(rti)
         self.weights = weights if weights is not None else MPCWeights()
         if not isinstance(self.weights, MPCWeights):
@@ -333,7 +340,7 @@ class AttitudeMPC:
             self.step_function = self.rti_function if self.rti else full
             return
         if self.solver == "stagewise":
-            check_stagewise_options(user_options)
+            check_stagewise_options(user_options, qp_solver=self.qp_solver)
             self.rti_function, full = stagewise_step_functions(
                 self, **user_options)
             self.step_function = self.rti_function if self.rti else full

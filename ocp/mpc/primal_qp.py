@@ -41,20 +41,15 @@ file of its own renamed into place (tested).
 
 from __future__ import annotations
 
-import hashlib
-import os
 import re
 import shutil
-import tempfile
-import threading
 from itertools import accumulate
 from pathlib import Path
 
 import casadi as ca
 
-from adcs_common.codegen import compile_c
-
 from .condensed_qp import QP_ITER_LIMIT
+from .external_c import shared_external
 
 #: The C solver's folder (pqp.c, pqp.h).
 PQP_SOURCES = Path(__file__).with_name("pqp")
@@ -195,26 +190,8 @@ def qp_external(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     name = external_name(n, m, max_iter)
     _BUILT[name] = (N, nu, nw, sp_g, max_iter)
     text = wrapper_source(N, nu, nw, sp_g, max_iter)
-    solver = (PQP_SOURCES / "pqp.c").read_text()
-    key = hashlib.sha256((text + solver).encode()).hexdigest()[:16]
-    folder = Path(tempfile.gettempdir()) / f"adcs_pqp_{os.getuid()}" / key
-    lib = folder / f"lib{name}.so"
-    if not lib.is_file():
-        folder.mkdir(parents=True, exist_ok=True)
-        # private names per process and thread (the source too: another
-        # thread rewriting it mid-compile gave a library without the
-        # symbols), then one atomic rename
-        me = f"{os.getpid()}.{threading.get_ident()}"
-        src = folder / f"wrapper.{me}.c"
-        src.write_text(text)
-        part = folder / f"{lib.name}.{me}"
-        try:
-            compile_c([src, PQP_SOURCES / "pqp.c"], part,
-                      flags=["-std=c99", f"-I{PQP_SOURCES}"])
-            os.replace(part, lib)
-        finally:
-            src.unlink(missing_ok=True)
-    return ca.external(name, str(lib))
+    return shared_external(name, text, [PQP_SOURCES / "pqp.c"],
+                           [f"-I{PQP_SOURCES}"], "pqp")
 
 
 def copy_sources(out: Path, source_text: str, precision: str = "double"

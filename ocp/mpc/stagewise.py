@@ -137,16 +137,18 @@ def block_flags(lengths: tuple[int, ...] | None, horizon: int
     return flags
 
 
-class _Parts:
+class StageParts:
     """The stage-wise QP's pieces for one MPC: kernels, boxes, solver."""
 
-    def __init__(self, mpc: Any, tol: float, max_iter: int) -> None:
+    def __init__(self, mpc: Any, tol: float, max_iter: int,
+                 ipm: bool = True) -> None:
         model, wh, w = mpc.model, mpc.wheels, mpc.weights
         nx, nu = model.nx, model.nu
         kern = _kernels(mpc)
         self.cones = planning_cone_function(mpc)
         self.lin, self.stage, sp_a, sp_b, sp_q = _nz_kernels(
             kern, nx, nu, self.cones)
+        self.patterns = (sp_a, sp_b, sp_q)  # of A, B and Q's nonzeros
         self.nq = nx + len(mpc.keep_out)     # the QP's state
         self.m_max = np.asarray(wh.m_max, dtype=float)
         self.r_diag = 2.0 * w.torque / self.m_max ** 2 + mpc.regularization
@@ -159,11 +161,13 @@ class _Parts:
                                   self.lay.bu, self.lay.bx,
                                   blocked=blocks is not None)
         self.ipm = ipm_solve(self.kern, self.lay, Tree(mpc.horizon),
-                             self.nq, nu, max_iter, tol, self.flags)
+                             self.nq, nu, max_iter, tol,
+                             self.flags) if ipm else None
 
 
-def _qp_data(mpc: Any, parts: _Parts, z: ca.MX, p: ca.MX) -> tuple:
-    """``(X, U, xN, data)``: the plan's stages and its QP's data.
+def qp_data(mpc: Any, parts: StageParts, z: ca.MX, p: ca.MX) -> tuple:
+    """``(X, U, xN, data, D)``: the plan's stages, its QP's data and the
+    dynamics' defects D (n_q × N).
 
     ``data = (dU0, dX0, A, B, Q, q, g, r, lo, hi)``, `ipm_solve`'s inputs:
     the dynamics-feasible start (zero steps but the fixed controls, the
@@ -200,7 +204,7 @@ def _qp_data(mpc: Any, parts: _Parts, z: ca.MX, p: ca.MX) -> tuple:
     dX0 = parts.kern["roll"].mapaccum("sw_roll_N", N, 1)(
         ca.DM.zeros(parts.nq), An, Bn, dU0, D)
     r = ca.repmat(ca.DM(parts.r_diag), 1, N)
-    return X, U, xN, (dU0, dX0, An, Bn, Qn, q, g, r, lo, hi)
+    return X, U, xN, (dU0, dX0, An, Bn, Qn, q, g, r, lo, hi), D
 
 
 def _diag(v: np.ndarray) -> ca.DM:
@@ -214,10 +218,10 @@ def stagewise_qp_function(mpc: Any) -> ca.Function:
     The stage-wise QP (`ocp.mpc.stagewise_ipm`) of the plan ``z`` (x_0
     the measured state) and parameters ``p = (x, q_f, τ)``.
     """
-    parts = _Parts(mpc, IPM_TOL, 1)
+    parts = StageParts(mpc, IPM_TOL, 1)
     z = ca.MX.sym("z", mpc.nz)
     p = ca.MX.sym("p", mpc.model.nx + 7)
-    return ca.Function("sw_qp", [z, p], list(_qp_data(mpc, parts, z, p)[3]))
+    return ca.Function("sw_qp", [z, p], list(qp_data(mpc, parts, z, p)[3]))
 
 
 def stagewise_iteration(mpc: Any, tol: float = IPM_TOL,
@@ -230,14 +234,24 @@ def stagewise_iteration(mpc: Any, tol: float = IPM_TOL,
     boxes' multipliers in z's layout; ``step = max |δu / m_max|``;
     ``qp_kkt`` the interior point's KKT residual.
     """
-    N, nx = mpc.horizon, mpc.model.nx
-    parts = _Parts(mpc, tol, max_iter)
-    lay = parts.lay
+    parts = StageParts(mpc, tol, max_iter)
     z = ca.MX.sym("z", mpc.nz)
     lx0 = ca.MX.sym("lam_x", mpc.nz)
-    p = ca.MX.sym("p", nx + 7)
-    X, U, xN, data = _qp_data(mpc, parts, z, p)
+    p = ca.MX.sym("p", mpc.model.nx + 7)
+    X, U, xN, data, _ = qp_data(mpc, parts, z, p)
+    assert parts.ipm is not None
     dU, dX, lam, _, kkt = parts.ipm(*data)
+    return ca.Function("sw_iter", [z, lx0, p],
+                       [*new_plan(mpc, parts, X, U, xN, dU, dX, lam), kkt],
+                       ["z", "lam_x0", "p"],
+                       ["z_new", "lam_x", "step", "qp_kkt"])
+
+
+def new_plan(mpc: Any, parts: StageParts, X, U, xN, dU, dX, lam) -> list:
+    """``[z_new, lam_x, step]`` of a QP's step (dU, dX) from the plan's
+    stages (X, U, xN), with the boxes' multipliers ``lam`` (n_b × N) in
+    z's layout and ``step = max |δu / m_max|``."""
+    N, nx, lay = mpc.horizon, mpc.model.nx, parts.lay
     dX = dX[:nx, :]                         # the cones' states dropped
     z_new = ca.vertcat(
         ca.vec(ca.vertcat(X + ca.horzcat(ca.DM.zeros(nx, 1), dX[:, :N - 1]),
@@ -249,26 +263,30 @@ def stagewise_iteration(mpc: Any, tol: float = IPM_TOL,
                                      lam_xs[:, :N - 1]), lam_u)),
         lam_xs[:, N - 1])
     step = ca.mmax(ca.mtimes(_diag(1.0 / parts.m_max), ca.fabs(dU)))
-    return ca.Function("sw_iter", [z, lx0, p], [z_new, lam_z, step, kkt],
-                       ["z", "lam_x0", "p"],
-                       ["z_new", "lam_x", "step", "qp_kkt"])
+    return [z_new, lam_z, step]
 
 
 def check_stagewise_options(options: dict,
-                            who: str = "solver='stagewise'") -> None:
-    """Refuse ``solver_options`` the stage-wise SQP does not take."""
-    extra = set(options) - {"step_tol", "anderson", "ipm_tol",
-                            "ipm_max_iter"}
+                            who: str = "solver='stagewise'",
+                            qp_solver: str = "") -> None:
+    """Refuse ``solver_options`` the stage-wise SQP does not take: the
+    interior point's with ``qp_solver="rqp"``, and ``qp_max_iter``
+    without it."""
+    allowed = {"step_tol", "anderson"} | (
+        {"qp_max_iter"} if qp_solver == "rqp" else
+        {"ipm_tol", "ipm_max_iter"})
+    extra = set(options) - allowed
     if extra:
         raise InvalidValueError(
-            f"{who} takes solver_options 'step_tol', 'anderson', "
-            f"'ipm_tol' and 'ipm_max_iter': {sorted(extra)}")
+            f"{who} takes solver_options {sorted(allowed)}: "
+            f"{sorted(extra)}")
 
 
 def stagewise_step_functions(mpc: Any, step_tol: float = STEP_TOL,
                              anderson: int = ANDERSON_MEMORY,
                              ipm_tol: float = IPM_TOL,
-                             ipm_max_iter: int = IPM_MAX_ITER
+                             ipm_max_iter: int = IPM_MAX_ITER,
+                             qp_max_iter: int | None = None
                              ) -> tuple[ca.Function, ca.Function]:
     """``(rti_function, step_function)`` of the stage-wise SQP.
 
@@ -276,11 +294,27 @@ def stagewise_step_functions(mpc: Any, step_tol: float = STEP_TOL,
     (inputs, outputs, RTI and the iterations to ``step_tol`` with
     Anderson acceleration), named ``mpc_sw_rti`` and ``mpc_sw_step``;
     ``ipm_tol`` and ``ipm_max_iter`` are the interior point's
-    (`ocp.mpc.stagewise_ipm.IPM_TOL`, `IPM_MAX_ITER`).
+    (`ocp.mpc.stagewise_ipm.IPM_TOL`, `IPM_MAX_ITER`). With
+    ``mpc.qp_solver == "rqp"`` the Riccati active set in C solves the QP
+    (`ocp.mpc.stagewise_rqp`), at most ``qp_max_iter`` iterations (a
+    positive int; default `ocp.mpc.condensed_qp.QP_ITER_LIMIT`), and both
+    Functions output ``qp_capped`` too, and the shifted plan's last
+    torque is clipped to keep the momentum bound
+    (`ocp.mpc.condensed.momentum_safe_tail`).
     """
+    from .condensed import check_qp_max_iter
+
     if mpc.model.thrusters is not None:
         raise InvalidValueError(
             "solver='stagewise' handles wheel-only models; with thrusters "
             "use solver='sqpmethod'")
-    it = stagewise_iteration(mpc, ipm_tol, ipm_max_iter)
-    return sqp_step_functions(mpc, it, "mpc_sw", step_tol, anderson)
+    rqp = mpc.qp_solver == "rqp"
+    if rqp:
+        from .stagewise_rqp import rqp_iteration
+        it = rqp_iteration(mpc, check_qp_max_iter("rqp", qp_max_iter))
+    else:
+        it = stagewise_iteration(mpc, ipm_tol, ipm_max_iter)
+    # a primal active set starts where the step starts: the shifted
+    # plan's repeated last torque must keep the momentum bound
+    return sqp_step_functions(mpc, it, "mpc_sw", step_tol, anderson,
+                              safe_tail=rqp)

@@ -278,7 +278,7 @@ def _tracker(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
     point = [sym(v.name()[1:], v.sparsity()) for v in best[:6]]
     b = [sym(v.name(), v.sparsity()) for v in best]
     d = [sym(v.name(), v.sparsity()) for v in data]
-    true = _residual(kern, lay, tree, dims, point, d, ca.DM(flags[::-1]).T)
+    true = point_residual(kern, lay, tree, dims, point, d, ca.DM(flags[::-1]).T)
     better = true < b[6]
     run = ca.Function("sw_ipm_track", point + b + d,
                       [ca.if_else(better, v, w) for v, w in
@@ -313,7 +313,7 @@ def kkt_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
     return dual, primal, comp, brk, ca.sum2(rows[3, :])
 
 
-def _residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
+def point_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
               point: list, data: list, flags_r) -> ca.MX:
     """The KKT residual of a point, boxes broken included (scaled); +inf
     for a point with a NaN or an infinity (the maxima skip NaNs)."""
@@ -396,7 +396,7 @@ def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,
     dUf, dXf = dU0 + ddU, dX0 + ddX
     Vf = lay.values(dUf, dXf)
     inside = ca.mmax(ca.vertcat(ca.vec(lo - Vf), ca.vec(Vf - hi))) <= 0
-    kkt_f = _residual(kern, lay, tree, dims,
+    kkt_f = point_residual(kern, lay, tree, dims,
                       [dUf, dXf, Vf - lo, hi - Vf, zero, zero], data, sr)
     # the branches: fresh symbols of (dU0, dX0, data…, dUf, dXf, kkt_f)
     bi = [sym(f"i{k}", v.sparsity()) for k, v in
@@ -438,7 +438,7 @@ def _interior(loop: Callable[..., list], resume: Callable[..., list],
     # interior point's best iterate or the polish (from its last iterate,
     # whose active set is the clearest) on the active set, the smaller
     ipm_point, best = list(out[:6]), list(out[8:14])
-    res = partial(_residual, kern, lay, tree, dims, flags_r=sr)
+    res = partial(point_residual, kern, lay, tree, dims, flags_r=sr)
     kkt_last = res(ipm_point, data)
     last = kkt_last <= out[14]
     best = [ca.if_else(last, a, b) for a, b in zip(ipm_point, best)]

@@ -15,7 +15,7 @@ from adcs_common.exceptions import InvalidValueError
 from allocation import WheelArray
 from ocp import quat_from_axis_angle, rigid_spacecraft
 from ocp.mpc import AttitudeMPC, simulate_mpc
-from ocp.mpc.stagewise import _Parts, stagewise_qp_function
+from ocp.mpc.stagewise import StageParts, stagewise_qp_function
 from ocp.mpc.stagewise_ipm import IPM_MAX_ITER, IPM_TOL
 from ocp.spacecraft import load_spacecraft
 from thrusters import six_thruster_unit
@@ -154,7 +154,7 @@ def test_the_interior_point_reports_its_residual_and_iterations():
 
 
 def test_bad_configurations_are_refused():
-    with pytest.raises(InvalidValueError, match="qp_solver must be None"):
+    with pytest.raises(InvalidValueError, match="qp_solver None"):
         AttitudeMPC(MODEL, solver="stagewise", qp_solver="daqp")
     with pytest.raises(InvalidValueError, match="ipm_tol"):
         AttitudeMPC(MODEL, solver="stagewise",
@@ -272,7 +272,7 @@ def test_a_hold_is_the_unconstrained_optimum_without_the_interior_point():
     interior point."""
     mpc = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="stagewise",
                       rti=True)
-    ipm = _Parts(mpc, IPM_TOL, IPM_MAX_ITER).ipm
+    ipm = StageParts(mpc, IPM_TOL, IPM_MAX_ITER).ipm
     qp = stagewise_qp_function(mpc)
     hold = MODEL.state(QF, [1e-4, -2e-4, 1e-4], [0.01, 0.0, -0.01, 0.0])
     slew = MODEL.state([1.0, 0.0, 0.0, 0.0])

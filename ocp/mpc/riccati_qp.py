@@ -1,0 +1,167 @@
+"""The stage-wise step's QP by the Riccati active set in C
+(``solver="stagewise", qp_solver="rqp"``).
+
+`ocp.mpc.stagewise` poses each SQP iteration's QP stage by stage (δu_k,
+δx_{k+1}; A_k, B_k and Q_k as CasADi nonzeros). With ``"rqp"`` it goes
+to ``rqp/rqp.c`` instead of the Riccati interior point: a primal active
+set (Nocedal & Wright, Numerical Optimization, 2nd ed., algorithm 16.3)
+whose every working set's equality QP is one backward Riccati recursion
+with the working boxes eliminated stage by stage (Laine & Tomlin, ICRA
+2019), started where the step starts (the shifted plan, dynamics kept)
+from the shifted multipliers' signs, in C99 without heap, double or
+float. Its memory is O(N) and so is each iteration's work; its
+iteration limit bounds a step by construction (a capped point keeps
+every box and lowers the cost).
+
+The solver enters the step's graph as a CasADi external Function: a C
+wrapper in CasADi's calling convention (`wrapper_source`, which compiles
+rqp.c for the QP's sizes in its own translation unit, its public names
+prefixed), compiled into a shared library for Python (`qp_external`;
+needs a C compiler) and written into the export folder beside rqp.c for
+generated C (`copy_sources`). rqp has no phase one: where the start
+breaks a box (a rate beyond its bound, a defect the linearisation
+carries) the wrapper answers the start, flagged ``infeasible``, and the
+step's certificate fails; the step then returns the shifted plan, as
+every failed QP does (`ocp.mpc.condensed.sqp_step_functions`).
+
+The wrapper keeps no state (its memory is the caller's work), so a
+controller with this QP may be stepped from several threads.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from .condensed_qp import QP_ITER_LIMIT
+from .external_c import shared_external
+from .stagewise_boxes import BoxLayout
+
+#: The C solver's folder (rqp.c, rqp.h, its kernels and LICENSE).
+RQP_SOURCES = Path(__file__).with_name("rqp")
+#: The export folder's subfolder of rqp's sources (`copy_sources`).
+RQP_DIR = "rqp"
+#: The solver's step and sign tolerance (in box widths), by casadi_real.
+RQP_TOL = {"double": 1e-10, "single": 1e-4}
+_FILES = ("rqp.c", "rqp.h", "rqp_kernels.h", "rqp_rows.h", "LICENSE")
+_NAME = re.compile(r"\b(adcs_rqp_\d+x\d+x\d+x\d+(?:_cap\d+)?)\(")
+#: Each external built in this process: its `wrapper_source` arguments.
+_BUILT: dict[str, tuple] = {}
+
+
+def external_name(N: int, nx: int, nu: int, nb: int,
+                  max_iter: int = QP_ITER_LIMIT) -> str:
+    """The external Function's C name for N stages of n_x states, n_u
+    inputs and n_b boxes, with ``_cap<max_iter>`` when capped below
+    `QP_ITER_LIMIT`."""
+    cap = f"_cap{max_iter}" if max_iter < QP_ITER_LIMIT else ""
+    return f"adcs_rqp_{N}x{nx}x{nu}x{nb}{cap}"
+
+
+def _ints(values) -> str:
+    return ", ".join(str(int(v)) for v in values)
+
+
+def boxes(lay: BoxLayout, nu: int) -> tuple[list[int], np.ndarray]:
+    """``(box, scale)`` of rqp.h: each box's component of (u, x) (inputs
+    first) and its scale, the inverse of its width, in ``lay``'s order."""
+    box = [*lay.bu, *(nu + i for i in lay.bx)]
+    return box, 1.0 / np.asarray(lay.width, dtype=float)
+
+
+def wrapper_source(N: int, lay: BoxLayout, nu: int, fixed: np.ndarray,
+                   patterns: tuple[ca.Sparsity, ca.Sparsity, ca.Sparsity],
+                   max_iter: int, precision: str = "double",
+                   in_export: bool = False) -> str:
+    """C text of the external ``adcs_rqp_<N>x<nx>x<nu>x<nb>(dU0, dX0, D,
+    A, B, Q, q, g, r, lo, hi, side0) -> (dU, dX, lam, capped,
+    infeasible)`` (`external_name`).
+
+    Inputs, one column per stage: the start (dU0, n_u × N; dX0, n_x × N,
+    the states x_1…x_N, dynamics kept), the defects D, the nonzeros of
+    A, B and Q in ``patterns`` (the stage-wise kernels' sparsities), q,
+    g, the input weight r (its first column is taken), the scaled boxes'
+    sides lo, hi (`BoxLayout`, n_b × N) and the warm working set's signs
+    side0 (−, + or 0 a box). ``fixed`` (n_u,): the inputs held at their
+    start. Outputs: the last iterate, the boxes' multipliers in
+    `BoxLayout`'s scaled units (positive at an upper bound); ``capped``
+    1 where ``max_iter`` iterations were made, and then ``lam`` holds
+    the working set's sides ±1 (the next step's warm start);
+    ``infeasible`` 1 where the start breaks a box (or an input is
+    invalid), and then the start, with zero multipliers.
+    """
+    sp_a, sp_b, sp_q = patterns
+    nx = sp_a.size1()
+    name = external_name(N, nx, nu, lay.nb, max_iter)
+    box, scale = boxes(lay, nu)
+    head = ('#include "../adcs_codegen.h"\n' if in_export else
+            "#define casadi_real double\n#define casadi_int long long int\n")
+    single = "#define RQP_SINGLE_PRECISION\n" if precision == "single" else ""
+    (acol, arow), (bcol, brow), (qcol, qrow) = (sp.get_ccs() for sp in
+                                                (sp_a, sp_b, sp_q))
+    values = {"NAME": name, "HEAD": head, "SINGLE": single, "N": N,
+              "NX": nx, "NU": nu, "NB": lay.nb, "NNZA": sp_a.nnz(),
+              "NNZB": sp_b.nnz(), "NNZQ": sp_q.nnz(), "ACOL": _ints(acol),
+              "AROW": _ints(arow), "BCOL": _ints(bcol), "BROW": _ints(brow),
+              "QCOL": _ints(qcol), "QROW": _ints(qrow), "BOX": _ints(box),
+              "SCALE": ", ".join(repr(float(s)) for s in scale),
+              "FIXED": _ints(np.asarray(fixed, dtype=bool)),
+              "MAXITER": max_iter, "TOL": repr(RQP_TOL[precision])}
+    text = (RQP_SOURCES / "wrapper.c.in").read_text()
+    return re.sub(r"@([A-Z]+)@", lambda k: str(values[k[1]]), text)
+
+
+def qp_external(N: int, lay: BoxLayout, nu: int, fixed: np.ndarray,
+                patterns: tuple[ca.Sparsity, ca.Sparsity, ca.Sparsity],
+                max_iter: int) -> ca.Function:
+    """The external Function of `wrapper_source`, built as a shared
+    library (double) in the user's temporary folder, once per text.
+
+    Raises
+    ------
+    CompilerNotFound
+        No C compiler: ``qp_solver="rqp"`` needs one.
+    """
+    name = external_name(N, patterns[0].size1(), nu, lay.nb, max_iter)
+    _BUILT[name] = (N, lay, nu, np.asarray(fixed, dtype=bool).copy(),
+                    patterns, max_iter)
+    text = wrapper_source(N, lay, nu, fixed, patterns, max_iter)
+    return shared_external(name, text, [], [f"-I{RQP_SOURCES}"], "rqp",
+                           [RQP_SOURCES / f for f in _FILES[:4]])
+
+
+def copy_sources(out: Path, source_text: str, precision: str = "double"
+                 ) -> list[Path]:
+    """Write rqp's sources, its LICENSE and the wrapper of every rqp
+    external that the generated ``source_text`` calls into ``out/rqp``
+    (a stale folder of an earlier export is emptied when it calls none).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The C sources to compile beside the generated source: the
+        wrappers (each includes rqp.c).
+    """
+    dst = Path(out) / RQP_DIR
+    names = sorted(set(_NAME.findall(source_text)))
+    if not names:
+        if dst.is_dir():
+            shutil.rmtree(dst)
+        return []
+    dst.mkdir(exist_ok=True)
+    for name in _FILES:
+        shutil.copyfile(RQP_SOURCES / name, dst / name)
+    written = []
+    for name in names:
+        if name not in _BUILT:
+            raise RuntimeError(f"{name} was not built in this process")
+        path = dst / f"{name}.c"
+        N, lay, nu, fixed, patterns, max_iter = _BUILT[name]
+        path.write_text(wrapper_source(N, lay, nu, fixed, patterns, max_iter,
+                                       precision=precision, in_export=True))
+        written.append(path)
+    return written

@@ -1,0 +1,98 @@
+"""One stage-wise SQP iteration whose QP the Riccati active set solves
+(``AttitudeMPC(solver="stagewise", qp_solver="rqp")``).
+
+The QP is `ocp.mpc.stagewise`'s, posed the same way; `ocp.mpc.riccati_qp`
+solves it in C from the step's start (the shifted plan, dynamics kept),
+its warm working set the shifted multipliers' signs. The point's
+certificate is the interior point's KKT residual
+(`ocp.mpc.stagewise_ipm.kkt_residual`: costate sweep, boxes,
+complementarity) when the solver reached the optimum; a capped point
+(``qp_max_iter`` iterations made) is certified as a feasible descent
+instead (`capped_certificate`), and a start that breaks a box fails
+(+inf): the step then returns the shifted plan.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from .condensed_qp import QP_ITER_LIMIT
+from .riccati_qp import qp_external
+from .stagewise import StageParts, qp_data, new_plan
+from .stagewise_ipm import IPM_TOL, Tree, point_residual
+from .stagewise_kernels import reverse_columns
+
+
+def warm_sides(mpc: Any, parts: StageParts, lam_x) -> ca.MX:
+    """The boxes' multipliers (n_b × N, `BoxLayout`'s order; their signs
+    are the warm working set) from multipliers ``lam_x`` in z's layout
+    (the keep-out cones' states carry none)."""
+    N, nx, nu = mpc.horizon, mpc.model.nx, mpc.model.nu
+    n_stage = N * (nx + nu)
+    L = ca.reshape(lam_x[:n_stage], nx + nu, N)
+    Lx = ca.horzcat(L[:nx, 1:], lam_x[n_stage:])
+    if parts.nq > nx:
+        Lx = ca.vertcat(Lx, ca.MX.zeros(parts.nq - nx, N))
+    return parts.lay.values(L[nx:, :], Lx)
+
+
+def qp_cost(kern: dict, N: int, dU, dX, Q, q, g, r) -> ca.MX:
+    """The stage-wise QP's cost at (dU, dX): Σ ½δxᵀQδx + qᵀδx + ½ r δu²
+    + gᵀδu over the stages."""
+    Qx = kern["qmul"].map(N)(Q, dX)
+    return (0.5 * ca.sum1(ca.sum2(dX * Qx)) + ca.sum1(ca.sum2(q * dX))
+            + 0.5 * ca.sum1(ca.sum2(r * dU * dU)) + ca.sum1(ca.sum2(g * dU)))
+
+
+def capped_certificate(parts: StageParts, N: int, start, point, data) -> ca.MX:
+    """Certificate of a capped point (dU, dX) reached from ``start``:
+    the largest box violation (in box widths) and the cost's rise from
+    the start's (relative to 1 + |its cost|). Zero for every iterate of
+    the solver in exact arithmetic."""
+    _, _, Q, q, g, r, lo, hi = data[:8]
+    V = parts.lay.values(point[0], point[1])
+    broken = ca.fmax(ca.mmax(ca.vertcat(ca.vec(lo - V), ca.vec(V - hi))),
+                     0.0)
+    c0 = qp_cost(parts.kern, N, start[0], start[1], Q, q, g, r)
+    c1 = qp_cost(parts.kern, N, point[0], point[1], Q, q, g, r)
+    return ca.fmax(broken, ca.fmax(c1 - c0, 0.0) / (1.0 + ca.fabs(c0)))
+
+
+def rqp_iteration(mpc: Any, qp_max_iter: int = QP_ITER_LIMIT
+                  ) -> ca.Function:
+    """``sw_iter(z, lam_x0, p) -> (z_new, lam_x, step, qp_kkt,
+    qp_capped)``: `ocp.mpc.stagewise.stagewise_iteration` with the QP
+    solved by rqp (module doc), at most ``qp_max_iter`` iterations; a
+    capped point's ``lam_x`` holds its working set's sides, ±1."""
+    N, nu = mpc.horizon, mpc.model.nu
+    parts = StageParts(mpc, IPM_TOL, 1, ipm=False)
+    if mpc.move_blocks is not None:
+        raise ValueError("rqp takes no move blocks")   # refused before
+    z = ca.MX.sym("z", mpc.nz)
+    lx0 = ca.MX.sym("lam_x", mpc.nz)
+    p = ca.MX.sym("p", mpc.model.nx + 7)
+    X, U, xN, data, D = qp_data(mpc, parts, z, p)
+    dU0, dX0, A, B, Q, q, g, r, lo, hi = data
+    ext = qp_external(N, parts.lay, nu, ~parts.free, parts.patterns,
+                      qp_max_iter)
+    dU, dX, lam, capped, infeasible = ext(
+        dU0, dX0, D, A, B, Q, q, g, r, lo, hi,
+        warm_sides(mpc, parts, lx0))
+    qp = [A, B, Q, q, g, r, lo, hi]
+    full = qp + [reverse_columns(M) for M in (A, B, Q, r)]
+    V = parts.lay.values(dU, dX)
+    point = [dU, dX, V - lo, hi - V, ca.fmax(-lam, 0), ca.fmax(lam, 0)]
+    kkt = point_residual(parts.kern, parts.lay, Tree(N), (parts.nq, nu), point,
+                    full, ca.DM(np.ones(N)).T)
+    kkt = ca.if_else(capped > 0, capped_certificate(
+        parts, N, (dU0, dX0), (dU, dX), qp), kkt)
+    kkt = ca.if_else(infeasible > 0, ca.inf, kkt)
+    return ca.Function("sw_iter", [z, lx0, p],
+                       [*new_plan(mpc, parts, X, U, xN, dU, dX, lam), kkt,
+                        capped],
+                       ["z", "lam_x0", "p"],
+                       ["z_new", "lam_x", "step", "qp_kkt", "qp_capped"])
+

@@ -1,0 +1,182 @@
+"""The stage-wise step with its QP solved by the Riccati active set in C
+(``solver="stagewise", qp_solver="rqp"``): the same steps as the
+condensed step and the interior point, its multipliers theirs, capped
+points certified as feasible descents, a start beyond a box refused."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from adcs_common.exceptions import InvalidValueError
+from allocation import WheelArray
+from ocp import quat_from_axis_angle, rigid_spacecraft
+from ocp.mpc import AttitudeMPC, simulate_mpc
+from ocp.mpc.stagewise import box_layout, stagewise_qp_function
+
+WHEELS = WheelArray.pyramid(h_max=0.2, m_max=0.05)
+MODEL = rigid_spacecraft(np.diag([3.0, 2.5, 3.5]), WHEELS)
+QF = quat_from_axis_angle([1.0, 1.0, 0.0], np.deg2rad(90.0))
+ZERO = np.zeros(3)
+
+
+def _rqp(model=MODEL, horizon=20, **kw) -> AttitudeMPC:
+    return AttitudeMPC(model, horizon=horizon, dt=0.5, solver="stagewise",
+                       qp_solver="rqp", rti=True, **kw)
+
+
+def _outputs(f, *args) -> dict:
+    return dict(zip(f.name_out(), (np.asarray(v) for v in f(*args))))
+
+
+def _loop_inputs(mpc, x, qf, n):
+    """The first n steps' inputs of ``mpc``'s closed loop from x."""
+    rk4 = mpc.model.rk4_step(1)
+    out = []
+    for _ in range(n):
+        z_prev = mpc._plan if mpc._plan is not None else \
+            mpc.initial_guess(x)
+        out.append((x.copy(), qf, ZERO, z_prev.copy(), mpc._lam_x.copy(),
+                    np.zeros(mpc.ng)))
+        x = np.asarray(rk4(x, mpc.step(x, qf).u, ZERO, mpc.dt)).ravel()
+    return out
+
+
+@pytest.mark.parametrize("kw", [{}, {"rate_max": 0.03}])
+def test_steps_equal_the_condensed_and_interior_point_steps(kw):
+    """Along the condensed loop's first steps (cold, then saturated
+    torques with momentum boxes active): the plan equals the condensed
+    step's and the interior point's to 1e-10, and its certificate (the
+    KKT residual with rqp's own multipliers) ≤ 1e-10. The multipliers
+    need not be the others': a wheel's torque and momentum boxes active
+    together make them non-unique (the three solvers' differ by 5 % at
+    the first step)."""
+    cond = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="condensed",
+                       rti=True, **kw)
+    ipm = AttitudeMPC(MODEL, horizon=20, dt=0.5, solver="stagewise",
+                      rti=True, **kw)
+    rqp = _rqp(**kw)
+    active = 0
+    for args in _loop_inputs(cond, MODEL.state([1.0, 0, 0, 0]), QF, 8):
+        ref, mid = _outputs(cond.rti_function, *args), \
+            _outputs(ipm.rti_function, *args)
+        out = _outputs(rqp.rti_function, *args)
+        assert out["qp_kkt"] <= 1e-10 and out["qp_capped"] == 0
+        assert np.abs(out["z"] - ref["z"]).max() <= 1e-10
+        assert np.abs(out["z"] - mid["z"]).max() <= 1e-10
+        active += np.count_nonzero(out["lam_x"])
+    assert active > 0                        # boxes were active
+
+
+def test_closed_loop_equals_the_condensed_loop():
+    """A 40 s slew from tumbling rates: the same torques as the
+    condensed (DAQP) loop to 1e-9 N·m, every bound kept."""
+    runs = [simulate_mpc(m, [1, 0, 0, 0], QF, t_final=40.0,
+                         w0=[0.01, -0.02, 0.0])
+            for m in (AttitudeMPC(MODEL, horizon=20, dt=0.5,
+                                  solver="condensed", rti=True), _rqp())]
+    a, b = runs
+    assert np.abs(a.trajectory.wheel_torque
+                  - b.trajectory.wheel_torque).max() <= 1e-9
+    assert b.momentum_violation <= 1e-12 and b.torque_violation <= 1e-12
+    assert b.settled and b.settle_time == a.settle_time
+
+
+def test_capped_steps_are_feasible_descents_and_the_loop_settles():
+    """Capped at 8 QP iterations from a random attitude and rates: some
+    steps are capped (``qp_capped``, status ``":qp_capped"``), each
+    certified (feasible descent ≤ 1e-8) within every bound, and the
+    loop reaches the target."""
+    from benchmarks.mpc_worst_case import random_states
+
+    mpc = _rqp(solver_options={"qp_max_iter": 8})
+    rk4 = MODEL.rk4_step(1)
+    x = random_states(MODEL, 1, np.random.default_rng(3))[0]
+    capped, statuses = 0, set()
+    for _ in range(120):
+        res = mpc.step(x, np.array([1.0, 0, 0, 0]))
+        statuses.add(res.status)
+        assert res.qp_kkt <= 1e-8 and res.first_violation <= 1e-9
+        capped += res.status.endswith(":qp_capped")
+        x = np.asarray(rk4(x, res.u, ZERO, mpc.dt)).ravel()
+    assert capped >= 5 and statuses <= {"rti_step", "rti_step:qp_capped"}
+    assert 2 * np.arccos(min(1.0, abs(x[0]))) <= 1e-3
+
+
+def test_a_start_beyond_a_box_fails_its_certificate():
+    """Rates beyond the rate bound: the QP's start breaks a rate box and
+    rqp has no phase one. The step's certificate is +inf and it returns
+    the shifted plan (its own warm start), never a point it did not
+    check; `AttitudeMPC.step` raises."""
+    from adcs_common.exceptions import SolverError
+
+    mpc = _rqp(rate_max=0.01)
+    x = MODEL.state([1.0, 0, 0, 0])
+    x[4:7] = [0.05, 0.0, 0.0]
+    z = mpc.initial_guess(x)
+    out = _outputs(mpc.rti_function, x, QF, ZERO, z, np.zeros(mpc.nz),
+                   np.zeros(mpc.ng))
+    assert out["qp_kkt"] == np.inf
+    shifted = np.asarray(mpc.shift_function(x, z, np.zeros(mpc.nz),
+                                            np.zeros(mpc.ng))[0]).ravel()
+    assert np.array_equal(out["z"].ravel()[:-mpc.model.nx],
+                          shifted[:-mpc.model.nx])
+    with pytest.raises(SolverError, match="certificate"):
+        mpc.step(x, QF)
+
+
+def test_the_wrapper_answers_the_posed_qp_and_its_multipliers():
+    """The external on one posed QP: optimal (not capped, feasible
+    start), its boxes' multipliers zero off their bounds and of the
+    sign of the side they hold."""
+    from ocp.mpc.riccati_qp import external_name
+
+    mpc = _rqp()
+    lay = box_layout(mpc)
+    assert external_name(20, 11, 4, lay.nb) == "adcs_rqp_20x11x4x8"
+    assert external_name(20, 11, 4, lay.nb, 8) == "adcs_rqp_20x11x4x8_cap8"
+    x = MODEL.state([1.0, 0, 0, 0])
+    dU0, dX0, *_, lo, hi = (np.asarray(v) for v in stagewise_qp_function(
+        mpc)(mpc.initial_guess(x), np.r_[x, QF, ZERO]))
+    out = _outputs(mpc.rti_function, x, QF, ZERO, mpc.initial_guess(x),
+                   np.zeros(mpc.nz), np.zeros(mpc.ng))
+    assert out["qp_kkt"] <= 1e-10 and np.all(lo <= 0) and np.all(hi >= 0)
+
+
+def test_bad_configurations_are_refused():
+    with pytest.raises(InvalidValueError, match="qp_solver None"):
+        AttitudeMPC(MODEL, horizon=10, solver="stagewise", qp_solver="daqp")
+    with pytest.raises(InvalidValueError, match="move_blocks"):
+        _rqp(horizon=10, move_blocks=2)
+    with pytest.raises(InvalidValueError, match="qp_max_iter"):
+        _rqp(horizon=10, solver_options={"ipm_tol": 1e-9})
+    with pytest.raises(InvalidValueError, match="ipm_tol"):
+        AttitudeMPC(MODEL, horizon=10, solver="stagewise",
+                    solver_options={"qp_max_iter": 3})
+    for bad in (0, -1, 2.5, True, "8"):
+        with pytest.raises(InvalidValueError, match="qp_max_iter"):
+            _rqp(horizon=10, solver_options={"qp_max_iter": bad})
+
+
+def test_two_threads_step_one_controller_built_each():
+    """The wrapper keeps no state: two controllers built and stepped at
+    once in two threads give the single-thread answer."""
+    args = (MODEL.state([1.0, 0, 0, 0]), QF, ZERO)
+    ref = _outputs(_rqp(horizon=10).rti_function, *args,
+                   _rqp(horizon=10).initial_guess(args[0]),
+                   np.zeros(_rqp(horizon=10).nz),
+                   np.zeros(_rqp(horizon=10).ng))["z"]
+    got: list = []
+
+    def run():
+        m = _rqp(horizon=10)
+        got.append(_outputs(m.rti_function, *args, m.initial_guess(args[0]),
+                            np.zeros(m.nz), np.zeros(m.ng))["z"])
+    threads = [threading.Thread(target=run) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(got) == 2 and all(np.array_equal(g, ref) for g in got)
