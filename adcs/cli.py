@@ -107,7 +107,12 @@ def _export(args: argparse.Namespace) -> int:
                    target=args.target, loop_steps=args.loop_steps,
                    mpc_move_blocks=args.move_blocks,
                    condensed_qp_plugin=args.condensed_qp,
-                   condensed_qp_max_iter=args.qp_max_iter,
+                   condensed_qp_max_iter=(
+                       args.qp_max_iter if args.condensed_qp == "pqp"
+                       or not args.stagewise_qp else None),
+                   stagewise_qp_plugin=args.stagewise_qp,
+                   stagewise_qp_max_iter=(args.qp_max_iter if
+                                          args.stagewise_qp else None),
                    mpc_scenarios=_scenarios(args.scenarios, sc))
     for p in (res.source, res.header, res.driver, res.makefile,
               res.makefile.with_name("CMakeLists.txt"), res.readme):
@@ -120,6 +125,9 @@ def _export(args: argparse.Namespace) -> int:
               f"{res.extras['daqp_static_bytes']} bytes)")
     if (res.out_dir / "pqp" / "pqp.c").is_file():
         print(f"  wrote {shown / 'pqp'}/ (the condensed QP's primal "
+              "active set and its wrapper, BSD-3-Clause)")
+    if (res.out_dir / "rqp" / "rqp.c").is_file():
+        print(f"  wrote {shown / 'rqp'}/ (the stage-wise QP's Riccati "
               "active set and its wrapper, BSD-3-Clause)")
     if variants:
         print("  driver's closed loop: "
@@ -363,6 +371,29 @@ def _add_bench(sub) -> None:
     ben.set_defaults(func=_bench)
 
 
+def _add_export_qps(exp) -> None:
+    """The ``export`` subcommand's options of the MPC steps' QP solvers."""
+    exp.add_argument("--condensed-qp", choices=("daqp", "pqp"),
+                     default=None,
+                     help="QP of the condensed MPC steps: daqp (the "
+                     "default) or pqp, the toolbox's primal active set in "
+                     "C started where the step starts, with a phase one "
+                     "where that start breaks a bound (its sources go to "
+                     "pqp/)")
+    exp.add_argument("--stagewise-qp", choices=("rqp",), default=None,
+                     help="QP of the stage-wise MPC steps (mpc_sw_step, "
+                     "mpc_sw_rti_step): their Riccati interior point (the "
+                     "default) or rqp, the toolbox's Riccati active set in "
+                     "C, memory linear in the horizon (its sources go to "
+                     "rqp/)")
+    exp.add_argument("--qp-max-iter", type=int, default=None,
+                     help="with --condensed-qp pqp or --stagewise-qp rqp: "
+                     "its iteration cap per "
+                     "QP (default 1000); a capped QP's point keeps every "
+                     "bound and lowers the cost, and the step applies it "
+                     "(output qp_capped)")
+
+
 def _add_export(sub) -> None:
     """The ``export`` subcommand's parser."""
     exp = sub.add_parser("export", help="generate C code (allocation "
@@ -408,18 +439,7 @@ def _add_export(sub) -> None:
                      "QP and SQP tolerances chosen for float, DAQP in its "
                      "float build; mpc_cond_rti_step only (default "
                      "double)")
-    exp.add_argument("--condensed-qp", choices=("daqp", "pqp"),
-                     default=None,
-                     help="QP of the condensed MPC steps: daqp (the "
-                     "default) or pqp, the toolbox's primal active set in "
-                     "C started where the step starts, with a phase one "
-                     "where that start breaks a bound (its sources go to "
-                     "pqp/)")
-    exp.add_argument("--qp-max-iter", type=int, default=None,
-                     help="with --condensed-qp pqp: its iteration cap per "
-                     "QP (default 1000); a capped QP's point keeps every "
-                     "bound and lowers the cost, and the step applies it "
-                     "(output qp_capped)")
+    _add_export_qps(exp)
     exp.add_argument("--build", action="store_true",
                      help="compile the driver and a shared library (gcc)")
     exp.add_argument("--run", action="store_true",

@@ -2,7 +2,9 @@
 
 Run from the repository root: ``python -m benchmarks.embedded [--target
 cortex-m7] [--mpc mpc_cond_rti_step] [--precision single]
-[--horizon 20] [--qp pqp [--qp-max-iter 8]] [--quick]``. Exports the demo craft
+[--horizon 20] [--qp pqp [--qp-max-iter 8]] [--quick]``; the stage-wise
+step with the Riccati active set: ``--mpc mpc_sw_rti_step --qp rqp
+[--qp-max-iter 8]``. Exports the demo craft
 (`ocp.codegen.export_c`, horizon 20, dt 0.5 s; DAQP's C sources travel
 in the export, its workspace static) for the target, cross-compiles it
 (arm-none-eabi-gcc -O3, -Wall -Wextra -Werror) and runs the bare-metal
@@ -16,7 +18,9 @@ craft: `ocp.codegen.checks`), and the memory table
 DAQP's float build), e.g. with ``--target cortex-m4f``, whose FPU is
 single precision only. ``--qp pqp``: the condensed steps' QP by the
 toolbox's primal active set (`ocp.mpc.primal_qp`), ``--qp-max-iter``
-its cap (`export_c`'s ``condensed_qp_max_iter``).
+its cap (`export_c`'s ``condensed_qp_max_iter``); ``--qp rqp``: the
+stage-wise steps' QP by the toolbox's Riccati active set
+(`ocp.mpc.riccati_qp`, ``stagewise_qp_plugin``), capped the same way.
 """
 
 from __future__ import annotations
@@ -42,10 +46,12 @@ def main() -> None:
                     help="C arithmetic of the export (single: float)")
     ap.add_argument("--horizon", type=int, default=20,
                     help="MPC horizon N of the export (stages)")
-    ap.add_argument("--qp", default=None, choices=("daqp", "pqp"),
-                    help="QP of the condensed steps (default daqp)")
+    ap.add_argument("--qp", default=None, choices=("daqp", "pqp", "rqp"),
+                    help="QP of the condensed steps (default daqp; pqp) "
+                    "or of the stage-wise steps (rqp; default their "
+                    "interior point)")
     ap.add_argument("--qp-max-iter", type=int, default=None,
-                    help="with --qp pqp: its iteration cap per QP")
+                    help="with --qp pqp or rqp: its iteration cap per QP")
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
     reason = toolchain_missing()
@@ -53,11 +59,17 @@ def main() -> None:
         raise SystemExit(f"benchmarks.embedded: {reason}")
     mpc = () if args.quick else tuple(
         v.strip() for v in args.mpc.split(",") if v.strip())
+    rqp = args.qp == "rqp"
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
         res = export_c(out, "demo", horizon=args.horizon, dt=0.5,
-                       mpc_variants=mpc, condensed_qp_plugin=args.qp,
-                       condensed_qp_max_iter=args.qp_max_iter,
+                       mpc_variants=mpc,
+                       condensed_qp_plugin=None if rqp else args.qp,
+                       condensed_qp_max_iter=None if rqp
+                       else args.qp_max_iter,
+                       stagewise_qp_plugin="rqp" if rqp else None,
+                       stagewise_qp_max_iter=args.qp_max_iter if rqp
+                       else None,
                        target=args.target, precision=args.precision,
                        build=True)
         t1 = time.perf_counter()
@@ -67,7 +79,8 @@ def main() -> None:
     if args.qp_max_iter:
         qp += f" capped at {args.qp_max_iter}"
     print(f"demo craft, horizon {args.horizon}, {args.target}, "
-          f"{args.precision}, condensed QP {qp} "
+          f"{args.precision}, {'stage-wise' if rqp else 'condensed'} "
+          f"QP {qp} "
           f"({' '.join(res.extras['memory']['core'])}), -O3; "
           f"export+build {t1 - t0:.0f} s, emulation {t2 - t1:.0f} s")
     print(format_counts(times, args.target))

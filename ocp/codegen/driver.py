@@ -10,6 +10,7 @@ import casadi as ca
 import numpy as np
 from ocp.models.rigid import SpacecraftModel
 from ocp.mpc.primal_qp import PQP_DIR, max_iter_of
+from ocp.mpc.riccati_qp import RQP_DIR, max_iter_of as rqp_max_iter_of
 from .checks import loop_plan, plan_length
 from .daqp_static import DAQP_DIR
 from .loop_starts import loop_start_source
@@ -146,11 +147,13 @@ def write_build_files(out, solver_sources, cflags=()) -> None:
     """The Makefile and CMakeLists.txt: relative paths, C99 and libm;
     ``cflags``: defines every build needs (DAQP's and pqp's float
     builds); ``solver_sources`` the C sources beside the generated one
-    (``daqp/``, ``pqp/``), each folder named with its licence."""
+    (``daqp/``, ``pqp/``, ``rqp/``), each folder named with its
+    licence."""
     rel = [p.relative_to(out).as_posix() for p in solver_sources]
     notes = [f"{d}/: {what}, {d}/LICENSE" for d, what in (
         (DAQP_DIR, "DAQP, MIT licence"),
-        (PQP_DIR, "the toolbox's primal active set, BSD-3-Clause"))
+        (PQP_DIR, "the toolbox's primal active set, BSD-3-Clause"),
+        (RQP_DIR, "the toolbox's Riccati active set, BSD-3-Clause"))
         if any(r.startswith(f"{d}/") for r in rel)]
     note = "; ".join(notes) or "the QPs are generated inline"
     (out / "Makefile").write_text(_MAKEFILE.format(
@@ -240,6 +243,30 @@ def _pqp_text(solver_sources: list[str]) -> str:
         "1.")
 
 
+def _rqp_text(solver_sources: list[str]) -> str:
+    """The README's paragraph on the rqp wrappers among the sources ("" if
+    none)."""
+    wrappers = [s for s in solver_sources if s.startswith("rqp/adcs_rqp_")]
+    if not wrappers:
+        return ""
+    cap = min(rqp_max_iter_of(Path(w).stem) for w in wrappers)
+    return (
+        " The stage-wise MPC steps solve their QP with `rqp/rqp.c`, the "
+        "toolbox's Riccati active set (BSD-3-Clause, `rqp/LICENSE`), "
+        f"compiled inside {', '.join(f'`{w}`' for w in wrappers)} for "
+        "the QP's sizes (CasADi's calling convention; rqp.c itself is "
+        "not compiled alone): started from the shifted plan and the last "
+        f"step's working set, at most {cap} iterations of one Riccati "
+        "recursion each, memory linear in the horizon, the caller's work "
+        "only. It has no phase one: where the start breaks a box (a "
+        "measured rate beyond its bound), the step's `qp_kkt` is "
+        "infinite and the step is refused. A QP stopped at that cap "
+        "returns a point that keeps every box and lowers the QP's cost: "
+        "the step applies it, its `qp_kkt` is then that point's "
+        "certificate (box violation and cost rise) and its output "
+        "`qp_capped` is 1.")
+
+
 def _readme(fns: dict[str, ca.Function],
             samples: dict[str, list[np.ndarray]], plugin: str = "qrqp",
             solver_sources=(), method: str = "conic",
@@ -256,7 +283,7 @@ def _readme(fns: dict[str, ca.Function],
     build_cmd = " ".join(["cc", opt, "-std=c99 -o adcs_driver main.c",
                           f"{SOURCE}.c", *solver_sources, "-lm"])
     solver_text = _solver_text(fns, plugin, method, patched, duty_plugin)
-    solver_text += _pqp_text(solver_sources)
+    solver_text += _pqp_text(solver_sources) + _rqp_text(solver_sources)
     heap = _memory_text(static_bytes)
     version = ca.__version__  # type: ignore[attr-defined]  # not in stubs
     return f"""# Generated ADCS C code

@@ -62,6 +62,7 @@ from thrusters import ThrusterSet
 from ocp.models.rigid import SpacecraftModel, rigid_spacecraft
 from ocp.mpc.primal_qp import PQP_DIR, PQP_SINGLE_FLAG
 from ocp.mpc.primal_qp import copy_sources as copy_pqp_sources
+from ocp.mpc.riccati_qp import copy_sources as copy_rqp_sources
 from ocp.spacecraft import load_spacecraft
 from .build import build_exported, run_driver
 from .checks import check_loop_steps, loop_plan
@@ -81,8 +82,9 @@ from .patches import (
 )
 from .precision import (DAQP_SINGLE_FLAG,
                         check_precision, check_single,
-                        duty_qp_options, patch_qrqp_failure, to_single,
+                        patch_qrqp_failure, to_single,
                         wheel_qp_options)
+from .plugins import daqp_available, duty_qp_function, resolve_qp_plugin
 from .mpc_variants import MPC_VARIANTS, check_variants as _check_variants
 from .mpc_variants import check_variant_options, mpc_functions
 from .qrqp_patch import patch_qrqp
@@ -110,84 +112,6 @@ __all__ = [
 ]
 
 
-#: Wheel-QP conic plugins `export_c` accepts.
-WHEEL_QP_PLUGINS = ("daqp", "qrqp")
-
-
-def daqp_available() -> bool:
-    """Return True when CasADi's daqp conic plugin is there.
-
-    The exports' DAQP C sources are the toolbox's own (vendored, copied
-    into each export), so the plugin that builds the Functions is all
-    that is needed.
-    """
-    try:
-        return bool(ca.has_conic("daqp"))
-    except RuntimeError:
-        return False
-
-
-def _resolve_wheel_qp_plugin(plugin: str | None,
-                             name: str = "wheel_qp_plugin") -> str:
-    if plugin is None:
-        return "daqp" if daqp_available() else "qrqp"
-    if plugin == "pqp" and name == "condensed_qp_plugin":
-        return plugin                   # the toolbox's own, `ocp.mpc.primal_qp`
-    if plugin not in WHEEL_QP_PLUGINS:
-        raise InvalidValueError(
-            f"{name} must be one of {WHEEL_QP_PLUGINS} or None, "
-            f"got {plugin!r}")
-    if plugin == "daqp" and not daqp_available():
-        raise InvalidValueError(
-            f"{name}='daqp' needs the casadi daqp conic plugin; "
-            "use 'qrqp'")
-    return plugin
-
-
-def duty_qp_function(unit: Any, cycle: float, h_max: float, *,
-                     plugin: str | None = None, precision: str = "double",
-                     **qp_options) -> ca.Function:
-    """Build the thruster duty-cycle QP as one certified casadi Function.
-
-    `thrusters.qp.certified.certified_duty_function` on `thrusters.build_qp`
-    data: a test of the demand against the thrusters' attainable set, the
-    fast path of `DutyCycleAllocator.duty_fast` (equalities eliminated,
-    DAQP, a KKT certificate) and a status.
-
-    Parameters
-    ----------
-    unit : thrusters.ThrusterSet
-        The thrusters.
-    cycle : float
-        Cycle T_T [s].
-    h_max : float
-        Momentum bound [N·m·s].
-    plugin : {None, "daqp", "qrqp"}
-        Conic of the fast path: daqp (sub-microsecond in C; its sources
-        travel with the export), qrqp (generated inline, about 5 µs) or
-        None: daqp when `daqp_available`.
-    precision : {"double", "single"}
-        Tolerances of the certificate and the conic for that arithmetic
-        (`ocp.codegen.precision.TOLERANCES`).
-    **qp_options
-        Forwarded to `thrusters.build_qp` (tracking, bound, weights).
-
-    Returns
-    -------
-    casadi.Function
-        ``duty_qp(theta[9], kmax[n]) -> (duty[n], slack, violation,
-        status)``; ``status`` indexes `thrusters.DUTY_STATUS` (0 optimal,
-        1 bound relaxed, 2 infeasible, 3 invalid input, 4 solver failed).
-    """
-    from thrusters import build_qp
-    from thrusters.qp.certified import certified_duty_function
-
-    plugin = _resolve_wheel_qp_plugin(plugin, "plugin")
-    return certified_duty_function(
-        build_qp(unit, cycle, h_max, **qp_options), plugin,
-        **duty_qp_options(check_precision(precision), plugin))
-
-
 def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                       thrusters: ThrusterSet | None = None,
                       cycle: float = 2.0,
@@ -201,6 +125,8 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
                       rate_max: float | None = None,
                       condensed_qp_plugin: str | None = None,
                       condensed_qp_max_iter: int | None = None,
+                      stagewise_qp_plugin: str | None = None,
+                      stagewise_qp_max_iter: int | None = None,
                       precision: str = "double",
                       mpc_move_blocks: Any = None,
                       mpc_scenarios: Any = None, mpc_keep_out: Any = None
@@ -237,7 +163,7 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
     fns["min_norm"] = min_norm_function(wheels)
     M = 0.5 * float(np.min(wheels.m_max)) * rng.normal(size=3)
     samples["min_norm"] = [M]
-    plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
+    plugin = resolve_qp_plugin(wheel_qp_plugin)
     fns["wheel_qp"] = conic_allocator_function(
         wheels, dt=dt, plugin=plugin, fast_path=wheel_qp_fast_path,
         **wheel_qp_options(precision, plugin))
@@ -271,14 +197,15 @@ def default_functions(*, wheels: WheelArray, inertia: ArrayLike | None = None,
     fns["rk4"] = model.rk4_step(1)
     samples["rk4"] = [x, u, np.zeros(3), np.array(dt)]
     if mpc_variants:
-        condensed = _resolve_wheel_qp_plugin(condensed_qp_plugin,
+        condensed = resolve_qp_plugin(condensed_qp_plugin,
                                              "condensed_qp_plugin")
         mpc_fns, mpc_samples = mpc_functions(
             model, mpc_variants, horizon=horizon, dt=dt,
             max_iter=mpc_max_iter, rate_max=rate_max,
             condensed_plugin=condensed, precision=precision,
             move_blocks=mpc_move_blocks, scenarios=mpc_scenarios,
-            keep_out=mpc_keep_out, condensed_max_iter=condensed_qp_max_iter)
+            keep_out=mpc_keep_out, condensed_max_iter=condensed_qp_max_iter,
+            stagewise=(stagewise_qp_plugin, stagewise_qp_max_iter))
         fns.update({k: _renamed(f, k) for k, f in mpc_fns.items()})
         samples.update(mpc_samples)
     return fns, samples, model
@@ -361,6 +288,7 @@ def _write_source(fns: dict, out: Path, reuse_factorization: bool,
     solver_sources = (copy_daqp_sources(out, precision == "single")
                       if daqp_conics else [])
     solver_sources += copy_pqp_sources(out, text, precision)
+    solver_sources += copy_rqp_sources(out, text, precision)
     if not daqp_conics and (out / DAQP_DIR / "api.c").is_file():
         for name in DAQP_SOURCES:                # stale from an earlier
             (out / DAQP_DIR / name).unlink(missing_ok=True)   # export
@@ -382,6 +310,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
              duty_qp_plugin: str | None = None,
              condensed_qp_plugin: str | None = None,
              condensed_qp_max_iter: int | None = None,
+             stagewise_qp_plugin: str | None = None,
+             stagewise_qp_max_iter: int | None = None,
              qrqp_reuse_factorization: bool = True,
              rate_max: float | None = None,
              target: str = "host", precision: str = "double",
@@ -451,6 +381,13 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         ``solver_options`` ``qp_max_iter``; default 1000). A capped QP's
         point keeps every bound and lowers the cost; the step applies it
         and its output ``qp_capped`` says so.
+    stagewise_qp_plugin : {None, "rqp"}
+        QP of the stage-wise steps (``mpc_sw_step``, ``mpc_sw_rti_step``):
+        their Riccati interior point (None) or ``"rqp"``, the toolbox's
+        Riccati active set in C, memory linear in the horizon
+        (`ocp.mpc.riccati_qp`; its sources and wrapper go to ``rqp/``).
+    stagewise_qp_max_iter : int, optional
+        With ``"rqp"``: its iteration cap, as ``condensed_qp_max_iter``.
     duty_qp_plugin : {None, "daqp", "qrqp"}
         Conic of ``duty_qp``'s fast path (`duty_qp_function`): daqp
         (sub-microsecond), qrqp or None: daqp when `daqp_available`.
@@ -523,15 +460,17 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     wheel_qp_plugin, duty_qp_plugin, condensed = _target_plugins(
         target, out, wheel_qp_plugin, duty_qp_plugin)
     condensed = condensed_qp_plugin if condensed is None else condensed
-    plugin = _resolve_wheel_qp_plugin(wheel_qp_plugin)
+    plugin = resolve_qp_plugin(wheel_qp_plugin)
     method = wheel_qp_method(wheels, wheel_qp_fast_path)
-    duty_plugin = _resolve_wheel_qp_plugin(duty_qp_plugin, "duty_qp_plugin")
-    condensed = _resolve_wheel_qp_plugin(condensed, "condensed_qp_plugin")
+    duty_plugin = resolve_qp_plugin(duty_qp_plugin, "duty_qp_plugin")
+    condensed = resolve_qp_plugin(condensed, "condensed_qp_plugin")
     check_single(check_precision(precision), {
         "condensed_qp_plugin": condensed}, mpc_variants)
     check_variant_options(mpc_variants, move_blocks=mpc_move_blocks,
                           scenarios=mpc_scenarios, keep_out=mpc_keep_out,
-                          qp_cap=(condensed, condensed_qp_max_iter))
+                          qp_cap=(condensed, condensed_qp_max_iter),
+                          stagewise=(stagewise_qp_plugin,
+                                     stagewise_qp_max_iter))
     fns, samples, model = default_functions(
         wheels=wheels, inertia=inertia, thrusters=thrusters, cycle=cycle,
         thruster_h_max=thruster_h_max, dt=dt, horizon=horizon,
@@ -540,7 +479,9 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         mpc_variants=tuple(mpc_variants), wheel_qp_plugin=plugin,
         wheel_qp_fast_path=wheel_qp_fast_path, duty_qp_plugin=duty_plugin,
         rate_max=rate_max, condensed_qp_plugin=condensed,
-        condensed_qp_max_iter=condensed_qp_max_iter, precision=precision)
+        condensed_qp_max_iter=condensed_qp_max_iter,
+        stagewise_qp_plugin=stagewise_qp_plugin,
+        stagewise_qp_max_iter=stagewise_qp_max_iter, precision=precision)
     daqp_patched, patched, daqp_conics, solver_sources = _write_source(
         fns, out, qrqp_reuse_factorization, precision,
         "int" if cortex_m else "long long")
@@ -572,6 +513,7 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
                            "wheel_qp_method": method, "qrqp_patched": patched,
                            "daqp_patched": daqp_patched, "closed_loop": loop,
                            "condensed_qp_plugin": condensed,
+                           "stagewise_qp_plugin": stagewise_qp_plugin,
                            "solver_sources": solver_sources,
                            "daqp_static": daqp_conics, "ldflags": ["-lm"],
                            "daqp_static_bytes": static_bytes,

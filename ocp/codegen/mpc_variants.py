@@ -43,19 +43,30 @@ def check_variants(variants: Any) -> tuple[str, ...]:
 
 def check_variant_options(variants: Sequence[str], *, move_blocks: Any,
                           scenarios: Any, keep_out: Any,
-                          qp_cap: tuple[str, Any] = ("daqp", None)) -> None:
+                          qp_cap: tuple[str, Any] = ("daqp", None),
+                          stagewise: tuple[Any, Any] = (None, None)
+                          ) -> None:
     """Refuse an MPC option that no exported variant takes, or a bad
     ``qp_cap``: ``(condensed QP, its cap)``, a positive int for pqp only
-    (`ocp.mpc.condensed.condensed_step_functions`' ``qp_max_iter``)."""
+    (`ocp.mpc.condensed.condensed_step_functions`' ``qp_max_iter``), or
+    a bad ``stagewise``: ``(stage-wise QP, its cap)``, None or ``"rqp"``,
+    a cap for rqp only."""
     from ocp.mpc.condensed import check_qp_max_iter
 
     sw, robust, cond = (any(k in v for v in variants)
                         for k in ("_sw_", "robust", "_cond_"))
     qp_max_iter = qp_cap[1]
     check_qp_max_iter(*qp_cap)
+    if stagewise[0] not in (None, "rqp"):
+        raise InvalidValueError(
+            "stagewise_qp_plugin must be None (the interior point) or "
+            f"'rqp', got {stagewise[0]!r}")
+    check_qp_max_iter(stagewise[0] or "the interior point", stagewise[1])
     for name, value, ok, which in (
             ("condensed_qp_max_iter", qp_max_iter, cond,
              "condensed MPC steps (mpc_cond_step, mpc_cond_rti_step)"),
+            ("stagewise_qp_plugin", stagewise[0], sw,
+             "stage-wise MPC steps (mpc_sw_step, mpc_sw_rti_step)"),
             ("mpc_move_blocks", move_blocks, sw,
              "stage-wise MPC steps (mpc_sw_step, mpc_sw_rti_step)"),
             ("mpc_scenarios", scenarios, robust,
@@ -72,7 +83,8 @@ def mpc_functions(model: SpacecraftModel, variants: Sequence[str], *,
                   rate_max: float | None, condensed_plugin: str,
                   precision: str, move_blocks: Any = None,
                   scenarios: Any = None, keep_out: Any = None,
-                  condensed_max_iter: int | None = None
+                  condensed_max_iter: int | None = None,
+                  stagewise: tuple[str | None, int | None] = (None, None)
                   ) -> tuple[dict[str, ca.Function],
                              dict[str, list[np.ndarray]]]:
     """``(functions, samples)`` of the MPC variants asked for.
@@ -80,7 +92,8 @@ def mpc_functions(model: SpacecraftModel, variants: Sequence[str], *,
     The sample input of each is the demo slew's first step: 90° about
     (1, 1, 0) from rest, the controller's initial guess.
     ``condensed_max_iter``: the condensed steps' QP cap (pqp,
-    `AttitudeMPC` ``solver_options`` ``qp_max_iter``).
+    `AttitudeMPC` ``solver_options`` ``qp_max_iter``); ``stagewise``:
+    the stage-wise steps' QP (None or ``"rqp"``) and its cap.
     """
     from ocp.mpc import AttitudeMPC, RobustMPC, inertia_corners
 
@@ -105,7 +118,9 @@ def mpc_functions(model: SpacecraftModel, variants: Sequence[str], *,
                    "solver_options": {**condensed_options(precision), **cap}}
                   if "cond" in name else
                   {"solver": "stagewise", "move_blocks": move_blocks,
-                   "keep_out": keep_out}
+                   "keep_out": keep_out, "qp_solver": stagewise[0],
+                   "solver_options": {} if stagewise[1] is None else {
+                       "qp_max_iter": stagewise[1]}}
                   if "_sw_" in name else
                   {"solver": "sqpmethod", "expand": False})
             ctl = AttitudeMPC(model, **common, **kw)

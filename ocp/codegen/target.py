@@ -40,6 +40,7 @@ from adcs_common.exceptions import AdcsError, InvalidValueError
 from .checks import (DriverCheckError, driver_verdict, loop_failures,
                      loop_line, parse_loop_line, parse_series_line)
 from ocp.mpc.primal_qp import PQP_DIR
+from ocp.mpc.riccati_qp import RQP_DIR
 from .driver import _template
 from .result import OPT_FLAGS, SOURCE, ExportResult
 
@@ -126,6 +127,8 @@ def write_target_files(res: ExportResult, target: str, driver_text: str
     srcs, inc = daqp_c_sources(out)
     # the toolbox's primal active set and its wrappers (ocp.mpc.primal_qp)
     srcs += sorted((out / PQP_DIR).glob("*.c"))
+    # the Riccati active set's wrappers, each including rqp.c
+    srcs += sorted((out / RQP_DIR).glob("adcs_rqp_*.c"))
     extras = {**res.extras, "target": target,
               "c_sources": [str(p) for p in srcs],
               "c_include": [str(p) for p in inc]}

@@ -62,6 +62,11 @@ def external_name(N: int, nx: int, nu: int, nb: int,
     return f"adcs_rqp_{N}x{nx}x{nu}x{nb}{cap}"
 
 
+def max_iter_of(name: str) -> int:
+    """The iteration limit of the external ``name`` built in this process."""
+    return int(_BUILT[name][5])
+
+
 def _ints(values) -> str:
     return ", ".join(str(int(v)) for v in values)
 

@@ -1,0 +1,153 @@
+"""The stage-wise step exported with ``stagewise_qp_plugin="rqp"``.
+
+The Riccati active set travels in the export folder (``rqp/``: its
+sources and licence, and the wrapper that compiles rqp.c for the step's
+QP sizes), the folder builds alone under -Wall -Wextra -Werror, no
+function reaches the heap, the driver's closed loop ends where the
+condensed DAQP export's does, and the emulated M7 flies it to the host's
+state.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ocp.codegen.build import run_driver
+from ocp.codegen.export import export_c
+from ocp.codegen.target import run_target, toolchain_missing
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(shutil.which("cc") is None
+                       or shutil.which("make") is None,
+                       reason="needs cc and make"),
+]
+
+HEAP = {"malloc", "calloc", "realloc", "free"}
+SYSTEM_ENV = {"PATH": "/usr/bin:/bin", "LC_ALL": "C"}
+STEP = "mpc_sw_rti_step"
+LOOP = f"closed_loop:{STEP}"
+WRAPPER = "adcs_rqp_6x11x4x8"
+
+
+def _export(out: Path, **kw):
+    return export_c(out, spacecraft="demo", horizon=6, repeats=5, **kw)
+
+
+def _undefined(objects: list[Path]) -> set[str]:
+    out = subprocess.run(["nm", "-u", *map(str, objects)],
+                         capture_output=True, text=True, check=True).stdout
+    return {ln.split()[-1] for ln in out.splitlines()
+            if ln.strip() and not ln.endswith(":")}
+
+
+@pytest.fixture(scope="module")
+def exports(tmp_path_factory):
+    root = tmp_path_factory.mktemp("rqp-export")
+    return {"rqp": _export(root / "rqp", mpc_variants=(STEP,),
+                           stagewise_qp_plugin="rqp", build=True),
+            "daqp": _export(root / "daqp",
+                            mpc_variants=("mpc_cond_rti_step",),
+                            build=True)}
+
+
+def test_rqp_sources_travel_in_the_folder(exports):
+    res = exports["rqp"]
+    folder = res.out_dir / "rqp"
+    assert [p.name for p in folder.glob("adcs_rqp_*.c")] == [
+        f"{WRAPPER}.c"]
+    for name in ("rqp.c", "rqp.h", "rqp_kernels.h", "rqp_rows.h",
+                 "LICENSE"):
+        assert (folder / name).is_file(), name
+    wrapper = (folder / f"{WRAPPER}.c").read_text()
+    assert '#include "../adcs_codegen.h"' in wrapper
+    assert '#include "rqp.c"' in wrapper and "#define RQP_NX 11" in wrapper
+    assert f"{WRAPPER}(arg" in res.source.read_text()
+    assert str(res.out_dir) not in wrapper
+    for name in ("Makefile", "CMakeLists.txt"):
+        body = (res.out_dir / name).read_text()
+        assert f"rqp/{WRAPPER}.c" in body and "rqp/rqp.c" not in body
+    assert f"`rqp/{WRAPPER}.c`" in res.readme.read_text()
+    assert not (exports["daqp"].out_dir / "rqp").exists()
+
+
+def test_rqp_export_flies_the_condensed_loop(exports):
+    """The host drivers' closed loops: every call returns 0, the loop
+    passes its check and ends in the condensed DAQP export's state."""
+    a = run_driver(exports["rqp"])[LOOP]
+    b = run_driver(exports["daqp"])["closed_loop:mpc_cond_rti_step"]
+    assert a["flag"] == 0 and a["loop_ok"]
+    assert np.max(np.abs(np.array(a["state"]) - b["state"])) <= 1e-9
+    assert exports["rqp"].extras["warnings"] == 0
+
+
+def test_copied_folder_builds_alone_without_heap(exports, tmp_path):
+    """make with the system's tools in a copy, -Werror; no allocator in
+    the generated object or the wrapper's (rqp.c inside it)."""
+    dst = tmp_path / "copy"
+    shutil.copytree(exports["rqp"].out_dir, dst)
+    for stale in dst.rglob("*.o"):
+        stale.unlink()
+    run = subprocess.run(["make", "-j2"], cwd=dst, env=SYSTEM_ENV,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert "-Werror" in run.stdout and "warning" not in run.stderr
+    objects = [dst / "adcs_codegen.o", dst / "rqp" / f"{WRAPPER}.o"]
+    assert all(p.is_file() for p in objects)
+    assert not _undefined(objects) & HEAP
+    drv = subprocess.run(["./adcs_driver"], cwd=dst, env=SYSTEM_ENV,
+                         capture_output=True, text=True, timeout=300)
+    assert drv.returncode == 0 and f"TIME {LOOP} " in drv.stdout
+
+
+@pytest.mark.skipif(toolchain_missing() is not None,
+                    reason=str(toolchain_missing()))
+@pytest.mark.parametrize("cap", [None, 5])
+def test_rqp_step_on_the_emulated_m7_equals_the_host(tmp_path, cap):
+    """Cross-compiled clean (-Werror), no heap in the memory report, and
+    the emulated closed loop (double) ends in the host driver's state to
+    1e-9; also with the QP capped at 5 iterations."""
+    kw = {"mpc_variants": (STEP,), "stagewise_qp_plugin": "rqp",
+          "stagewise_qp_max_iter": cap, "build": True}
+    res = _export(tmp_path / "m7", target="cortex-m7", **kw)
+    rec = res.extras["memory"]["functions"][STEP]
+    assert rec["heap"] is False and not set(rec["library_calls"]) & HEAP
+    loop = run_target(res)[LOOP]
+    host = run_driver(_export(tmp_path / "host", **kw))[LOOP]
+    assert loop["flag"] == 0 and loop["loop_ok"]
+    np.testing.assert_allclose(loop["state"], host["state"], rtol=0,
+                               atol=1e-9)
+    assert loop["loop_worst_violation"] <= 1e-9
+
+
+def test_cli_exports_with_rqp(tmp_path, capsys):
+    """``adcs export --stagewise-qp rqp --qp-max-iter 5 --run``: the
+    folder carries rqp/ and the driver's checks pass; rqp without a
+    stage-wise step, or an unknown stage-wise QP, is a one-line error
+    with exit status 2."""
+    from adcs.cli import main
+
+    out = tmp_path / "c"
+    assert main(["export", "--out", str(out), "--mpc", STEP, "--horizon",
+                 "5", "--stagewise-qp", "rqp", "--qp-max-iter", "5",
+                 "--run"]) == 0
+    printed = capsys.readouterr().out
+    assert f"wrote {out / 'rqp'}/" in printed
+    assert "every closed loop reached its target" in printed
+    assert (out / "rqp" / "adcs_rqp_5x11x4x8_cap5.c").is_file()
+    assert "at most 5 iterations" in (out / "README.md").read_text()
+    for bad in (["--mpc", "mpc_cond_rti_step", "--stagewise-qp", "rqp"],
+                ["--mpc", STEP, "--stagewise-qp", "ipm"],
+                ["--mpc", STEP, "--stagewise-qp", "rqp", "--qp-max-iter",
+                 "0"]):
+        try:                    # argparse exits; a toolbox error returns
+            code = main(["export", "--out", str(out), *bad])
+        except SystemExit as exc:
+            code = exc.code
+        assert code == 2, bad
+        assert len(capsys.readouterr().err.strip().splitlines()) == 1
