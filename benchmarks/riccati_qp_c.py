@@ -72,6 +72,7 @@ def boxes(qp: StageQP) -> tuple[np.ndarray, np.ndarray]:
 class _Problem(ctypes.Structure):
     _fields_ = [(n, ctypes.c_int) for n in ("N", "nx", "nu", "nb")] + [
         (n, ctypes.c_void_p) for n in ("a_col", "a_row", "b_col", "b_row",
+                                       "q_col", "q_row",
                                        "A", "B", "d", "Q", "q", "R", "g",
                                        "box", "scale", "lo", "hi",
                                        "fixed")]
@@ -206,9 +207,11 @@ def _arrays(qp: StageQP, real, masks: Masks | None = None
     box, scale = boxes(qp)
     a_col, a_row, A = pattern(qp.A, None if masks is None else masks[0])
     b_col, b_row, B = pattern(qp.B, None if masks is None else masks[1])
+    q_col, q_row, Q = pattern(qp.Q)
     ints = {"a_col": a_col, "a_row": a_row, "b_col": b_col, "b_row": b_row,
-            "box": box, "fixed": qp.fixed.astype(np.int32)}
-    reals = {"A": A, "B": B, "d": qp.d, "Q": qp.Q, "q": qp.q, "R": qp.R,
+            "q_col": q_col, "q_row": q_row, "box": box,
+            "fixed": qp.fixed.astype(np.int32)}
+    reals = {"A": A, "B": B, "d": qp.d, "Q": Q, "q": qp.q, "R": qp.R,
              "g": qp.g, "scale": scale, "lo": qp.lo, "hi": qp.hi}
     return {k: np.ascontiguousarray(v, dtype=np.int32) for k, v in
             ints.items()} | {k: np.ascontiguousarray(v, dtype=real)
@@ -216,8 +219,8 @@ def _arrays(qp: StageQP, real, masks: Masks | None = None
 
 
 #: The problem's arrays in rqp_problem's order.
-_FIELDS = ("a_col", "a_row", "b_col", "b_row", "A", "B", "d", "Q", "q",
-           "R", "g", "box", "scale", "lo", "hi", "fixed")
+_FIELDS = ("a_col", "a_row", "b_col", "b_row", "q_col", "q_row", "A", "B",
+           "d", "Q", "q", "R", "g", "box", "scale", "lo", "hi", "fixed")
 
 
 def solve_c(lib: ctypes.CDLL, qp: StageQP,
@@ -280,7 +283,8 @@ def write_problems(path: Path, probs: list[dict], caps: list[int],
         for p in probs:
             qp = p["qp"]
             arr = _arrays(qp, real, masks)
-            fh.write(struct.pack("<2i", arr["a_row"].size, arr["b_row"].size))
+            fh.write(struct.pack("<3i", arr["a_row"].size, arr["b_row"].size,
+                                 arr["q_row"].size))
             for key in _FIELDS:
                 fh.write(arr[key].astype("<i4" if arr[key].dtype == np.int32
                                          else real).tobytes())
@@ -306,17 +310,17 @@ static rqp_real A[N_ * NX * NX], B[N_ * NX * NU], d[N_ * NX], Q[N_ * NX * NX],
     U0[N_ * NU], X0[N_ * NX], Uref[N_ * NU], U[N_ * NU], X[N_ * NX],
     lam[N_ * NB], w[@WORK@];
 static int a_col[NX + 1], a_row[NX * NX], b_col[NU + 1], b_row[NX * NU],
-    box[NB], fixed[NU], iw[@IWORK@];
+    q_col[NX + 1], q_row[NX * NX], box[NB], fixed[NU], iw[@IWORK@];
 static signed char side0[N_ * NB], side[N_ * NB];
 
 #define READ(p, n) (fread(p, sizeof *(p), (size_t)(n), fh) == (size_t)(n))
 
 int main(void) {
-  int head[6], caps[CMAX], nnz[2], qn, c, i, its, status;
+  int head[6], caps[CMAX], nnz[3], qn, c, i, its, status;
   long stages;
   FILE* fh;
-  rqp_problem qp = {N_, NX, NU, NB, a_col, a_row, b_col, b_row, A, B, d, Q,
-                    q, R, g, box, scale, lo, hi, fixed};
+  rqp_problem qp = {N_, NX, NU, NB, a_col, a_row, b_col, b_row, q_col, q_row,
+                    A, B, d, Q, q, R, g, box, scale, lo, hi, fixed};
   driver_init();
   stack_paint();
   fh = fopen("qps.bin", "rb");
@@ -327,11 +331,12 @@ int main(void) {
     return 1;
   }
   for (qn = 0; qn < head[0]; ++qn) {
-    if (!READ(nnz, 2) || nnz[0] > NX * NX || nnz[1] > NX * NU ||
-        !READ(a_col, NX + 1) || !READ(a_row, nnz[0]) ||
+    if (!READ(nnz, 3) || nnz[0] > NX * NX || nnz[1] > NX * NU ||
+        nnz[2] > NX * NX || !READ(a_col, NX + 1) || !READ(a_row, nnz[0]) ||
         !READ(b_col, NU + 1) || !READ(b_row, nnz[1]) ||
+        !READ(q_col, NX + 1) || !READ(q_row, nnz[2]) ||
         !READ(A, N_ * nnz[0]) || !READ(B, N_ * nnz[1]) || !READ(d, N_ * NX) ||
-        !READ(Q, N_ * NX * NX) || !READ(q, N_ * NX) || !READ(R, NU) ||
+        !READ(Q, N_ * nnz[2]) || !READ(q, N_ * NX) || !READ(R, NU) ||
         !READ(g, N_ * NU) || !READ(box, NB) || !READ(scale, NB) ||
         !READ(lo, N_ * NB) || !READ(hi, N_ * NB) || !READ(fixed, NU) ||
         !READ(U0, N_ * NU) || !READ(X0, N_ * NX) || !READ(side0, N_ * NB) ||

@@ -54,14 +54,31 @@ void RQP_PRODUCTS(const rqp_real *P, const rqp_real *A, const rqp_real *B,
 
 /* the work arrays (caller's w and iw), carved in rqp_solve */
 typedef struct {
-  rqp_real *P, *p, *K, *k, *H, *h;      /* per stage */
+  rqp_real *P, *p, *K, *k, *H, *h;      /* per stage (P: triangles) */
   rqp_real *Us, *Xs, *V, *dV;          /* per stage: iterate, boxes */
   rqp_real *Cx, *Cu, *c, *Qa, *Ra, *beta, *Hb, *hb, *M; /* one stage */
   rqp_real *Fx, *f0, *V2, *Muu, *Mux, *mu, *red, *T1, *T2, *v1, *v2, *nu_;
+  rqp_real *QN; /* the last stage's Q, dense */
+  rqp_real *PA, *PB; /* a stage's cost-to-go in and out, dense */
   int *nH, *acc, *dep, *rowbox, *xrow;
 } work;
 
 #include "rqp_kernels.h"
+
+/* the cost-to-go P_k is kept as its upper triangle, row by row */
+#define NP_OF(n) ((n) * ((n) + 1) / 2)
+
+static void pack(int n, const rqp_real *F, rqp_real *T) {
+  int i, j;
+  for (i = 0; i < n; ++i)
+    for (j = i; j < n; ++j) *T++ = F[i * n + j];
+}
+
+static void unpack(int n, const rqp_real *T, rqp_real *F) {
+  int i, j;
+  for (i = 0; i < n; ++i)
+    for (j = i; j < n; ++j) F[i * n + j] = F[j * n + i] = *T++;
+}
 
 /* box b's value at (u, x): s_b (u, x)[i_b] */
 static rqp_real box_value(const rqp_problem *qp, int b, const rqp_real *u,
@@ -78,12 +95,13 @@ static rqp_real box_value(const rqp_problem *qp, int b, const rqp_real *u,
 static int stage_factor(const rqp_problem *qp, int k, const signed char *side,
                         const rqp_real *u, const rqp_real *Pin,
                         const rqp_real *pin, const rqp_real *Hin,
-                        const rqp_real *hin, int nHin, work *ws) {
+                        const rqp_real *hin, int nHin, rqp_real *P,
+                        work *ws) {
   const int nx = NX_OF(qp), nu = NU_OF(qp);
   const sparse A = stage_A(qp, k), B = stage_B(qp, k);
   const rqp_real *d = qp->d + k * nx, *g = qp->g + k * nu;
   rqp_real *K = ws->K + k * nu * nx, *kk = ws->k + k * nu,
-           *P = ws->P + k * nx * nx, *p = ws->p + k * nx;
+           *p = ws->p + k * nx;
   const int r = stage_rows(qp, k, side, u, Hin, hin, nHin, ws);
   int na, nd, nf = 0, i, j, t;
   split(r, nu, ws, &na, &nd);
@@ -211,9 +229,10 @@ static int stage_factor(const rqp_problem *qp, int k, const signed char *side,
     p[j] += s;
   }
   if (k > 0) {
-    for (i = 0; i < nx * nx; ++i) P[i] += qp->Q[(k - 1) * nx * nx + i];
+    add_sparse(stage_Q(qp, k - 1), nx, P);
     for (i = 0; i < nx; ++i) p[i] += qp->q[(k - 1) * nx + i];
   }
+  pack(nx, P, ws->P + k * NP_OF(nx));
   ws->nH[k] = nd;
   return pass_back(k, nx, nu, na, nd, ws, ws->H + k * nx * nx,
                    ws->h + k * nx);
@@ -223,17 +242,19 @@ static int stage_factor(const rqp_problem *qp, int k, const signed char *side,
 static int factor(const rqp_problem *qp, const signed char *side,
                   const rqp_real *U, int top, work *ws, long *stages) {
   const int N = qp->N, nx = NX_OF(qp), nu = NU_OF(qp);
+  rqp_real *in = ws->PA, *out = ws->PB, *t;
   int k;
+  if (top < N - 1) unpack(nx, ws->P + (top + 1) * NP_OF(nx), in);
   for (k = top; k >= 0; --k) {
     const int last = k == N - 1;
-    const rqp_real *Pin = last ? qp->Q + k * nx * nx : ws->P + (k + 1) * nx * nx;
     const rqp_real *pin = last ? qp->q + k * nx : ws->p + (k + 1) * nx;
     ++*stages;
-    if (stage_factor(qp, k, side, U + k * nu, Pin, pin,
+    if (stage_factor(qp, k, side, U + k * nu, last ? ws->QN : in, pin,
                      last ? 0 : ws->H + (k + 1) * nx * nx,
                      last ? 0 : ws->h + (k + 1) * nx,
-                     last ? 0 : ws->nH[k + 1], ws))
+                     last ? 0 : ws->nH[k + 1], out, ws))
       return RQP_DEPENDENT;
+    t = in, in = out, out = t; /* stage k's cost-to-go is k − 1's input */
   }
   return 0;
 }
@@ -265,13 +286,14 @@ static void multipliers(const rqp_problem *qp, const signed char *side,
   for (i = 0; i < N * nb; ++i) lam[i] = 0;
   for (k = 0; k < N; ++k) {
     const int last = k == N - 1;
-    const rqp_real *Pin = last ? qp->Q + k * nx * nx : ws->P + (k + 1) * nx * nx;
+    const rqp_real *Pin = last ? ws->QN : ws->PA;
     const rqp_real *pin = last ? qp->q + k * nx : ws->p + (k + 1) * nx;
     const rqp_real *u = ws->Us + k * nu, *x = ws->Xs + k * nx;
     const int r = stage_rows(qp, k, side, u, last ? 0 : ws->H + (k + 1) * nx * nx,
                              last ? 0 : ws->h + (k + 1) * nx,
                              last ? 0 : ws->nH[k + 1], ws);
     int na, nd;
+    if (!last) unpack(nx, ws->P + (k + 1) * NP_OF(nx), ws->PA);
     split(r, nu, ws, &na, &nd);
     /* the stored rows of x_k are this stage's; pass_back again for M */
     pass_back(k, nx, nu, na, nd, ws, ws->T1, ws->T2);
@@ -315,7 +337,7 @@ static int layout(int N, int nx, int nu, int nb, rqp_real *w, int *iw,
   rqp_real *at = w;
   int *it = iw;
 #define TAKE(f, n) (ws->f = w ? at : 0, at += (n))
-  TAKE(P, N * nx * nx); TAKE(p, N * nx); TAKE(K, N * nu * nx);
+  TAKE(P, N * NP_OF(nx)); TAKE(p, N * nx); TAKE(K, N * nu * nx);
   TAKE(k, N * nu); TAKE(H, N * nx * nx); TAKE(h, N * nx);
   TAKE(Us, N * nu); TAKE(Xs, N * nx); TAKE(V, N * nb); TAKE(dV, N * nb);
   TAKE(Cx, rmax * nx); TAKE(Cu, rmax * nu); TAKE(c, rmax);
@@ -324,7 +346,7 @@ static int layout(int N, int nx, int nu, int nb, rqp_real *w, int *iw,
   TAKE(Fx, nu * nx); TAKE(f0, nu); TAKE(V2, nu * nu); TAKE(Muu, nu * nu);
   TAKE(Mux, nu * nx); TAKE(mu, nu); TAKE(red, nu * nu);
   TAKE(T1, nx * nx); TAKE(T2, nx * nx); TAKE(v1, vlen); TAKE(v2, vlen);
-  TAKE(nu_, rmax);
+  TAKE(nu_, rmax); TAKE(QN, nx * nx); TAKE(PA, nx * nx); TAKE(PB, nx * nx);
 #undef TAKE
   ws->nH = iw ? it : 0; it += N;
   ws->acc = iw ? it : 0; it += nu;
@@ -401,6 +423,8 @@ int rqp_solve(const rqp_problem *qp, rqp_real *U, rqp_real *X,
   for (i = 0; i < nb; ++i)
     if (qp->box[i] < 0 || qp->box[i] >= nu + nx) return RQP_INVALID_INPUT;
   layout(N, nx, nu, nb, w, iw, &ws, &ni);
+  for (i = 0; i < nx * nx; ++i) ws.QN[i] = 0;
+  add_sparse(stage_Q(qp, N - 1), nx, ws.QN);
   for (i = 0; i < nv; ++i) lam[i] = 0;
   values(qp, U, X, ws.V);
   for (i = 0; i < nv; ++i) {

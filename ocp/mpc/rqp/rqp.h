@@ -29,18 +29,19 @@ typedef double rqp_real;
 #define RQP_INFEASIBLE_START 2 /* the start breaks a box: no phase one */
 #define RQP_INVALID_INPUT 3
 
-/* the problem, stage after stage: A and B as the nonzeros of one
+/* the problem, stage after stage: A, B and Q as the nonzeros of one
  * compressed-column pattern each (CasADi's: column j's entries at
- * [col[j], col[j+1]), their rows in row[]), the other matrices dense
- * and row-major */
+ * [col[j], col[j+1]), their rows in row[]; Q's pattern symmetric), the
+ * vectors dense */
 typedef struct {
   int N, nx, nu, nb;
   const int *a_col, *a_row; /* A's pattern: nx + 1 and a_col[nx] */
   const int *b_col, *b_row; /* B's pattern: nu + 1 and b_col[nu] */
+  const int *q_col, *q_row; /* Q's pattern: nx + 1 and q_col[nx] */
   const rqp_real *A;     /* N × a_col[nx] */
   const rqp_real *B;     /* N × b_col[nu] */
   const rqp_real *d;     /* N × nx */
-  const rqp_real *Q;     /* N × nx × nx: the cost of x_{k+1} */
+  const rqp_real *Q;     /* N × q_col[nx]: the cost of x_{k+1} */
   const rqp_real *q;     /* N × nx */
   const rqp_real *R;     /* nu: the input weight's diagonal */
   const rqp_real *g;     /* N × nu */

@@ -50,6 +50,14 @@ static sparse stage_sparse(const int *col, const int *row,
 
 #define stage_A(qp, k) stage_sparse((qp)->a_col, (qp)->a_row, (qp)->A, (qp)->nx, k)
 #define stage_B(qp, k) stage_sparse((qp)->b_col, (qp)->b_row, (qp)->B, (qp)->nu, k)
+#define stage_Q(qp, k) stage_sparse((qp)->q_col, (qp)->q_row, (qp)->Q, (qp)->nx, k)
+
+/* P (n × n, row-major) += S (compressed columns) */
+static void add_sparse(sparse S, int n, rqp_real *P) {
+  int j, t;
+  for (j = 0; j < S.ncol; ++j)
+    for (t = S.col[j]; t < S.col[j + 1]; ++t) P[S.row[t] * n + j] += S.v[t];
+}
 
 /* out (m × S.ncol) = M (m × n, row-major) S: a column of M scaled per
  * nonzero (loops of m, fixed when the sizes are) */
