@@ -75,11 +75,12 @@ def main() -> None:
         t1 = time.perf_counter()
         times = run_target(res, timeout=3600)
         t2 = time.perf_counter()
-    qp = args.qp or "daqp"
+    stagewise = any("_sw_" in v for v in mpc)
+    qp = args.qp or ("interior point" if stagewise else "daqp")
     if args.qp_max_iter:
         qp += f" capped at {args.qp_max_iter}"
     print(f"demo craft, horizon {args.horizon}, {args.target}, "
-          f"{args.precision}, {'stage-wise' if rqp else 'condensed'} "
+          f"{args.precision}, {'stage-wise' if stagewise else 'condensed'} "
           f"QP {qp} "
           f"({' '.join(res.extras['memory']['core'])}), -O3; "
           f"export+build {t1 - t0:.0f} s, emulation {t2 - t1:.0f} s")

@@ -240,9 +240,6 @@ class AttitudeMPC:
                 "(a Riccati interior point) or 'rqp' (the Riccati active "
                 f"set in C), got {qp_solver!r}")
         qp_solver = resolve_qp_solver(solver, qp_solver)
-        if qp_solver == "rqp" and move_blocks is not None:
-            raise InvalidValueError(
-                "qp_solver='rqp' takes no move_blocks (use qp_solver=None)")
         if rti and solver not in ("sqpmethod", *OWN_SQP_SOLVERS):
             raise InvalidValueError(
                 "rti=True needs solver='sqpmethod', 'condensed' or "

@@ -19,10 +19,11 @@ rqp.c for the QP's sizes in its own translation unit, its public names
 prefixed), compiled into a shared library for Python (`qp_external`;
 needs a C compiler) and written into the export folder beside rqp.c for
 generated C (`copy_sources`). rqp has no phase one: where the start
-breaks a box (a rate beyond its bound, a defect the linearisation
-carries) the wrapper answers the start, flagged ``infeasible``, and the
-step's certificate fails; the step then returns the shifted plan, as
-every failed QP does (`ocp.mpc.condensed.sqp_step_functions`).
+breaks a box the wrapper answers the start, flagged ``infeasible``, and
+the step's certificate fails; the step then returns the shifted plan,
+as every failed QP does (`ocp.mpc.condensed.sqp_step_functions`). So
+the step takes no state boxes whose start the linearisation's defects
+break (`ocp.mpc.stagewise_rqp.check_rqp_problem`).
 
 The wrapper keeps no state (its memory is the caller's work), so a
 controller with this QP may be stepped from several threads.

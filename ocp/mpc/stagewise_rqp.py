@@ -19,6 +19,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from adcs_common.exceptions import InvalidValueError
 from .condensed_qp import QP_ITER_LIMIT
 from .riccati_qp import qp_external
 from .stagewise import StageParts, qp_data, new_plan
@@ -61,6 +62,35 @@ def capped_certificate(parts: StageParts, N: int, start, point, data) -> ca.MX:
     return ca.fmax(broken, ca.fmax(c1 - c0, 0.0) / (1.0 + ca.fabs(c0)))
 
 
+def check_rqp_problem(mpc: Any) -> None:
+    """Refuse what rqp cannot take: move blocks, and the state boxes
+    whose start the linearisation's defects break (a rate bound, keep-out
+    cones) while rqp has no phase one.
+
+    With a rate bound of 1°/s the demo slew's shifted plan breaks a rate
+    box in 119 of 453 steps; each would be a refused step returning the
+    shifted plan, and in a loop that applies it (flight code cannot
+    raise) the next starts break more: 448 of the 453 steps, the craft
+    spun up to 259°/s. Torque and momentum boxes are kept by the start
+    (the momentum dynamics are linear, and the shifted plan's last torque
+    is clipped to the momentum bound).
+
+    Raises
+    ------
+    InvalidValueError
+    """
+    for what, present in (("move_blocks", mpc.move_blocks is not None),
+                          ("a rate bound (rate_max)",
+                           mpc.rate_max is not None),
+                          ("keep-out cones (keep_out)", bool(mpc.keep_out))):
+        if present:
+            raise InvalidValueError(
+                f"qp_solver='rqp' takes no {what}: rqp has no phase one "
+                "for starts that break a state box; use qp_solver=None "
+                "(the interior point) or solver='condensed' with "
+                "qp_solver='pqp'")
+
+
 def rqp_iteration(mpc: Any, qp_max_iter: int = QP_ITER_LIMIT
                   ) -> ca.Function:
     """``sw_iter(z, lam_x0, p) -> (z_new, lam_x, step, qp_kkt,
@@ -68,9 +98,8 @@ def rqp_iteration(mpc: Any, qp_max_iter: int = QP_ITER_LIMIT
     solved by rqp (module doc), at most ``qp_max_iter`` iterations; a
     capped point's ``lam_x`` holds its working set's sides, ±1."""
     N, nu = mpc.horizon, mpc.model.nu
+    check_rqp_problem(mpc)
     parts = StageParts(mpc, IPM_TOL, 1, ipm=False)
-    if mpc.move_blocks is not None:
-        raise ValueError("rqp takes no move blocks")   # refused before
     z = ca.MX.sym("z", mpc.nz)
     lx0 = ca.MX.sym("lam_x", mpc.nz)
     p = ca.MX.sym("p", mpc.model.nx + 7)
