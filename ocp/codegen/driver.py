@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 
@@ -218,17 +219,29 @@ def _memory_text(static_bytes: int) -> str:
     return heap
 
 
+def _wrappers(solver_sources: list[str], solver: str,
+              max_iter: Callable[[str], int]) -> tuple[str, int]:
+    """``(names, cap)`` of the ``solver`` wrappers among the sources:
+    their paths quoted for the README and their smallest iteration cap
+    (``("", 0)`` if none)."""
+    wrappers = [s for s in solver_sources
+                if s.startswith(f"{solver}/adcs_{solver}_")]
+    if not wrappers:
+        return "", 0
+    return (", ".join(f"`{w}`" for w in wrappers),
+            min(max_iter(Path(w).stem) for w in wrappers))
+
+
 def _pqp_text(solver_sources: list[str]) -> str:
     """The README's paragraph on the pqp wrappers among the sources ("" if
     none)."""
-    wrappers = [s for s in solver_sources if s.startswith("pqp/adcs_pqp_")]
+    wrappers, cap = _wrappers(solver_sources, "pqp", max_iter_of)
     if not wrappers:
         return ""
-    cap = min(max_iter_of(Path(w).stem) for w in wrappers)
     return (
         " The condensed MPC steps solve their QP with `pqp/pqp.c`, the "
         "toolbox's primal active set (BSD-3-Clause, `pqp/LICENSE`), "
-        f"called through {', '.join(f'`{w}`' for w in wrappers)} "
+        f"called through {wrappers} "
         "(CasADi's calling convention): started from δu = 0 on the "
         f"shifted plan and the last step's active set, at most {cap} "
         "iterations, the caller's work only. Where that start breaks a "
@@ -246,14 +259,13 @@ def _pqp_text(solver_sources: list[str]) -> str:
 def _rqp_text(solver_sources: list[str]) -> str:
     """The README's paragraph on the rqp wrappers among the sources ("" if
     none)."""
-    wrappers = [s for s in solver_sources if s.startswith("rqp/adcs_rqp_")]
+    wrappers, cap = _wrappers(solver_sources, "rqp", rqp_max_iter_of)
     if not wrappers:
         return ""
-    cap = min(rqp_max_iter_of(Path(w).stem) for w in wrappers)
     return (
         " The stage-wise MPC steps solve their QP with `rqp/rqp.c`, the "
         "toolbox's Riccati active set (BSD-3-Clause, `rqp/LICENSE`), "
-        f"compiled inside {', '.join(f'`{w}`' for w in wrappers)} for "
+        f"compiled inside {wrappers} for "
         "the QP's sizes (CasADi's calling convention; rqp.c itself is "
         "not compiled alone): started from the shifted plan and the last "
         f"step's working set, at most {cap} iterations of one Riccati "

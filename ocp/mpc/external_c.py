@@ -12,10 +12,12 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
+import shutil
 import tempfile
 import threading
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import casadi as ca
 
@@ -55,3 +57,35 @@ def shared_external(name: str, text: str, sources: Sequence[Path],
         finally:
             src.unlink(missing_ok=True)
     return ca.external(name, str(lib))
+
+
+def copy_solver(dst: Path, sources: Path, files: Sequence[str],
+                compiled: Sequence[str], pattern: re.Pattern,
+                source_text: str, wrapper: Callable[[str], str]
+                ) -> list[Path]:
+    """Write a solver's ``files`` (from the folder ``sources``) and the
+    wrapper of every external whose name ``pattern`` finds called in the
+    generated ``source_text`` into ``dst`` (``wrapper(name)``: its C
+    text); a stale ``dst`` of an earlier export is removed when none is
+    called.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The C sources to compile beside the generated source: those of
+        ``files`` named in ``compiled``, then the wrappers.
+    """
+    names = sorted(set(pattern.findall(source_text)))
+    if not names:
+        if dst.is_dir():
+            shutil.rmtree(dst)
+        return []
+    dst.mkdir(exist_ok=True)
+    for name in files:
+        shutil.copyfile(sources / name, dst / name)
+    written = [dst / name for name in compiled]
+    for name in names:
+        path = dst / f"{name}.c"
+        path.write_text(wrapper(name))
+        written.append(path)
+    return written

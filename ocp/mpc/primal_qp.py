@@ -42,14 +42,13 @@ file of its own renamed into place (tested).
 from __future__ import annotations
 
 import re
-import shutil
 from itertools import accumulate
 from pathlib import Path
 
 import casadi as ca
 
 from .condensed_qp import QP_ITER_LIMIT
-from .external_c import shared_external
+from .external_c import copy_solver, shared_external
 
 #: The C solver's folder (pqp.c, pqp.h).
 PQP_SOURCES = Path(__file__).with_name("pqp")
@@ -205,22 +204,12 @@ def copy_sources(out: Path, source_text: str, precision: str = "double"
     list of pathlib.Path
         The C sources written (to compile beside the generated source).
     """
-    dst = Path(out) / PQP_DIR
-    names = sorted(set(_NAME.findall(source_text)))
-    if not names:
-        if dst.is_dir():
-            shutil.rmtree(dst)
-        return []
-    dst.mkdir(exist_ok=True)
-    for name in ("pqp.c", "pqp.h", "LICENSE"):
-        shutil.copyfile(PQP_SOURCES / name, dst / name)
-    written = [dst / "pqp.c"]
-    for name in names:
+    def wrapper(name: str) -> str:
         if name not in _BUILT:
             raise RuntimeError(f"{name} was not built in this process")
-        path = dst / f"{name}.c"
         N, nu, nw, sp_g, max_iter = _BUILT[name]
-        path.write_text(wrapper_source(N, nu, nw, sp_g, max_iter,
-                                       precision=precision, in_export=True))
-        written.append(path)
-    return written
+        return wrapper_source(N, nu, nw, sp_g, max_iter,
+                              precision=precision, in_export=True)
+    return copy_solver(Path(out) / PQP_DIR, PQP_SOURCES,
+                       ("pqp.c", "pqp.h", "LICENSE"), ("pqp.c",), _NAME,
+                       source_text, wrapper)

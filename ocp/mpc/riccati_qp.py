@@ -32,14 +32,13 @@ controller with this QP may be stepped from several threads.
 from __future__ import annotations
 
 import re
-import shutil
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
 from .condensed_qp import QP_ITER_LIMIT
-from .external_c import shared_external
+from .external_c import copy_solver, shared_external
 from .stagewise_boxes import BoxLayout
 
 #: The C solver's folder (rqp.c, rqp.h, its kernels and LICENSE).
@@ -152,22 +151,11 @@ def copy_sources(out: Path, source_text: str, precision: str = "double"
         The C sources to compile beside the generated source: the
         wrappers (each includes rqp.c).
     """
-    dst = Path(out) / RQP_DIR
-    names = sorted(set(_NAME.findall(source_text)))
-    if not names:
-        if dst.is_dir():
-            shutil.rmtree(dst)
-        return []
-    dst.mkdir(exist_ok=True)
-    for name in _FILES:
-        shutil.copyfile(RQP_SOURCES / name, dst / name)
-    written = []
-    for name in names:
+    def wrapper(name: str) -> str:
         if name not in _BUILT:
             raise RuntimeError(f"{name} was not built in this process")
-        path = dst / f"{name}.c"
         N, lay, nu, fixed, patterns, max_iter = _BUILT[name]
-        path.write_text(wrapper_source(N, lay, nu, fixed, patterns, max_iter,
-                                       precision=precision, in_export=True))
-        written.append(path)
-    return written
+        return wrapper_source(N, lay, nu, fixed, patterns, max_iter,
+                              precision=precision, in_export=True)
+    return copy_solver(Path(out) / RQP_DIR, RQP_SOURCES, _FILES, (), _NAME,
+                       source_text, wrapper)

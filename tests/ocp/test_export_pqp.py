@@ -10,7 +10,6 @@ Cortex-M builds (M7 double, M4F float) fly it on the emulated boards.
 from __future__ import annotations
 
 import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,8 @@ from ocp.codegen.build import run_driver
 from ocp.codegen.export import export_c
 from ocp.codegen.target import run_target, toolchain_missing
 
+from export_build import HEAP, check_heap_free, make_copy
+
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.skipif(shutil.which("cc") is None
@@ -27,8 +28,6 @@ pytestmark = [
                        reason="needs cc and make"),
 ]
 
-HEAP = {"malloc", "calloc", "realloc", "free"}
-SYSTEM_ENV = {"PATH": "/usr/bin:/bin", "LC_ALL": "C"}
 STEP = "mpc_cond_rti_step"
 LOOP = f"closed_loop:{STEP}"
 
@@ -37,13 +36,6 @@ def _export(out: Path, qp: str | None, **kw):
     return export_c(out, spacecraft="demo", horizon=6,
                     mpc_variants=(STEP,), condensed_qp_plugin=qp,
                     repeats=5, **kw)
-
-
-def _undefined(objects: list[Path], nm: str = "nm") -> set[str]:
-    out = subprocess.run([nm, "-u", *map(str, objects)], capture_output=True,
-                         text=True, check=True).stdout
-    return {ln.split()[-1] for ln in out.splitlines()
-            if ln.strip() and not ln.endswith(":")}
 
 
 @pytest.fixture(scope="module")
@@ -84,21 +76,13 @@ def test_pqp_export_flies_daqps_loop(exports):
 
 def test_copied_folder_builds_alone_without_heap(exports, tmp_path):
     """make with the system's tools in a copy, -Werror; no allocator in
-    the generated object or pqp's."""
+    the generated object or pqp's, and the driver runs on a heap that
+    traps."""
     dst = tmp_path / "copy"
-    shutil.copytree(exports["pqp"].out_dir, dst)
-    for stale in dst.rglob("*.o"):
-        stale.unlink()
-    run = subprocess.run(["make", "-j2"], cwd=dst, env=SYSTEM_ENV,
-                         capture_output=True, text=True, timeout=600)
-    assert run.returncode == 0, run.stderr[-3000:]
-    assert "-Werror" in run.stdout and "warning" not in run.stderr
+    make_copy(exports["pqp"].out_dir, dst)
     objects = [dst / "adcs_codegen.o", *sorted((dst / "pqp").glob("*.o"))]
     assert len(objects) == 3
-    assert not _undefined(objects) & HEAP
-    drv = subprocess.run(["./adcs_driver"], cwd=dst, env=SYSTEM_ENV,
-                         capture_output=True, text=True, timeout=300)
-    assert drv.returncode == 0 and f"TIME {LOOP} " in drv.stdout
+    check_heap_free(dst, objects, LOOP)
 
 
 @pytest.mark.skipif(toolchain_missing() is not None,
@@ -115,7 +99,7 @@ def test_pqp_step_on_the_emulated_cores(tmp_path, target, precision, cap):
                   precision=precision, build=True,
                   condensed_qp_max_iter=cap)
     rec = res.extras["memory"]["functions"][STEP]
-    assert rec["heap"] is False and not set(rec["library_calls"]) & HEAP
+    assert rec["heap"] is False and not set(rec["library_calls"]) & set(HEAP)
     out = run_target(res)
     loop = out[LOOP]
     assert loop["flag"] == 0 and loop["loop_ok"]

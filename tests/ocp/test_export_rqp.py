@@ -11,7 +11,6 @@ state.
 from __future__ import annotations
 
 import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +20,8 @@ from ocp.codegen.build import run_driver
 from ocp.codegen.export import export_c
 from ocp.codegen.target import run_target, toolchain_missing
 
+from export_build import HEAP, check_heap_free, make_copy
+
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.skipif(shutil.which("cc") is None
@@ -28,8 +29,6 @@ pytestmark = [
                        reason="needs cc and make"),
 ]
 
-HEAP = {"malloc", "calloc", "realloc", "free"}
-SYSTEM_ENV = {"PATH": "/usr/bin:/bin", "LC_ALL": "C"}
 STEP = "mpc_sw_rti_step"
 LOOP = f"closed_loop:{STEP}"
 WRAPPER = "adcs_rqp_6x11x4x8"
@@ -37,13 +36,6 @@ WRAPPER = "adcs_rqp_6x11x4x8"
 
 def _export(out: Path, **kw):
     return export_c(out, spacecraft="demo", horizon=6, repeats=5, **kw)
-
-
-def _undefined(objects: list[Path]) -> set[str]:
-    out = subprocess.run(["nm", "-u", *map(str, objects)],
-                         capture_output=True, text=True, check=True).stdout
-    return {ln.split()[-1] for ln in out.splitlines()
-            if ln.strip() and not ln.endswith(":")}
 
 
 @pytest.fixture(scope="module")
@@ -88,21 +80,13 @@ def test_rqp_export_flies_the_condensed_loop(exports):
 
 def test_copied_folder_builds_alone_without_heap(exports, tmp_path):
     """make with the system's tools in a copy, -Werror; no allocator in
-    the generated object or the wrapper's (rqp.c inside it)."""
+    the generated object or the wrapper's (rqp.c inside it), and the
+    driver runs on a heap that traps."""
     dst = tmp_path / "copy"
-    shutil.copytree(exports["rqp"].out_dir, dst)
-    for stale in dst.rglob("*.o"):
-        stale.unlink()
-    run = subprocess.run(["make", "-j2"], cwd=dst, env=SYSTEM_ENV,
-                         capture_output=True, text=True, timeout=600)
-    assert run.returncode == 0, run.stderr[-3000:]
-    assert "-Werror" in run.stdout and "warning" not in run.stderr
+    make_copy(exports["rqp"].out_dir, dst)
     objects = [dst / "adcs_codegen.o", dst / "rqp" / f"{WRAPPER}.o"]
     assert all(p.is_file() for p in objects)
-    assert not _undefined(objects) & HEAP
-    drv = subprocess.run(["./adcs_driver"], cwd=dst, env=SYSTEM_ENV,
-                         capture_output=True, text=True, timeout=300)
-    assert drv.returncode == 0 and f"TIME {LOOP} " in drv.stdout
+    check_heap_free(dst, objects, LOOP)
 
 
 @pytest.mark.skipif(toolchain_missing() is not None,
@@ -116,7 +100,7 @@ def test_rqp_step_on_the_emulated_m7_equals_the_host(tmp_path, cap):
           "stagewise_qp_max_iter": cap, "build": True}
     res = _export(tmp_path / "m7", target="cortex-m7", **kw)
     rec = res.extras["memory"]["functions"][STEP]
-    assert rec["heap"] is False and not set(rec["library_calls"]) & HEAP
+    assert rec["heap"] is False and not set(rec["library_calls"]) & set(HEAP)
     loop = run_target(res)[LOOP]
     host = run_driver(_export(tmp_path / "host", **kw))[LOOP]
     assert loop["flag"] == 0 and loop["loop_ok"]

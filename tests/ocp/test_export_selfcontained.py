@@ -32,39 +32,15 @@ from ocp.codegen.export import daqp_available, export_c
 from ocp.codegen.target import toolchain_missing
 from thrusters import six_thruster_unit
 
+from export_build import (HEAP, SYSTEM_ENV, driver_on_a_trapping_heap,
+                          undefined_symbols)
+
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.skipif(shutil.which("cc") is None
                        or shutil.which("make") is None,
                        reason="needs cc and make"),
 ]
-
-#: The allocator's entry points no exported function may reach.
-HEAP = ("malloc", "calloc", "realloc", "free")
-
-#: Only the system's tools: no virtual environment, no casadi folder.
-SYSTEM_ENV = {"PATH": "/usr/bin:/bin", "LC_ALL": "C"}
-
-#: A heap that aborts: linked before libc, it takes every allocation of
-#: the program (C library calls included: the driver writes stdout
-#: through a static buffer).
-TRAP_HEAP = r"""
-#include <stdlib.h>
-#include <unistd.h>
-static void trap(const char* what) {
-  write(2, "heap trap: ", 11); write(2, what, 7); write(2, "\n", 1);
-  abort();
-}
-void* malloc(size_t n) { (void)n; trap("malloc "); return 0; }
-void* calloc(size_t n, size_t m) {
-  (void)n; (void)m; trap("calloc "); return 0;
-}
-void* realloc(void* p, size_t n) {
-  (void)p; (void)n; trap("realloc"); return 0;
-}
-void free(void* p) { if (p) trap("free   "); }
-"""
-
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
@@ -143,38 +119,13 @@ def test_the_folder_builds_alone_warning_free_and_runs(built):
     assert all("flag=0" in ln for ln in times if "flag=" in ln)
 
 
-def _undefined(objects: list[Path], nm: str = "nm") -> set[str]:
-    """Symbols the objects use but do not define (``nm -u``)."""
-    out = subprocess.run([nm, "-u", *map(str, objects)],
-                         capture_output=True, text=True, check=True).stdout
-    return {ln.split()[-1] for ln in out.splitlines()
-            if ln.strip() and not ln.endswith(":")}
-
-
-def _driver_on_a_trapping_heap(dst: Path, objects: list[Path]
-                               ) -> subprocess.CompletedProcess:
-    """The folder's driver linked to `TRAP_HEAP`, run; asserts it ran
-    through without a heap call."""
-    (dst / "trap_heap.c").write_text(TRAP_HEAP)
-    subprocess.run(["cc", "-O2", "-std=c99", "-c", "-o", "main_trap.o",
-                    "main.c"], cwd=dst, env=SYSTEM_ENV, check=True)
-    link = ["cc", "-o", "driver_trap", "trap_heap.c", "main_trap.o",
-            *[str(p.relative_to(dst)) for p in objects], "-lm"]
-    subprocess.run(link, cwd=dst, env=SYSTEM_ENV, check=True)
-    drv = subprocess.run(["./driver_trap"], cwd=dst, env=SYSTEM_ENV,
-                         capture_output=True, text=True, timeout=300)
-    assert drv.returncode == 0, drv.stderr[-2000:]
-    assert "heap trap" not in drv.stderr
-    return drv
-
-
 def test_no_exported_function_reaches_the_heap(built):
     """Symbol tables: no allocator; a driver linked to a trapping heap."""
     dst, _ = built
-    undefined = _undefined(_objects(dst))
+    undefined = undefined_symbols(_objects(dst))
     assert undefined & set(HEAP) == set(), undefined & set(HEAP)
     assert "sqrt" in undefined          # nm did read the objects
-    drv = _driver_on_a_trapping_heap(dst, _objects(dst))
+    drv = driver_on_a_trapping_heap(dst, _objects(dst))
     assert drv.stdout.count("TIME ") >= 10
     # the trap springs: a call of malloc from the same objects aborts
     (dst / "uses_heap.c").write_text(
@@ -212,10 +163,10 @@ def test_stagewise_and_robust_steps_never_reach_the_heap(tmp_path):
                          capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr[-3000:]
     objects = [dst / "adcs_codegen.o"]
-    undefined = _undefined(objects)
+    undefined = undefined_symbols(objects)
     assert undefined & set(HEAP) == set(), undefined & set(HEAP)
     assert "sqrt" in undefined          # nm did read the object
-    drv = _driver_on_a_trapping_heap(dst, objects)
+    drv = driver_on_a_trapping_heap(dst, objects)
     loops = {ln.split()[1]: ln for ln in drv.stdout.splitlines()
              if ln.startswith("LOOP ")}
     for name in SW_ROBUST:
@@ -233,7 +184,7 @@ def test_stagewise_and_robust_steps_have_no_heap_on_the_m7(tmp_path):
     res = _sw_robust_export(tmp_path / "m7", target="cortex-m7",
                             build=True)
     obj = res.out_dir / "adcs_codegen_cortex-m7.o"
-    undefined = _undefined([obj], "arm-none-eabi-nm")
+    undefined = undefined_symbols([obj], "arm-none-eabi-nm")
     assert undefined & set(HEAP) == set(), undefined & set(HEAP)
     assert "sqrt" in undefined
     functions = res.extras["memory"]["functions"]
