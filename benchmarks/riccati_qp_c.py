@@ -53,7 +53,7 @@ PRODUCTS_FLAG = "-DRQP_PRODUCTS=rqp_products"
 RQP_SINGLE = "-DRQP_SINGLE_PRECISION"
 #: Statuses of rqp_solve (rqp.h).
 STATUS = {0: "optimal", 1: "iteration limit", 2: "infeasible start",
-          3: "invalid input"}
+          3: "invalid input", 4: "rows full"}
 
 
 def boxes(qp: StageQP) -> tuple[np.ndarray, np.ndarray]:
@@ -170,19 +170,23 @@ void {name}(const casadi_real* P, const casadi_real* A, const casadi_real* B,
 
 def host_library(out_dir: Path, precision: str = "double",
                  sizes: tuple[int, int] | None = None,
-                 products: Masks | None = None) -> ctypes.CDLL:
+                 products: Masks | None = None,
+                 defines: tuple[str, ...] = ()) -> ctypes.CDLL:
     """rqp.c built by the host's cc as a shared library in ``out_dir``
     (``sizes``: for that (n_x, n_u) only, `sizes_flags`; ``products``:
     with the stage products generated for those patterns of A and B,
-    `products_source`: solve with the same ``masks``)."""
+    `products_source`: solve with the same ``masks``; ``defines``: more
+    -D flags, and the library's name says they are there)."""
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
         raise RuntimeError("no C compiler (cc) on this machine")
     tag = f"_{sizes[0]}x{sizes[1]}" if sizes else ""
     tag += "_gen" if products is not None else ""
+    tag += f"_d{abs(hash(defines)) % 10 ** 8}" if defines else ""
     lib = Path(out_dir) / f"librqp_{precision}{tag}.so"
     define = [RQP_SINGLE] if precision == "single" else []
     define += list(sizes_flags(*sizes)) if sizes else []
+    define += list(defines)
     extra: list[str] = []
     if products is not None:
         gen = Path(out_dir) / "rqp_products.c"

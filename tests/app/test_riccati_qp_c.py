@@ -76,6 +76,40 @@ def test_capped_points_keep_every_box(lib, probs):
                                    atol=1e-12)
 
 
+def _cost(qp, U) -> float:
+    """The stage-wise QP's cost at the inputs U (states rolled out)."""
+    X = qp.rollout(U)
+    return float(sum(0.5 * x @ Q @ x + q @ x + 0.5 * u @ (qp.R * u) + g @ u
+                     for x, Q, q, u, g in zip(X, qp.Q, qp.q, U, qp.g)))
+
+
+def test_a_full_pool_of_rows_stops_at_a_feasible_descent(tmp_path):
+    """The rows passed back share a pool (``RQP_POOL_ROWS``). Built with
+    no room in it, on the chain x_{k+1} = x_k + u_k started at u = (0, 1,
+    0), x = (0, 1, 1), where u_1 and x_2 at their upper bounds pass a
+    row back to x_1: the solve stops where that row would go, status
+    "rows full", at a point that keeps every box and costs no more than
+    the start, without multipliers; the default build reaches the twin's
+    optimum."""
+    from tests.app.test_riccati_active_set import _chain
+
+    qp = replace(_chain(3), u0=np.array([[0.0], [1.0], [0.0]]),
+                 x0=np.array([[0.0], [1.0], [1.0]]))
+    warm = {(1, 0): 1, (1, 1): 1}
+    small = rc.host_library(tmp_path, defines=("-DRQP_POOL_ROWS(N,nx)=0",))
+    got = rc.solve_c(small, qp, warm, rc.NO_CAP)
+    assert got["status"] == "rows full"
+    v = qp.values(got["U"], qp.rollout(got["U"]))
+    assert np.all(v <= qp.hi + 1e-12) and np.all(v >= qp.lo - 1e-12)
+    assert _cost(qp, got["U"]) <= _cost(qp, qp.u0) + 1e-12
+    assert not got["lam"].any()
+    ref = solve(qp, warm, max_iter=rc.NO_CAP)
+    full = rc.solve_c(rc.host_library(tmp_path), qp, warm, rc.NO_CAP)
+    assert full["status"] == "optimal" and ref["optimal"]
+    np.testing.assert_allclose(full["U"], ref["U"], atol=1e-12)
+    assert _cost(qp, ref["U"]) < _cost(qp, got["U"])
+
+
 def _chain_started_where_both_boxes_hold():
     from tests.app.test_riccati_active_set import _chain
     return replace(_chain(), u0=np.array([[1.0], [0.0]]),

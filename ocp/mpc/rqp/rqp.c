@@ -29,6 +29,13 @@
 #endif
 
 #define RQP_DEPENDENT (-1)
+#define RQP_FULL (-2) /* the rows passed back would overflow their pool */
+
+/* the rows passed back to the stages' states share one pool of this
+ * many rows (the Monte Carlo's QPs pass at most one a stage) */
+#ifndef RQP_POOL_ROWS
+#define RQP_POOL_ROWS(N, nx) ((N) + (nx))
+#endif
 
 #ifdef RQP_PRODUCTS
 /* the stage's products, generated for the craft's patterns: from P
@@ -60,7 +67,8 @@ typedef struct {
   rqp_real *Fx, *f0, *V2, *Muu, *Mux, *mu, *red, *T1, *T2, *v1, *v2, *nu_;
   rqp_real *QN; /* the last stage's Q, dense */
   rqp_real *PA, *PB; /* a stage's cost-to-go in and out, dense */
-  int *nH, *acc, *dep, *rowbox, *xrow;
+  int *nH, *oH, *acc, *dep, *rowbox, *xrow; /* oH: a stage's rows' first */
+  int pool;
 } work;
 
 #include "rqp_kernels.h"
@@ -233,9 +241,14 @@ static int stage_factor(const rqp_problem *qp, int k, const signed char *side,
     for (i = 0; i < nx; ++i) p[i] += qp->q[(k - 1) * nx + i];
   }
   pack(nx, P, ws->P + k * NP_OF(nx));
-  ws->nH[k] = nd;
-  return pass_back(k, nx, nu, na, nd, ws, ws->H + k * nx * nx,
-                   ws->h + k * nx);
+  {
+    /* stage k's rows follow those of the stages after it in the pool */
+    const int at = k == qp->N - 1 ? 0 : ws->oH[k + 1] + ws->nH[k + 1];
+    if (at + nd > ws->pool) return RQP_FULL;
+    ws->oH[k] = at;
+    ws->nH[k] = nd;
+    return pass_back(k, nx, nu, na, nd, ws, ws->H + at * nx, ws->h + at);
+  }
 }
 
 /* The recursion from stage top down to 0 (stages above keep theirs). */
@@ -243,17 +256,17 @@ static int factor(const rqp_problem *qp, const signed char *side,
                   const rqp_real *U, int top, work *ws, long *stages) {
   const int N = qp->N, nx = NX_OF(qp), nu = NU_OF(qp);
   rqp_real *in = ws->PA, *out = ws->PB, *t;
-  int k;
+  int k, code;
   if (top < N - 1) unpack(nx, ws->P + (top + 1) * NP_OF(nx), in);
   for (k = top; k >= 0; --k) {
     const int last = k == N - 1;
     const rqp_real *pin = last ? qp->q + k * nx : ws->p + (k + 1) * nx;
     ++*stages;
-    if (stage_factor(qp, k, side, U + k * nu, last ? ws->QN : in, pin,
-                     last ? 0 : ws->H + (k + 1) * nx * nx,
-                     last ? 0 : ws->h + (k + 1) * nx,
-                     last ? 0 : ws->nH[k + 1], out, ws))
-      return RQP_DEPENDENT;
+    code = stage_factor(qp, k, side, U + k * nu, last ? ws->QN : in, pin,
+                        last ? 0 : ws->H + ws->oH[k + 1] * nx,
+                        last ? 0 : ws->h + ws->oH[k + 1],
+                        last ? 0 : ws->nH[k + 1], out, ws);
+    if (code) return code;
     t = in, in = out, out = t; /* stage k's cost-to-go is k − 1's input */
   }
   return 0;
@@ -289,8 +302,8 @@ static void multipliers(const rqp_problem *qp, const signed char *side,
     const rqp_real *Pin = last ? ws->QN : ws->PA;
     const rqp_real *pin = last ? qp->q + k * nx : ws->p + (k + 1) * nx;
     const rqp_real *u = ws->Us + k * nu, *x = ws->Xs + k * nx;
-    const int r = stage_rows(qp, k, side, u, last ? 0 : ws->H + (k + 1) * nx * nx,
-                             last ? 0 : ws->h + (k + 1) * nx,
+    const int r = stage_rows(qp, k, side, u, last ? 0 : ws->H + ws->oH[k + 1] * nx,
+                             last ? 0 : ws->h + ws->oH[k + 1],
                              last ? 0 : ws->nH[k + 1], ws);
     int na, nd;
     if (!last) unpack(nx, ws->P + (k + 1) * NP_OF(nx), ws->PA);
@@ -334,11 +347,13 @@ static int layout(int N, int nx, int nu, int nb, rqp_real *w, int *iw,
                   work *ws, int *ni) {
   const int rmax = nu + nb + nx, big = nx > nu ? nx : nu;
   const int vlen = 2 * (big > rmax ? big : rmax);
+  const int pool = RQP_POOL_ROWS(N, nx);
   rqp_real *at = w;
   int *it = iw;
+  ws->pool = pool;
 #define TAKE(f, n) (ws->f = w ? at : 0, at += (n))
   TAKE(P, N * NP_OF(nx)); TAKE(p, N * nx); TAKE(K, N * nu * nx);
-  TAKE(k, N * nu); TAKE(H, N * nx * nx); TAKE(h, N * nx);
+  TAKE(k, N * nu); TAKE(H, pool * nx); TAKE(h, pool);
   TAKE(Us, N * nu); TAKE(Xs, N * nx); TAKE(V, N * nb); TAKE(dV, N * nb);
   TAKE(Cx, rmax * nx); TAKE(Cu, rmax * nu); TAKE(c, rmax);
   TAKE(Qa, nu * nu); TAKE(Ra, nu * nu); TAKE(beta, rmax * nu);
@@ -349,6 +364,7 @@ static int layout(int N, int nx, int nu, int nb, rqp_real *w, int *iw,
   TAKE(nu_, rmax); TAKE(QN, nx * nx); TAKE(PA, nx * nx); TAKE(PB, nx * nx);
 #undef TAKE
   ws->nH = iw ? it : 0; it += N;
+  ws->oH = iw ? it : 0; it += N;
   ws->acc = iw ? it : 0; it += nu;
   ws->dep = iw ? it : 0; it += rmax;
   ws->rowbox = iw ? it : 0; it += rmax;
@@ -414,7 +430,7 @@ int rqp_solve(const rqp_problem *qp, rqp_real *U, rqp_real *X,
   const int N = qp->N, nx = NX_OF(qp), nu = NU_OF(qp), nb = qp->nb;
   const int nv = N * nb;
   work ws;
-  int it, i, ni;
+  int it, i, ni, code, full = 0;
   *iterations = 0;
   *stages = 0;
   if (N < 1 || nx < 1 || nu < 1 || nb < 0 || max_iter < 0 ||
@@ -469,7 +485,10 @@ int rqp_solve(const rqp_problem *qp, rqp_real *U, rqp_real *X,
       side[q] = 0;
       for (i = 0; i < nv; ++i) /* a box left: the parked ones back */
         if (side[i] == 2 || side[i] == -2) side[i] = 0;
-      factor(qp, side, U, q / nb, &ws, stages);
+      if (factor(qp, side, U, q / nb, &ws, stages) == RQP_FULL) {
+        full = 1;
+        break;
+      }
       for (i = 0; i < nv; ++i) lam[i] = 0;
       continue;
     }
@@ -489,7 +508,13 @@ int rqp_solve(const rqp_problem *qp, rqp_real *U, rqp_real *X,
     for (i = 0; i < nv; ++i) ws.V[i] += alpha * ws.dV[i];
     if (block < 0) continue;
     side[block] = (signed char)s;
-    if (factor(qp, side, U, block / nb, &ws, stages)) {
+    code = factor(qp, side, U, block / nb, &ws, stages);
+    if (code == RQP_FULL) { /* the pool: stop at this feasible point */
+      side[block] = 0;
+      full = 1;
+      break;
+    }
+    if (code) {
       /* at its bound already, held there by the set: parked */
       side[block] = (signed char)(2 * s);
       factor(qp, side, U, block / nb, &ws, stages);
@@ -497,6 +522,6 @@ int rqp_solve(const rqp_problem *qp, rqp_real *U, rqp_real *X,
   }
   for (i = 0; i < nv; ++i)
     if (side[i] == 2 || side[i] == -2) side[i] = 0;
-  *iterations = max_iter;
-  return RQP_ITERATION_LIMIT;
+  *iterations = full ? it : max_iter;
+  return full ? RQP_ROWS_FULL : RQP_ITERATION_LIMIT;
 }

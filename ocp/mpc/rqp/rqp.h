@@ -28,6 +28,9 @@ typedef double rqp_real;
 #define RQP_ITERATION_LIMIT 1 /* a feasible point, not yet optimal */
 #define RQP_INFEASIBLE_START 2 /* the start breaks a box: no phase one */
 #define RQP_INVALID_INPUT 3
+#define RQP_ROWS_FULL 4 /* a feasible point, not yet optimal: the rows
+                         * passed back filled their pool (rqp.c,
+                         * RQP_POOL_ROWS(N, nx), default N + nx rows) */
 
 /* the problem, stage after stage: A, B and Q as the nonzeros of one
  * compressed-column pattern each (CasADi's: column j's entries at
