@@ -125,14 +125,14 @@ def test_a_start_beyond_a_box_fails_its_certificate():
     D = dX0 - _rolled(A, B, dU0, dX0, parts)
     ok = [np.asarray(v) for v in ext(dU0, dX0, D, A, B, Q, q, g, r, lo,
                                      hi, np.zeros_like(lo))]
-    assert ok[4] == 0 and ok[3] == 0
+    assert ok[4] == 0 and ok[3] == 0 and ok[5].any()     # the costates
     lo_bad = lo.copy()
     lo_bad[0, 2] = 0.1                     # torque 1 at stage 2 ≥ 0.1 width
-    dU, dX, lam, capped, infeasible = (np.asarray(v) for v in ext(
+    dU, dX, lam, capped, infeasible, mu = (np.asarray(v) for v in ext(
         dU0, dX0, D, A, B, Q, q, g, r, lo_bad, hi, np.zeros_like(lo)))
     assert infeasible == 1 and capped == 0
     assert np.array_equal(dU, dU0) and np.array_equal(dX, dX0)
-    assert not lam.any()
+    assert not lam.any() and not mu.any()
 
 
 def _rolled(A, B, dU, dX, parts):
@@ -212,3 +212,48 @@ def test_two_threads_step_one_controller_built_each():
     for t in threads:
         t.join()
     assert len(got) == 2 and all(np.array_equal(g, ref) for g in got)
+
+
+def test_the_costate_certificate_is_the_interior_points():
+    """The step's certificate of rqp's optimum, with the costates swept
+    back in C (`costate_residual`), equals the interior point's KKT
+    residual swept over the stage data in the graph
+    (`stagewise_ipm.point_residual`) to 1e-13 along a slew, and flags
+    multipliers 10 % off (above 1e-3) wherever a box is active."""
+    import casadi as ca
+
+    from ocp.mpc.riccati_qp import qp_external
+    from ocp.mpc.stagewise import StageParts, qp_data
+    from ocp.mpc.stagewise_ipm import Tree, point_residual
+    from ocp.mpc.stagewise_kernels import reverse_columns
+    from ocp.mpc.stagewise_rqp import costate_residual
+
+    mpc = _rqp(horizon=10)
+    N, nu = 10, MODEL.nu
+    parts = StageParts(mpc, 1e-9, 1, ipm=False)
+    z, p = ca.MX.sym("z", mpc.nz), ca.MX.sym("p", MODEL.nx + 7)
+    _, _, _, data, D = qp_data(mpc, parts, z, p)
+    dU0, dX0, A, B, Q, q, g, r, lo, hi = data
+    ext = qp_external(N, parts.lay, nu, ~parts.free, parts.patterns, 1000)
+    dU, dX, lam, _, _, mu = ext(dU0, dX0, D, A, B, Q, q, g, r, lo, hi,
+                                ca.MX.zeros(lo.shape))
+    qp = [A, B, Q, q, g, r, lo, hi]
+    V = parts.lay.values(dU, dX)
+    point = [dU, dX, V - lo, hi - V, ca.fmax(-lam, 0), ca.fmax(lam, 0)]
+    old = point_residual(parts.kern, parts.lay, Tree(N), (parts.nq, nu),
+                         point, qp + [reverse_columns(M) for M in
+                                      (A, B, Q, r)], ca.DM.ones(1, N))
+    f = ca.Function("certs", [z, p], [
+        costate_residual(parts, N, dU, dX, lam, mu, qp), old,
+        costate_residual(parts, N, dU, dX, 1.1 * lam, mu, qp),
+        ca.mmax(ca.fabs(lam))])
+    active = 0
+    for x, qf, tau, z_prev, lx, lg in _loop_inputs(
+            mpc, MODEL.state([1.0, 0, 0, 0]), QF, 6):
+        z0 = np.asarray(mpc.shift_function(x, z_prev, lx, lg)[0]).ravel()
+        new, ref, bad, big = (float(v) for v in f(z0, np.r_[x, qf, tau]))
+        assert new <= 1e-10 and abs(new - ref) <= 1e-13
+        if big > 0:
+            active += 1
+            assert bad > 1e-3
+    assert active >= 3
