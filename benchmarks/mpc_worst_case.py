@@ -24,7 +24,9 @@ largest ``qp_kkt``, SQP iterations (largest), and the final errors.
 
 ``--target cortex-m7`` (or ``cortex-m4f``) flies the first
 ``--draws-on-target`` of those draws (same seed, so the same states) with
-`mpc_cond_rti_step` on the emulated core instead
+`mpc_cond_rti_step` (with ``--qp rqp``: the stage-wise
+`mpc_sw_rti_step` with the Riccati active set, and on the host the
+stage-wise steps) on the emulated core instead
 (`ocp.codegen.loop_starts`: the bare-metal driver flies one closed loop
 per start, the generated RK4 as plant, counting instructions per step on
 qemu ``-icount``), and the same starts with the host's C driver and the
@@ -54,6 +56,17 @@ from ocp.models.rigid import rigid_spacecraft
 from ocp.spacecraft import load_spacecraft
 
 VARIANTS = ("mpc_cond_rti_step", "mpc_cond_step")
+#: The stage-wise steps, flown with ``--qp rqp``.
+SW_VARIANTS = ("mpc_sw_rti_step", "mpc_sw_step")
+
+
+def qp_export(qp: str | None, qp_max_iter: int | None) -> dict:
+    """`export_c`'s QP arguments for ``--qp``: the condensed steps' QP
+    (daqp, pqp) and its cap, or with ``"rqp"`` the stage-wise steps'."""
+    if qp == "rqp":
+        return {"stagewise_qp_plugin": "rqp",
+                "stagewise_qp_max_iter": qp_max_iter}
+    return {"condensed_qp_plugin": qp, "condensed_qp_max_iter": qp_max_iter}
 
 
 def random_states(model, n: int, rng) -> list[np.ndarray]:
@@ -116,11 +129,11 @@ def run(loops: int, steps: int, max_iter: int, seed: int = 0,
     starts = random_states(model, loops, rng)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
+        variants = SW_VARIANTS if qp == "rqp" else VARIANTS
         res = export_c(tmp, sc, horizon=horizon, dt=0.5,
-                       mpc_max_iter=max_iter, condensed_qp_plugin=qp,
-                       condensed_qp_max_iter=qp_max_iter,
-                       mpc_variants=VARIANTS, build=True)
-        for name in VARIANTS:
+                       mpc_max_iter=max_iter, mpc_variants=variants,
+                       build=True, **qp_export(qp, qp_max_iter))
+        for name in variants:
             f = ca.external(name, str(res.shared_library))
             runs = [fly(f, model, x0, steps, 0.5) for x0 in tqdm(
                 starts, desc=name, disable=None, leave=False)]
@@ -229,9 +242,8 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         res = export_c(tmp, sc, horizon=horizon, dt=0.5,
-                       mpc_variants=(name,), condensed_qp_plugin=qp,
-                       condensed_qp_max_iter=qp_max_iter,
-                       target=target, repeats=10, precision=precision)
+                       mpc_variants=(name,), target=target, repeats=10,
+                       precision=precision, **qp_export(qp, qp_max_iter))
         res = write_loop_starts(res, starts, steps=steps)
         elf = build_target(res)
         t1 = time.perf_counter()
@@ -242,9 +254,8 @@ def run_target_draws(draws: int, steps: int, seed: int = 0,
         # the Python loop loads a host export: a Cortex-M export's
         # casadi_int is int, which casadi.external cannot load
         lib = export_c(Path(tmp) / "host", sc, horizon=horizon, dt=0.5,
-                       mpc_variants=(name,), condensed_qp_plugin=qp,
-                       condensed_qp_max_iter=qp_max_iter,
-                       build=True).shared_library
+                       mpc_variants=(name,), build=True,
+                       **qp_export(qp, qp_max_iter)).shared_library
         f = ca.external(name, str(lib))
         py = [fly(f, model, x0, steps, 0.5) for x0 in starts]
     loops = []
@@ -351,11 +362,13 @@ def main(argv=None) -> None:
                     choices=("double", "single"),
                     help="the target export's arithmetic (single: float, "
                     "on the cortex-m4f); the Python loop stays double")
-    ap.add_argument("--qp", default=None, choices=("daqp", "pqp"),
+    ap.add_argument("--qp", default=None, choices=("daqp", "pqp", "rqp"),
                     help="the condensed steps' QP (default daqp; pqp: the "
-                    "toolbox's primal active set, ocp.mpc.primal_qp)")
+                    "toolbox's primal active set, ocp.mpc.primal_qp), or "
+                    "rqp: the stage-wise steps with the Riccati active "
+                    "set (ocp.mpc.riccati_qp)")
     ap.add_argument("--qp-max-iter", type=int, default=None,
-                    help="with --qp pqp: its iteration cap per QP "
+                    help="with --qp pqp or rqp: its iteration cap per QP "
                     "(default 1000); capped steps are counted")
     ap.add_argument("--json", default=None,
                     help="write --target's figures, every step's, here")
@@ -370,7 +383,9 @@ def main(argv=None) -> None:
     if (reason := toolchain_missing()) is not None:
         raise SystemExit(f"benchmarks.mpc_worst_case: {reason}")
     out = run_target_draws(args.draws_on_target, args.steps, args.seed,
-                           args.target, precision=args.precision,
+                           args.target, name=SW_VARIANTS[0] if args.qp ==
+                           "rqp" else "mpc_cond_rti_step",
+                           precision=args.precision,
                            horizon=args.horizon, qp=args.qp,
                            qp_max_iter=args.qp_max_iter)
     print(format_target(out))

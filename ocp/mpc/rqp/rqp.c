@@ -65,7 +65,6 @@ typedef struct {
   rqp_real *Us, *Xs, *V, *dV;          /* per stage: iterate, boxes */
   rqp_real *Cx, *Cu, *c, *Qa, *Ra, *beta, *Hb, *hb, *M; /* one stage */
   rqp_real *Fx, *f0, *V2, *Muu, *Mux, *mu, *red, *T1, *T2, *v1, *v2, *nu_;
-  rqp_real *QN; /* the last stage's Q, dense */
   rqp_real *PA, *PB; /* a stage's cost-to-go in and out, dense */
   int *nH, *oH, *acc, *dep, *rowbox, *xrow; /* oH: a stage's rows' first */
   int pool;
@@ -251,18 +250,32 @@ static int stage_factor(const rqp_problem *qp, int k, const signed char *side,
   }
 }
 
+/* The cost-to-go at x_{k+1}, dense into F: P_{k+1} unpacked, or the
+ * last stage's Q */
+static void cost_to_go_after(const rqp_problem *qp, int k, const work *ws,
+                             rqp_real *F) {
+  const int nx = NX_OF(qp);
+  int i;
+  if (k < qp->N - 1) {
+    unpack(nx, ws->P + (k + 1) * NP_OF(nx), F);
+    return;
+  }
+  for (i = 0; i < nx * nx; ++i) F[i] = 0;
+  add_sparse(stage_Q(qp, k), nx, F);
+}
+
 /* The recursion from stage top down to 0 (stages above keep theirs). */
 static int factor(const rqp_problem *qp, const signed char *side,
                   const rqp_real *U, int top, work *ws, long *stages) {
   const int N = qp->N, nx = NX_OF(qp), nu = NU_OF(qp);
   rqp_real *in = ws->PA, *out = ws->PB, *t;
   int k, code;
-  if (top < N - 1) unpack(nx, ws->P + (top + 1) * NP_OF(nx), in);
+  cost_to_go_after(qp, top, ws, in);
   for (k = top; k >= 0; --k) {
     const int last = k == N - 1;
     const rqp_real *pin = last ? qp->q + k * nx : ws->p + (k + 1) * nx;
     ++*stages;
-    code = stage_factor(qp, k, side, U + k * nu, last ? ws->QN : in, pin,
+    code = stage_factor(qp, k, side, U + k * nu, in, pin,
                         last ? 0 : ws->H + ws->oH[k + 1] * nx,
                         last ? 0 : ws->h + ws->oH[k + 1],
                         last ? 0 : ws->nH[k + 1], out, ws);
@@ -299,14 +312,14 @@ static void multipliers(const rqp_problem *qp, const signed char *side,
   for (i = 0; i < N * nb; ++i) lam[i] = 0;
   for (k = 0; k < N; ++k) {
     const int last = k == N - 1;
-    const rqp_real *Pin = last ? ws->QN : ws->PA;
+    const rqp_real *Pin = ws->PA;
     const rqp_real *pin = last ? qp->q + k * nx : ws->p + (k + 1) * nx;
     const rqp_real *u = ws->Us + k * nu, *x = ws->Xs + k * nx;
     const int r = stage_rows(qp, k, side, u, last ? 0 : ws->H + ws->oH[k + 1] * nx,
                              last ? 0 : ws->h + ws->oH[k + 1],
                              last ? 0 : ws->nH[k + 1], ws);
     int na, nd;
-    if (!last) unpack(nx, ws->P + (k + 1) * NP_OF(nx), ws->PA);
+    cost_to_go_after(qp, k, ws, ws->PA);
     split(r, nu, ws, &na, &nd);
     /* the stored rows of x_k are this stage's; pass_back again for M */
     pass_back(k, nx, nu, na, nd, ws, ws->T1, ws->T2);
@@ -361,7 +374,7 @@ static int layout(int N, int nx, int nu, int nb, rqp_real *w, int *iw,
   TAKE(Fx, nu * nx); TAKE(f0, nu); TAKE(V2, nu * nu); TAKE(Muu, nu * nu);
   TAKE(Mux, nu * nx); TAKE(mu, nu); TAKE(red, nu * nu);
   TAKE(T1, nx * nx); TAKE(T2, nx * nx); TAKE(v1, vlen); TAKE(v2, vlen);
-  TAKE(nu_, rmax); TAKE(QN, nx * nx); TAKE(PA, nx * nx); TAKE(PB, nx * nx);
+  TAKE(nu_, rmax); TAKE(PA, nx * nx); TAKE(PB, nx * nx);
 #undef TAKE
   ws->nH = iw ? it : 0; it += N;
   ws->oH = iw ? it : 0; it += N;
@@ -439,8 +452,6 @@ int rqp_solve(const rqp_problem *qp, rqp_real *U, rqp_real *X,
   for (i = 0; i < nb; ++i)
     if (qp->box[i] < 0 || qp->box[i] >= nu + nx) return RQP_INVALID_INPUT;
   layout(N, nx, nu, nb, w, iw, &ws, &ni);
-  for (i = 0; i < nx * nx; ++i) ws.QN[i] = 0;
-  add_sparse(stage_Q(qp, N - 1), nx, ws.QN);
   for (i = 0; i < nv; ++i) lam[i] = 0;
   values(qp, U, X, ws.V);
   for (i = 0; i < nv; ++i) {
