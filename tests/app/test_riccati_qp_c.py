@@ -95,7 +95,7 @@ def test_a_full_pool_of_rows_stops_at_a_feasible_descent(tmp_path):
 
     qp = replace(_chain(3), u0=np.array([[0.0], [1.0], [0.0]]),
                  x0=np.array([[0.0], [1.0], [1.0]]))
-    warm = {(1, 0): 1, (1, 1): 1}
+    warm = {(1, 0): 1}          # x_2's box joins as the step's block
     small = rc.host_library(tmp_path, defines=("-DRQP_POOL_ROWS(N,nx)=0",))
     got = rc.solve_c(small, qp, warm, rc.NO_CAP)
     assert got["status"] == "rows full"

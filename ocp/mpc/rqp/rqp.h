@@ -63,8 +63,9 @@ int rqp_iwork_size(int N, int nx, int nu, int nb);
  * dynamics; out, the last iterate; a start or bound that is NaN:
  * RQP_INVALID_INPUT). side (N × nb; in: the
  * warm working set's sides, -1 lower, 1 upper, 0 not in it: boxes not
- * at their bound at the start, or dependent on those before them, are
- * left out; out: the last working set). lam (N × nb; out: the
+ * at their bound at the start are
+ * left out, and a warm set whose boxes are dependent is left out
+ * whole; out: the last working set). lam (N × nb; out: the
  * multipliers, positive at an upper bound, zero elsewhere and unless
  * optimal). At most max_iter iterations (one recursion and one forward
  * sweep each); tol: the step, in box widths, below which the iterate is
