@@ -39,9 +39,9 @@ from benchmarks.emulated_solver import qp_rows, run_driver
 from benchmarks.horizon_qps import add_loop_arguments, collect
 from benchmarks.riccati_active_set import StageQP, solve
 from benchmarks.riccati_qps import NO_CAP, carried
-from ocp.codegen.patches import patch_unused_parameters
 from ocp.codegen.target import CORES, TARGET_WARNINGS
 from ocp.mpc.primal_qp import PQP_SOURCES
+from ocp.mpc.riccati_qp import products_source as riccati_products
 
 #: The C solver's folder (rqp.c, rqp.h), shipped with ocp.mpc.
 RQP_DIR = PQP_SOURCES.parent / "rqp"
@@ -112,60 +112,16 @@ def sizes_flags(nx: int, nu: int) -> tuple[str, ...]:
 def products_source(masks: Masks, precision: str = "double",
                     name: str = "rqp_products") -> str:
     """C of the stage's products that rqp.c takes from ``-DRQP_PRODUCTS``
-    (AᵀPA, BᵀPA, BᵀPB, P·B, P·d from P and one stage's A, B, d), CasADi
-    straight-line code for the patterns ``masks`` of A and B
-    (`common_masks`), symmetric results formed once and mirrored."""
+    for the patterns ``masks`` of A and B (`common_masks`):
+    `ocp.mpc.riccati_qp.products_source` on those patterns."""
     import casadi as ca
 
     nx, nu = masks[1].shape
     a_col, a_row, _ = pattern(np.zeros((1, nx, nx)), masks[0])
     b_col, b_row, _ = pattern(np.zeros((1, nx, nu)), masks[1])
-    pf = ca.SX.sym("P", nx * nx)
-    P = ca.SX(nx, nx)
-    for i in range(nx):
-        for j in range(nx):
-            P[i, j] = pf[max(i, j) * nx + min(i, j)]
-    a, b = ca.SX.sym("A", int(a_col[-1])), ca.SX.sym("B", int(b_col[-1]))
-    A = ca.SX(ca.Sparsity(nx, nx, a_col.tolist(), a_row.tolist()), a)
-    B = ca.SX(ca.Sparsity(nx, nu, b_col.tolist(), b_row.tolist()), b)
-    d = ca.SX.sym("d", nx)
-
-    def sym(M):
-        n = M.shape[0]
-        out = ca.SX(n, n)
-        for i in range(n):
-            for j in range(i + 1):
-                out[i, j] = out[j, i] = M[i, j]
-        return out
-
-    def rows(M):            # row-major, dense
-        return ca.densify(ca.vec(M.T))
-    PA, PB = ca.mtimes(P, A), ca.mtimes(P, B)
-    f = ca.Function(f"{name}_fn", [pf, a, b, d],
-        [rows(sym(ca.mtimes(A.T, PA))), rows(ca.mtimes(B.T, PA)),
-         rows(sym(ca.mtimes(B.T, PB))), rows(PB), ca.mtimes(P, d)],
-        {"cse": True})
-    real = "float" if precision == "single" else "double"
-    with tempfile.TemporaryDirectory() as tmp:
-        cg = ca.CodeGenerator(f"{name}.c", {"casadi_real": real,
-                                            "casadi_int": "int"})
-        cg.add(f)
-        cg.generate(tmp + "/")
-        code, _ = patch_unused_parameters(
-            (Path(tmp) / f"{name}.c").read_text())
-    if "w[" in code:
-        raise RuntimeError("the generated products use a work array")
-    return code + f"""
-void {name}(const casadi_real* P, const casadi_real* A, const casadi_real* B,
-            const casadi_real* d, casadi_real* AtPA, casadi_real* BtPA,
-            casadi_real* BtPB, casadi_real* PB, casadi_real* Pd) {{
-  const casadi_real* arg[4];
-  casadi_real* res[5];
-  arg[0] = P; arg[1] = A; arg[2] = B; arg[3] = d;
-  res[0] = AtPA; res[1] = BtPA; res[2] = BtPB; res[3] = PB; res[4] = Pd;
-  {name}_fn(arg, res, 0, 0, 0);  /* straight-line: no work array */
-}}
-"""
+    return riccati_products(
+        ca.Sparsity(nx, nx, a_col.tolist(), a_row.tolist()),
+        ca.Sparsity(nx, nu, b_col.tolist(), b_row.tolist()), precision, name)
 
 
 def host_library(out_dir: Path, precision: str = "double",

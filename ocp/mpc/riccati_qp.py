@@ -16,7 +16,8 @@ every box and lowers the cost).
 The solver enters the step's graph as a CasADi external Function: a C
 wrapper in CasADi's calling convention (`wrapper_source`, which compiles
 rqp.c for the QP's sizes in its own translation unit, its public names
-prefixed), compiled into a shared library for Python (`qp_external`;
+prefixed, with its stage products generated as straight-line code for
+the step's patterns of A and B, `products_source`), compiled into a shared library for Python (`qp_external`;
 needs a C compiler) and written into the export folder beside rqp.c for
 generated C (`copy_sources`). rqp has no phase one: where the start
 breaks a box the wrapper answers the start, flagged ``infeasible``, and
@@ -32,6 +33,7 @@ controller with this QP may be stepped from several threads.
 from __future__ import annotations
 
 import re
+import tempfile
 from pathlib import Path
 
 import casadi as ca
@@ -78,6 +80,67 @@ def boxes(lay: BoxLayout, nu: int) -> tuple[list[int], np.ndarray]:
     return box, 1.0 / np.asarray(lay.width, dtype=float)
 
 
+def products_source(sp_a: ca.Sparsity, sp_b: ca.Sparsity,
+                    precision: str = "double",
+                    name: str = "rqp_products") -> str:
+    """C of the stage's products that rqp.c takes from ``RQP_PRODUCTS``
+    (AᵀPA, BᵀPA, BᵀPB, P·B, P·d from P and one stage's A, B, d): CasADi
+    straight-line code for the patterns ``sp_a`` and ``sp_b`` of A and B,
+    the symmetric results formed once and mirrored, no work array; the
+    function ``name(P, A, B, d, AtPA, BtPA, BtPB, PB, Pd)``."""
+    from ocp.codegen.patches import patch_unused_parameters  # no cycle
+
+    nx, nu = sp_b.shape
+    pf = ca.SX.sym("P", nx * nx)
+    P = ca.SX(nx, nx)
+    for i in range(nx):
+        for j in range(nx):
+            P[i, j] = pf[max(i, j) * nx + min(i, j)]
+    a, b = ca.SX.sym("A", sp_a.nnz()), ca.SX.sym("B", sp_b.nnz())
+    A, B = ca.SX(sp_a, a), ca.SX(sp_b, b)
+    d = ca.SX.sym("d", nx)
+
+    def sym(M):
+        n = M.shape[0]
+        out = ca.SX(n, n)
+        for i in range(n):
+            for j in range(i + 1):
+                out[i, j] = out[j, i] = M[i, j]
+        return out
+
+    def rows(M):            # row-major, dense
+        return ca.densify(ca.vec(M.T))
+    PA, PB = ca.mtimes(P, A), ca.mtimes(P, B)
+    f = ca.Function(f"{name}_fn", [pf, a, b, d],
+                    [rows(sym(ca.mtimes(A.T, PA))), rows(ca.mtimes(B.T, PA)),
+                     rows(sym(ca.mtimes(B.T, PB))), rows(PB),
+                     ca.mtimes(P, d)], {"cse": True})
+    real = "float" if precision == "single" else "double"
+    with tempfile.TemporaryDirectory() as tmp:
+        cg = ca.CodeGenerator(f"{name}.c", {"casadi_real": real,
+                                            "casadi_int": "int"})
+        cg.add(f)
+        cg.generate(tmp + "/")
+        code, _ = patch_unused_parameters(
+            (Path(tmp) / f"{name}.c").read_text())
+    if "w[" in code:
+        raise RuntimeError("the generated products use a work array")
+    return code + f"""
+void {name}(const casadi_real* P, const casadi_real* A, const casadi_real* B,
+            const casadi_real* d, casadi_real* AtPA, casadi_real* BtPA,
+            casadi_real* BtPB, casadi_real* PB, casadi_real* Pd);
+void {name}(const casadi_real* P, const casadi_real* A, const casadi_real* B,
+            const casadi_real* d, casadi_real* AtPA, casadi_real* BtPA,
+            casadi_real* BtPB, casadi_real* PB, casadi_real* Pd) {{
+  const casadi_real* arg[4];
+  casadi_real* res[5];
+  arg[0] = P; arg[1] = A; arg[2] = B; arg[3] = d;
+  res[0] = AtPA; res[1] = BtPA; res[2] = BtPB; res[3] = PB; res[4] = Pd;
+  {name}_fn(arg, res, 0, 0, 0);  /* straight-line: no work array */
+}}
+"""
+
+
 def wrapper_source(N: int, lay: BoxLayout, nu: int, fixed: np.ndarray,
                    patterns: tuple[ca.Sparsity, ca.Sparsity, ca.Sparsity],
                    max_iter: int, precision: str = "double",
@@ -115,7 +178,9 @@ def wrapper_source(N: int, lay: BoxLayout, nu: int, fixed: np.ndarray,
               "QCOL": _ints(qcol), "QROW": _ints(qrow), "BOX": _ints(box),
               "SCALE": ", ".join(repr(float(s)) for s in scale),
               "FIXED": _ints(np.asarray(fixed, dtype=bool)),
-              "MAXITER": max_iter, "TOL": repr(RQP_TOL[precision])}
+              "MAXITER": max_iter, "TOL": repr(RQP_TOL[precision]),
+              "PRODUCTS": products_source(sp_a, sp_b, precision,
+                                          f"{name}_products")}
     text = (RQP_SOURCES / "wrapper.c.in").read_text()
     return re.sub(r"@([A-Z]+)@", lambda k: str(values[k[1]]), text)
 
