@@ -17,7 +17,7 @@ import shutil
 import tempfile
 import threading
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 import casadi as ca
 
@@ -61,13 +61,19 @@ def shared_external(name: str, text: str, sources: Sequence[Path],
 
 def copy_solver(dst: Path, sources: Path, files: Sequence[str],
                 compiled: Sequence[str], pattern: re.Pattern,
-                source_text: str, wrapper: Callable[[str], str]
-                ) -> list[Path]:
+                source_text: str, built: Mapping[str, tuple],
+                wrapper: Callable[..., str]) -> list[Path]:
     """Write a solver's ``files`` (from the folder ``sources``) and the
     wrapper of every external whose name ``pattern`` finds called in the
-    generated ``source_text`` into ``dst`` (``wrapper(name)``: its C
-    text); a stale ``dst`` of an earlier export is removed when none is
-    called.
+    generated ``source_text`` into ``dst`` (its C text
+    ``wrapper(*built[name])``: the arguments it was built with in this
+    process); a stale ``dst`` of an earlier export is removed when none
+    is called.
+
+    Raises
+    ------
+    RuntimeError
+        The source calls an external this process did not build.
 
     Returns
     -------
@@ -85,7 +91,9 @@ def copy_solver(dst: Path, sources: Path, files: Sequence[str],
         shutil.copyfile(sources / name, dst / name)
     written = [dst / name for name in compiled]
     for name in names:
+        if name not in built:
+            raise RuntimeError(f"{name} was not built in this process")
         path = dst / f"{name}.c"
-        path.write_text(wrapper(name))
+        path.write_text(wrapper(*built[name]))
         written.append(path)
     return written

@@ -42,6 +42,7 @@ file of its own renamed into place (tested).
 from __future__ import annotations
 
 import re
+from functools import partial
 from itertools import accumulate
 from pathlib import Path
 
@@ -204,12 +205,8 @@ def copy_sources(out: Path, source_text: str, precision: str = "double"
     list of pathlib.Path
         The C sources written (to compile beside the generated source).
     """
-    def wrapper(name: str) -> str:
-        if name not in _BUILT:
-            raise RuntimeError(f"{name} was not built in this process")
-        N, nu, nw, sp_g, max_iter = _BUILT[name]
-        return wrapper_source(N, nu, nw, sp_g, max_iter,
-                              precision=precision, in_export=True)
     return copy_solver(Path(out) / PQP_DIR, PQP_SOURCES,
                        ("pqp.c", "pqp.h", "LICENSE"), ("pqp.c",), _NAME,
-                       source_text, wrapper)
+                       source_text, _BUILT,
+                       partial(wrapper_source, precision=precision,
+                               in_export=True))

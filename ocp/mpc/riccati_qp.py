@@ -33,6 +33,7 @@ controller with this QP may be stepped from several threads.
 from __future__ import annotations
 
 import re
+from functools import partial
 import tempfile
 from pathlib import Path
 
@@ -216,11 +217,7 @@ def copy_sources(out: Path, source_text: str, precision: str = "double"
         The C sources to compile beside the generated source: the
         wrappers (each includes rqp.c).
     """
-    def wrapper(name: str) -> str:
-        if name not in _BUILT:
-            raise RuntimeError(f"{name} was not built in this process")
-        N, lay, nu, fixed, patterns, max_iter = _BUILT[name]
-        return wrapper_source(N, lay, nu, fixed, patterns, max_iter,
-                              precision=precision, in_export=True)
     return copy_solver(Path(out) / RQP_DIR, RQP_SOURCES, _FILES, (), _NAME,
-                       source_text, wrapper)
+                       source_text, _BUILT,
+                       partial(wrapper_source, precision=precision,
+                               in_export=True))

@@ -307,21 +307,36 @@ def kkt_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
         reverse_columns(gu), flags_r)
     if tree.root:
         rho = tree.root_residual(rho, nu)
+    return residual_parts(lay, rho, state, lo, hi, q, g)
+
+
+def residual_parts(lay: BoxLayout, rho, state, lo, hi, q,
+                   g) -> tuple[ca.MX, ...]:
+    """`kkt_residual`'s parts from the inputs' reduced gradient ``rho``
+    (the costate sweep's, n_u × C) and the iterate ``state``: the dual
+    residual max |rho| relative to 1 + max |q|, |g|, then the boxes'
+    primal residual, complementarity, violation and the entries' sum."""
     rows = lay.residual_rows(list(state), lo, hi, q, g)
     primal, comp, brk, scale = (ca.mmax(rows[i, :]) for i in (0, 1, 2, 4))
     dual = ca.mmax(ca.fabs(rho)) / (1.0 + scale)
     return dual, primal, comp, brk, ca.sum2(rows[3, :])
 
 
-def point_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
-              point: list, data: list, flags_r) -> ca.MX:
-    """The KKT residual of a point, boxes broken included (scaled); +inf
-    for a point with a NaN or an infinity (the maxima skip NaNs)."""
-    dual, primal, comp, brk, total = kkt_residual(kern, lay, tree, dims,
-                                                  point, data, flags_r)
+def combined_residual(dual, primal, comp, brk, total) -> ca.MX:
+    """One certificate of `kkt_residual`'s parts: their largest, +inf
+    where ``total`` (the point's entries' sum) is NaN or infinite (the
+    maxima skip NaNs)."""
     res = ca.fmax(ca.fmax(dual, brk), ca.fmax(primal, comp))
     finite = ca.logic_and(total == total, ca.fabs(total) < ca.inf)
     return ca.if_else(finite, res, ca.inf)
+
+
+def point_residual(kern: dict, lay: BoxLayout, tree: Tree, dims: tuple,
+                   point: list, data: list, flags_r) -> ca.MX:
+    """The KKT residual of a point, boxes broken included (scaled); +inf
+    for a point with a NaN or an infinity (the maxima skip NaNs)."""
+    return combined_residual(*kkt_residual(kern, lay, tree, dims, point,
+                                           data, flags_r))
 
 
 def ipm_solve(kern: dict, lay: BoxLayout, tree: Tree, nx: int, nu: int,

@@ -6,7 +6,8 @@ solves it in C from the step's start (the shifted plan, dynamics kept),
 its warm working set the shifted multipliers' signs. The point's
 certificate is the interior point's KKT residual
 (`ocp.mpc.stagewise_ipm.kkt_residual`'s, its costate sweep done by
-rqp's wrapper: `costate_residual`) when the solver reached the optimum; a capped point
+rqp's wrapper: `costate_residual`) when the solver reached the optimum;
+a capped point
 (``qp_max_iter`` iterations made) is certified as a feasible descent
 instead (`capped_certificate`), and a start that breaks a box fails
 (+inf): the step then returns the shifted plan.
@@ -22,7 +23,7 @@ from adcs_common.exceptions import InvalidValueError
 from .condensed_qp import QP_ITER_LIMIT
 from .riccati_qp import qp_external
 from .stagewise import StageParts, qp_data, new_plan
-from .stagewise_ipm import IPM_TOL
+from .stagewise_ipm import IPM_TOL, combined_residual, residual_parts
 
 
 def warm_sides(mpc: Any, parts: StageParts, lam_x) -> ca.MX:
@@ -107,13 +108,10 @@ def costate_residual(parts: StageParts, N: int, dU, dX, lam, mu,
     _, _, rho = parts.kern["costate"].map(N)(
         ca.MX.zeros(parts.nq, N), ca.MX.zeros(nu, N), A, B, mu, gu,
         ca.DM.ones(1, N))
-    rows = parts.lay.residual_rows(point, lo, hi, q, g)
-    primal, comp, brk, scale = (ca.mmax(rows[i, :]) for i in (0, 1, 2, 4))
-    dual = ca.mmax(ca.fabs(rho)) / (1.0 + scale)
-    res = ca.fmax(ca.fmax(dual, brk), ca.fmax(primal, comp))
-    total = ca.sum2(rows[3, :]) + ca.sum1(ca.sum2(mu))
-    finite = ca.logic_and(total == total, ca.fabs(total) < ca.inf)
-    return ca.if_else(finite, res, ca.inf)
+    dual, primal, comp, brk, total = residual_parts(parts.lay, rho, point,
+                                                    lo, hi, q, g)
+    return combined_residual(dual, primal, comp, brk,
+                             total + ca.sum1(ca.sum2(mu)))
 
 
 def rqp_iteration(mpc: Any, qp_max_iter: int = QP_ITER_LIMIT
