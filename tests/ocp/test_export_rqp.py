@@ -135,3 +135,22 @@ def test_cli_exports_with_rqp(tmp_path, capsys):
             code = exc.code
         assert code == 2, bad
         assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("kw", [
+    {"stagewise_qp_plugin": "bogus"}, {"stagewise_qp_plugin": "RQP"},
+    {"stagewise_qp_plugin": "rqp", "stagewise_qp_max_iter": 0},
+    {"stagewise_qp_plugin": "rqp", "stagewise_qp_max_iter": 2.5},
+    {"stagewise_qp_plugin": None, "stagewise_qp_max_iter": 8},
+    {"stagewise_qp_plugin": "rqp", "mpc_variants": ("mpc_cond_rti_step",)}])
+def test_export_refuses_a_bad_stagewise_qp(tmp_path, kw):
+    """`export_c` answers an unknown stage-wise QP, a cap that is not a
+    whole number ≥ 1, a cap for the interior point, or rqp with no
+    stage-wise step exported with the toolbox's error, before writing
+    anything."""
+    from adcs_common.exceptions import InvalidValueError
+
+    kw = {"mpc_variants": (STEP,), **kw}
+    with pytest.raises(InvalidValueError):
+        export_c(tmp_path / "out", spacecraft="demo", horizon=4, **kw)
+    assert not (tmp_path / "out" / "adcs_codegen.c").exists()

@@ -5,8 +5,6 @@ points certified as feasible descents, a start beyond a box refused."""
 
 from __future__ import annotations
 
-import threading
-
 import casadi as ca
 import numpy as np
 import pytest
@@ -192,26 +190,81 @@ def test_bad_configurations_are_refused():
             _rqp(horizon=10, solver_options={"qp_max_iter": bad})
 
 
-def test_two_threads_step_one_controller_built_each():
-    """The wrapper keeps no state: two controllers built and stepped at
-    once in two threads give the single-thread answer."""
-    args = (MODEL.state([1.0, 0, 0, 0]), QF, ZERO)
-    ref = _outputs(_rqp(horizon=10).rti_function, *args,
-                   _rqp(horizon=10).initial_guess(args[0]),
-                   np.zeros(_rqp(horizon=10).nz),
-                   np.zeros(_rqp(horizon=10).ng))["z"]
-    got: list = []
+def test_threads_build_and_share_the_solver(tmp_path, monkeypatch):
+    """Four threads building controllers of a new QP size at once (each
+    compiles into files of its own, one rename wins), then stepping one
+    controller's step Function (it keeps no state) from eight starts:
+    the answers of one thread alone, bit for bit. `AttitudeMPC.step`
+    itself follows one trajectory: a second thread is refused."""
+    import tempfile
+    from concurrent.futures import ThreadPoolExecutor
 
-    def run():
-        m = _rqp(horizon=10)
-        got.append(_outputs(m.rti_function, *args, m.initial_guess(args[0]),
-                            np.zeros(m.nz), np.zeros(m.ng))["z"])
-    threads = [threading.Thread(target=run) for _ in range(2)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    assert len(got) == 2 and all(np.array_equal(g, ref) for g in got)
+    from adcs_common.exceptions import ThreadOwnershipError
+    from benchmarks.mpc_worst_case import random_states
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    with ThreadPoolExecutor(4) as pool:
+        a, *_ = pool.map(lambda _: _rqp(horizon=3), range(4))
+    assert len(list(tmp_path.rglob("libadcs_rqp_3x*.so"))) == 1
+    rk4 = MODEL.rk4_step(1)
+
+    def loop(x):
+        z, lx, lg, us = a.initial_guess(x), np.zeros(a.nz), \
+            np.zeros(a.ng), []
+        for _ in range(6):
+            out = _outputs(a.rti_function, x, QF, ZERO, z, lx, lg)
+            z, lx, lg = out["z"].ravel(), out["lam_x"].ravel(), \
+                out["lam_g"].ravel()
+            us.append(out["u"].ravel())
+            x = np.asarray(rk4(x, us[-1], ZERO, a.dt)).ravel()
+        return np.array(us)
+
+    x0s = random_states(MODEL, 8, np.random.default_rng(5))
+    alone = [loop(x0) for x0 in x0s]
+    with ThreadPoolExecutor(4) as pool:
+        shared = list(pool.map(loop, x0s))
+    assert all(np.array_equal(u1, u2) for u1, u2 in zip(alone, shared))
+    x = MODEL.state([1.0, 0, 0, 0])
+    a.step(x, QF)
+    with ThreadPoolExecutor(1) as pool:
+        err = pool.submit(a.step, x, QF).exception()
+    assert isinstance(err, ThreadOwnershipError)
+
+
+CRAFT_TOML = """
+name = "toml-craft"
+inertia = [[4.0, 0.1, 0.0], [0.1, 3.0, -0.05], [0.0, -0.05, 5.0]]
+
+[wheels]
+pyramid = { delta_deg = 50.0, gamma_deg = 30.0 }
+h_max = 0.15   # N·m·s
+m_max = 0.03   # N·m
+"""
+
+
+def test_rqp_flies_a_toml_craft(tmp_path):
+    """On a craft of the user's own (a TOML file: other inertia, wheel
+    angles and limits) the rqp step flies the condensed DAQP loop
+    (states to 1e-9) and, capped at 8, reaches the target within every
+    bound."""
+    from ocp.spacecraft import load_spacecraft
+
+    path = tmp_path / "craft.toml"
+    path.write_text(CRAFT_TOML)
+    sc = load_spacecraft(path)
+    qf = quat_from_axis_angle([1.0, -1.0, 0.5], np.deg2rad(90.0))
+    runs = {}
+    for name, solver, qp, opts in (
+            ("daqp", "condensed", None, {}), ("rqp", "stagewise", "rqp", {}),
+            ("capped", "stagewise", "rqp", {"qp_max_iter": 8})):
+        mpc = AttitudeMPC(sc, horizon=10, dt=0.5, solver=solver, rti=True,
+                          qp_solver=qp, solver_options=opts)
+        runs[name] = simulate_mpc(mpc, [1, 0, 0, 0], qf, t_final=50.0)
+    a, b = runs["rqp"].trajectory, runs["daqp"].trajectory
+    assert np.max(np.abs(np.c_[a.q, a.w] - np.c_[b.q, b.w])) <= 1e-9
+    for r in runs.values():
+        assert r.final_error < np.deg2rad(0.01)
+        assert r.momentum_violation <= 1e-9 and r.torque_violation <= 1e-9
 
 
 def test_the_costate_certificate_is_the_interior_points():
