@@ -91,7 +91,7 @@ def _export(args: argparse.Namespace) -> int:
         sc = sc.with_wheels(WheelArray(w.axes, h, m, w.failed, w.names,
                                        w.scale))
     mpc = args.mpc
-    if mpc is None:     # single: the condensed RTI step only
+    if mpc is None:     # single: the condensed RTI step by default
         mpc = ("mpc_cond_rti_step" if args.precision == "single" else
                "mpc_step,mpc_rti_step,mpc_cond_rti_step")
         if args.precision != "single" and args.horizon > LONG_HORIZON:
@@ -437,7 +437,8 @@ def _add_export(sub) -> None:
                      "with float literals and float math (sqrtf, fabsf, "
                      "...; single-precision FPUs such as the Cortex-M4F), "
                      "QP and SQP tolerances chosen for float, DAQP in its "
-                     "float build; mpc_cond_rti_step only (default "
+                     "float build; MPC steps: mpc_cond_rti_step, and "
+                     "mpc_sw_rti_step with --stagewise-qp rqp (default "
                      "double)")
     _add_export_qps(exp)
     exp.add_argument("--build", action="store_true",

@@ -29,10 +29,11 @@ def as_finite_array(value: ArrayLike, name: str,
     ShapeError
         The shape differs from ``shape``.
     InvalidValueError
-        The array holds NaN or inf, or cannot be read as numbers.
+        The array holds NaN or inf, cannot be read as numbers, or is a
+        bool or a string (even "1e-4": a number is passed as a number).
     """
-    if isinstance(value, (bool, np.bool_)) or (
-            isinstance(value, np.ndarray) and value.dtype.kind == "b"):
+    if isinstance(value, (bool, np.bool_, str, bytes)) or (
+            isinstance(value, np.ndarray) and value.dtype.kind in "bSU"):
         raise InvalidValueError(f"{name} must be a number, got {value!r}")
     try:
         arr = np.array(value, dtype=float)

@@ -420,7 +420,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
         float build (``-DDAQP_SINGLE_PRECISION``) where double uses it
         (``duty_qp``'s with its proximal iterations, which float needs:
         `ocp.codegen.precision.TOLERANCES` ``duty_daqp_eps_prox``);
-        MPC step: the condensed RTI one only (`SINGLE_MPC_VARIANTS`).
+        MPC steps: the condensed RTI one, and the stage-wise RTI one
+        with ``stagewise_qp_plugin="rqp"`` (`SINGLE_MPC_VARIANTS`).
     build : bool
         Compile the driver and a shared library with ``cc`` (a target:
         the ELF with ``arm-none-eabi-gcc``, `build_target`).
@@ -465,7 +466,8 @@ def export_c(out_dir: str | os.PathLike[str], spacecraft: Any | None = None, *,
     duty_plugin = resolve_qp_plugin(duty_qp_plugin, "duty_qp_plugin")
     condensed = resolve_qp_plugin(condensed, "condensed_qp_plugin")
     check_single(check_precision(precision), {
-        "condensed_qp_plugin": condensed}, mpc_variants)
+        "condensed_qp_plugin": condensed,
+        "stagewise_qp_plugin": stagewise_qp_plugin}, mpc_variants)
     check_variant_options(mpc_variants, move_blocks=mpc_move_blocks,
                           scenarios=mpc_scenarios, keep_out=mpc_keep_out,
                           qp_cap=(condensed, condensed_qp_max_iter),

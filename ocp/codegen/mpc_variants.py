@@ -19,7 +19,7 @@ import numpy as np
 from adcs_common.exceptions import InvalidValueError
 from adcs_common.quaternion import quat_from_axis_angle
 from ocp.models.rigid import SpacecraftModel
-from .precision import condensed_options
+from .precision import condensed_options, stagewise_options
 
 #: MPC steps `export_c` can write (module doc).
 MPC_VARIANTS = ("mpc_step", "mpc_rti_step", "mpc_cond_step",
@@ -119,8 +119,9 @@ def mpc_functions(model: SpacecraftModel, variants: Sequence[str], *,
                   if "cond" in name else
                   {"solver": "stagewise", "move_blocks": move_blocks,
                    "keep_out": keep_out, "qp_solver": stagewise[0],
-                   "solver_options": {} if stagewise[1] is None else {
-                       "qp_max_iter": stagewise[1]}}
+                   "solver_options": {**stagewise_options(precision), **(
+                       {} if stagewise[1] is None else {
+                           "qp_max_iter": stagewise[1]})}}
                   if "_sw_" in name else
                   {"solver": "sqpmethod", "expand": False})
             ctl = AttitudeMPC(model, **common, **kw)

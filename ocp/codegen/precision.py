@@ -54,6 +54,7 @@ __all__ = [
     "check_precision",
     "double_math_symbols",
     "float_literals",
+    "stagewise_options",
     "to_single",
     "tolerances",
 ]
@@ -365,12 +366,26 @@ def condensed_options(precision: str = "double") -> dict:
             "qp_tol": tol["qrqp_tol"], "kkt_tol": tol["qp_kkt_tol"]}
 
 
+def stagewise_options(precision: str = "double") -> dict:
+    """``solver_options`` of a stage-wise `ocp.mpc.AttitudeMPC` (its
+    QP's certificate threshold and SQP step tolerance; rqp's own step
+    tolerance follows the C type, `ocp.mpc.riccati_qp.RQP_TOL`)."""
+    tol = tolerances(precision)
+    if precision == "double":
+        return {}
+    return {"step_tol": tol["step_tol"], "kkt_tol": tol["qp_kkt_tol"]}
+
+
 #: MPC variants a single-precision export writes: the condensed RTI step
 #: with DAQP's float build (`DAQP_SINGLE_FLAG`) and the float ``row_tol``,
-#: ``step_tol`` of `TOLERANCES`. Not the sqpmethod steps (their
-#: tolerances, tol_pr 1e-9 and tol_du 1e-7, are not reachable in float),
-#: nor ``mpc_cond_step``: its float closed loop (host driver) turns NaN.
-SINGLE_MPC_VARIANTS: tuple[str, ...] = ("mpc_cond_rti_step",)
+#: ``step_tol`` of `TOLERANCES`, and the stage-wise RTI step with rqp (an
+#: active set: its float tolerances are `ocp.mpc.riccati_qp.RQP_TOL` and
+#: ``qp_kkt_tol``). Not the sqpmethod steps (their tolerances, tol_pr
+#: 1e-9 and tol_du 1e-7, are not reachable in float), nor
+#: ``mpc_cond_step``: its float closed loop (host driver) turns NaN, nor
+#: the stage-wise interior point (its ``ipm_tol`` 1e-9).
+SINGLE_MPC_VARIANTS: tuple[str, ...] = ("mpc_cond_rti_step",
+                                        "mpc_sw_rti_step")
 
 #: The define that makes DAQP's ``c_float`` a float (``daqp/types.h``):
 #: every object of a single-precision export that calls DAQP is compiled
@@ -383,8 +398,9 @@ def check_single(precision: str, plugins: dict, variants) -> None:
     """Refuse what a single-precision export does not support.
 
     MPC steps: only `SINGLE_MPC_VARIANTS` (sqpmethod's tolerances are
-    not reachable in float), whose condensed QP needs DAQP (qrqp fails
-    its certificate, in double already).
+    not reachable in float), the condensed one with DAQP (qrqp fails its
+    certificate, in double already), the stage-wise one with rqp (the
+    interior point's tolerance is not reachable in float).
     """
     if check_precision(precision) == "double":
         return
@@ -393,10 +409,17 @@ def check_single(precision: str, plugins: dict, variants) -> None:
         raise InvalidValueError(
             f"precision='single' exports only {SINGLE_MPC_VARIANTS}; got "
             f"{bad} (sqpmethod's tolerances are not reachable in float)")
-    if variants and plugins.get("condensed_qp_plugin") == "qrqp":
+    if "mpc_cond_rti_step" in variants and \
+            plugins.get("condensed_qp_plugin") == "qrqp":
         raise InvalidValueError(
             "precision='single' MPC steps need DAQP: qrqp fails the "
             "condensed QP's certificate")
+    if "mpc_sw_rti_step" in variants and \
+            plugins.get("stagewise_qp_plugin") != "rqp":
+        raise InvalidValueError(
+            "precision='single' exports mpc_sw_rti_step with "
+            "stagewise_qp_plugin='rqp' only: the interior point's "
+            "tolerance (1e-9) is not reachable in float")
 
 
 #: What the README of a single-precision export says.
@@ -420,6 +443,11 @@ float tolerances (row test 1e-6, step 1e-5); check its `qp_kkt` against
 1e-4 rather than 1e-6, and its `first_violation` against 1e-4 (scaled;
 4.7e-5 measured over the driver's closed loop of 80 steps, 1e-13 in
 double; the driver fails its check above 1e-4, `ocp.codegen.checks`).
+The stage-wise RTI step (`mpc_sw_rti_step`) is exported in float with
+rqp only (`--stagewise-qp rqp`): rqp.c is compiled with
+`RQP_SINGLE_PRECISION` (its step and sign tolerance 1e-4 in box widths,
+its rank and bound tests 1e-5) and the step's `qp_kkt` threshold is
+1e-4 too; the interior point's tolerance is not reachable in float.
 The QP outputs equal the double export's within float rounding: check
 `violation` against 1e-5 (scaled) rather than 1e-6. Build with
 `-Wdouble-promotion` to see any double left.

@@ -27,6 +27,7 @@ from .condensed import (ANDERSON_MEMORY, STEP_TOL, _kernels,
                         sqp_step_functions)
 from .keepout import (CONE_FLOOR, CONE_WIDTH, planning_cone_function,
                       qp_stage_functions, stage_defects)
+from .problem import QP_KKT_TOL
 from .stagewise_boxes import BoxLayout
 from .stagewise_ipm import (IPM_MAX_ITER, IPM_TOL, Tree,
                             ipm_solve)
@@ -272,7 +273,7 @@ def check_stagewise_options(options: dict,
     """Refuse ``solver_options`` the stage-wise SQP does not take: the
     interior point's with ``qp_solver="rqp"``, and ``qp_max_iter``
     without it."""
-    allowed = {"step_tol", "anderson"} | (
+    allowed = {"step_tol", "anderson", "kkt_tol"} | (
         {"qp_max_iter"} if qp_solver == "rqp" else
         {"ipm_tol", "ipm_max_iter"})
     extra = set(options) - allowed
@@ -286,7 +287,8 @@ def stagewise_step_functions(mpc: Any, step_tol: float = STEP_TOL,
                              anderson: int = ANDERSON_MEMORY,
                              ipm_tol: float = IPM_TOL,
                              ipm_max_iter: int = IPM_MAX_ITER,
-                             qp_max_iter: int | None = None
+                             qp_max_iter: int | None = None,
+                             kkt_tol: float = QP_KKT_TOL
                              ) -> tuple[ca.Function, ca.Function]:
     """``(rti_function, step_function)`` of the stage-wise SQP.
 
@@ -300,7 +302,9 @@ def stagewise_step_functions(mpc: Any, step_tol: float = STEP_TOL,
     positive int; default `ocp.mpc.condensed_qp.QP_ITER_LIMIT`), and both
     Functions output ``qp_capped`` too, and the shifted plan's last
     torque is clipped to keep the momentum bound
-    (`ocp.mpc.condensed.momentum_safe_tail`).
+    (`ocp.mpc.condensed.momentum_safe_tail`). ``kkt_tol``: the QP
+    certificate's threshold (`ocp.mpc.condensed.sqp_step_functions`;
+    float exports take `ocp.codegen.precision.TOLERANCES`' ``qp_kkt_tol``).
     """
     from .condensed import check_qp_max_iter
 
@@ -317,4 +321,4 @@ def stagewise_step_functions(mpc: Any, step_tol: float = STEP_TOL,
     # a primal active set starts where the step starts: the shifted
     # plan's repeated last torque must keep the momentum bound
     return sqp_step_functions(mpc, it, "mpc_sw", step_tol, anderson,
-                              safe_tail=rqp)
+                              kkt_tol, safe_tail=rqp)

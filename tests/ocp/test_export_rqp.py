@@ -109,6 +109,69 @@ def test_rqp_step_on_the_emulated_m7_equals_the_host(tmp_path, cap):
     assert loop["loop_worst_violation"] <= 1e-9
 
 
+#: The float rqp step at horizon 20 on the emulated M4F (demo craft, the
+#: driver's 90° slew; `benchmarks.embedded --target cortex-m4f
+#: --precision single --qp rqp --qp-max-iter 8`): measured flight set
+#: 61,964 bytes of RAM (58,628 of caller work, 2,592 of stack) and
+#: 148,200 of flash; final error 1.9e-6°.
+M4F_RQP_20_RAM = 61_964
+
+
+@pytest.mark.skipif(toolchain_missing() is not None,
+                    reason=str(toolchain_missing()))
+def test_single_rqp_step_at_horizon_20_fits_the_m4f(tmp_path):
+    """In float on the emulated Cortex-M4F the stage-wise step with rqp
+    (capped at 8) at horizon 20 flies the slew to the target within
+    float's tolerances (final error ≤ 1e-3 rad, applied steps within
+    1e-5 of every bound), with no software double and no heap, and its
+    flight set (wheel_qp, duty_qp and the step) fits the goal table's
+    memory: RAM ≤ 64 KiB, flash ≤ 256 KiB."""
+    from test_targets import (GOAL_FLASH, GOAL_RAM,
+                              M4F_SINGLE_FINAL_ERROR_RAD,
+                              M4F_SINGLE_STEP_VIOLATION)
+
+    res = export_c(tmp_path / "m4f", spacecraft="demo", horizon=20,
+                   repeats=3, precision="single", target="cortex-m4f",
+                   mpc_variants=(STEP,), stagewise_qp_plugin="rqp",
+                   stagewise_qp_max_iter=8, build=True)
+    assert "#define RQP_SINGLE_PRECISION" in (
+        res.out_dir / "rqp" / "adcs_rqp_20x11x4x8_cap8.c").read_text()
+    times = run_target(res, timeout=600)
+    loop = times[LOOP]
+    assert times[STEP]["flag"] == 0 and loop["flag"] == 0
+    assert np.deg2rad(loop["final_error_deg"]) <= M4F_SINGLE_FINAL_ERROR_RAD
+    assert loop["loop_worst_violation"] <= M4F_SINGLE_STEP_VIOLATION
+    mem = res.extras["memory"]["functions"]
+    rec = mem[STEP]
+    assert rec["heap"] is False and not [
+        c for c in rec["library_calls"]
+        if c.startswith("__aeabi_d") or c == "sqrt"], rec
+    flight = mem[f"wheel_qp+duty_qp+{STEP}"]
+    assert flight["ram"] <= GOAL_RAM and flight["flash"] <= GOAL_FLASH
+    assert abs(flight["ram"] - M4F_RQP_20_RAM) <= 0.05 * M4F_RQP_20_RAM
+
+
+@pytest.mark.skipif(toolchain_missing() is not None,
+                    reason=str(toolchain_missing()))
+@pytest.mark.parametrize("target, precision, horizon", [
+    ("cortex-m7", "double", 8), ("cortex-m4f", "single", 9)])
+def test_capped_rqp_step_meets_every_flight_goal(tmp_path, target,
+                                                 precision, horizon):
+    """With rqp capped at 8 the stage-wise step's flight set meets every
+    figure of the goal table on the driver's slew at horizon 8 in double
+    on the emulated M7 (measured: median 285,360, worst 1,383,360; 151,756
+    bytes of flash, 61,104 of RAM) and at horizon 9 in float on the M4F
+    (326,760 and 1,661,240; 153,392 and 34,184); over 200 Monte Carlo
+    loops too (docs/benchmarks.md)."""
+    from test_targets import _meets_the_step_goals
+
+    res = export_c(tmp_path / "rqp", spacecraft="demo", horizon=horizon,
+                   repeats=3, precision=precision, target=target,
+                   mpc_variants=(STEP,), stagewise_qp_plugin="rqp",
+                   stagewise_qp_max_iter=8, build=True)
+    _meets_the_step_goals(res, STEP)
+
+
 def test_cli_exports_with_rqp(tmp_path, capsys):
     """``adcs export --stagewise-qp rqp --qp-max-iter 5 --run``: the
     folder carries rqp/ and the driver's checks pass; rqp without a

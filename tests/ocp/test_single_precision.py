@@ -248,6 +248,11 @@ def test_export_single_refuses_sqpmethod(tmp_path):
     with pytest.raises(InvalidValueError, match="precision"):
         export_c(tmp_path / "c", "demo", mpc_variants=(),
                  precision="half")
+    # the stage-wise RTI step in float: with rqp only (the interior
+    # point's tolerance is not reachable in float)
+    with pytest.raises(InvalidValueError, match="rqp"):
+        export_c(tmp_path / "d", "demo", mpc_variants=("mpc_sw_rti_step",),
+                 precision="single")
 
 
 def test_export_single_builds_clean(tmp_path):

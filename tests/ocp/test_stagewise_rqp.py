@@ -188,6 +188,9 @@ def test_bad_configurations_are_refused():
     for bad in (0, -1, 2.5, True, "8"):
         with pytest.raises(InvalidValueError, match="qp_max_iter"):
             _rqp(horizon=10, solver_options={"qp_max_iter": bad})
+    for bad in (0.0, -1e-4, float("nan"), "1e-4"):
+        with pytest.raises(InvalidValueError, match="kkt_tol"):
+            _rqp(horizon=10, solver_options={"kkt_tol": bad})
 
 
 def test_threads_build_and_share_the_solver(tmp_path, monkeypatch):

@@ -295,19 +295,20 @@ GOAL_MEDIAN, GOAL_WORST = 400_000, 2_000_000
 GOAL_FLASH, GOAL_RAM = 256 * 1024, 64 * 1024
 
 
-def _meets_the_step_goals(res) -> tuple[dict, dict]:
-    """Run ``res``'s driver on its target and check the closed loop's
-    median and worst step, its final error, the flight set's flash and
-    RAM and that no function calls the heap; returns the counts and the
-    memory report's functions."""
+def _meets_the_step_goals(res, step: str = "mpc_cond_rti_step"
+                          ) -> tuple[dict, dict]:
+    """Run ``res``'s driver on its target and check the closed loop of
+    ``step``: its median and worst step, its final error, the flight
+    set's flash and RAM and that no function calls the heap; returns the
+    counts and the memory report's functions."""
     times = run_target(res, timeout=600)
-    loop = times["closed_loop:mpc_cond_rti_step"]
+    loop = times[f"closed_loop:{step}"]
     steps = np.asarray(loop["steps"])
     assert np.median(steps) <= GOAL_MEDIAN, np.median(steps)
     assert steps.max() <= GOAL_WORST, steps.max()
     assert np.deg2rad(loop["final_error_deg"]) <= M4F_SINGLE_FINAL_ERROR_RAD
     mem = res.extras["memory"]["functions"]
-    flight = mem["wheel_qp+duty_qp+mpc_cond_rti_step"]
+    flight = mem[f"wheel_qp+duty_qp+{step}"]
     assert flight["flash"] <= GOAL_FLASH, flight
     assert flight["ram"] <= GOAL_RAM, flight
     assert not any(mem[n]["heap"] for n in res.functions)

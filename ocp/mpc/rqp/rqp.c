@@ -20,12 +20,14 @@
 #define RQP_RANK 1e-5f /* a row's u-part below this of its norm: none */
 #define RQP_DEP 1e-5f  /* a row on x below this of its norm: dependent */
 #define RQP_MOVE 1e-5f /* the ratio test skips boxes moved less */
+#define RQP_AT_BOUND 1e-5f /* a warm box this near its bound: at it */
 #else
 #define RQP_SQRT sqrt
 #define RQP_FABS fabs
 #define RQP_RANK 1e-9
 #define RQP_DEP 1e-9
 #define RQP_MOVE 1e-9
+#define RQP_AT_BOUND 1e-9
 #endif
 
 #define RQP_DEPENDENT (-1)
@@ -421,7 +423,7 @@ static void warm_start(const rqp_problem *qp, const rqp_real *U,
       side[i] = 0;
       continue;
     }
-    if (RQP_FABS(ws->V[i] - bound) > (rqp_real)1e-9 * (1 + RQP_FABS(bound)))
+    if (RQP_FABS(ws->V[i] - bound) > RQP_AT_BOUND * (1 + RQP_FABS(bound)))
       side[i] = 0;
   }
   if (!factor(qp, side, U, N - 1, ws, stages)) return;
