@@ -219,14 +219,15 @@ def solve_c(lib: ctypes.CDLL, qp: StageQP,
             "stages": stages.value}
 
 
-def problems(c: dict, cap: int) -> list[dict]:
+def problems(c: dict, cap: int, progress: bool = False) -> list[dict]:
     """The QPs of ``c`` (`collect` with ``stagewise=True``) whose start
     keeps every box, each with the warm working set the twin's loop
     capped at ``cap`` (0: none) carried to it (`riccati_qps.carried`),
-    and the twin's answer uncapped from there (``U_ref``)."""
+    and the twin's answer uncapped from there (``U_ref``); ``progress``:
+    a progress bar over the QPs."""
     return [{"qp": q["stage"], "warm": warm,
              "U_ref": solve(q["stage"], warm, max_iter=NO_CAP)["U"]}
-            for q, warm, r in carried(c, cap) if r is not None]
+            for q, warm, r in carried(c, cap, progress) if r is not None]
 
 
 def write_problems(path: Path, probs: list[dict], caps: list[int],
@@ -446,7 +447,7 @@ def main(argv: list[str] | None = None) -> None:
     caps = [int(c) for c in args.caps.split(",")]
     c = collect(args.horizon, args.draws, args.steps, args.seed,
                 args.spacecraft, stagewise=True)
-    probs = problems(c, caps[0])
+    probs = problems(c, caps[0], progress=True)
     rows = run_target(probs, caps, args.target, args.precision,
                       generated=args.generated)
     print(report(probs, rows, caps, args.target, args.precision,

@@ -88,7 +88,12 @@ def products_source(sp_a: ca.Sparsity, sp_b: ca.Sparsity,
     (AᵀPA, BᵀPA, BᵀPB, P·B, P·d from P and one stage's A, B, d): CasADi
     straight-line code for the patterns ``sp_a`` and ``sp_b`` of A and B,
     the symmetric results formed once and mirrored, no work array; the
-    function ``name(P, A, B, d, AtPA, BtPA, BtPB, PB, Pd)``."""
+    function ``name(P, A, B, d, AtPA, BtPA, BtPB, PB, Pd)``.
+
+    Three pieces run one after the other, so that few temporaries are
+    live at once (one fused piece kept 1,728 bytes of the M7's stack at
+    horizon 20): P·A into the P·B output's buffer (n_x × n_x), then AᵀPA
+    and BᵀPA from it, then P·B (over it), BᵀPB and P·d."""
     from ocp.codegen.patches import patch_unused_parameters  # no cycle
 
     nx, nu = sp_b.shape
@@ -100,6 +105,8 @@ def products_source(sp_a: ca.Sparsity, sp_b: ca.Sparsity,
     a, b = ca.SX.sym("A", sp_a.nnz()), ca.SX.sym("B", sp_b.nnz())
     A, B = ca.SX(sp_a, a), ca.SX(sp_b, b)
     d = ca.SX.sym("d", nx)
+    pa = ca.SX.sym("PA", nx * nx)
+    PA = ca.reshape(pa, nx, nx).T               # row-major in memory
 
     def sym(M):
         n = M.shape[0]
@@ -111,16 +118,22 @@ def products_source(sp_a: ca.Sparsity, sp_b: ca.Sparsity,
 
     def rows(M):            # row-major, dense
         return ca.densify(ca.vec(M.T))
-    PA, PB = ca.mtimes(P, A), ca.mtimes(P, B)
-    f = ca.Function(f"{name}_fn", [pf, a, b, d],
-                    [rows(sym(ca.mtimes(A.T, PA))), rows(ca.mtimes(B.T, PA)),
-                     rows(sym(ca.mtimes(B.T, PB))), rows(PB),
-                     ca.mtimes(P, d)], {"cse": True})
+    PB = ca.mtimes(P, B)
+    pieces = [
+        ca.Function(f"{name}_pa", [pf, a], [rows(ca.mtimes(P, A))],
+                    {"cse": True}),
+        ca.Function(f"{name}_apa", [pa, a, b],
+                    [rows(sym(ca.mtimes(A.T, PA))), rows(ca.mtimes(B.T, PA))],
+                    {"cse": True}),
+        ca.Function(f"{name}_pb", [pf, b, d],
+                    [rows(PB), rows(sym(ca.mtimes(B.T, PB))),
+                     ca.mtimes(P, d)], {"cse": True})]
     real = "float" if precision == "single" else "double"
     with tempfile.TemporaryDirectory() as tmp:
         cg = ca.CodeGenerator(f"{name}.c", {"casadi_real": real,
                                             "casadi_int": "int"})
-        cg.add(f)
+        for f in pieces:
+            cg.add(f)
         cg.generate(tmp + "/")
         code, _ = patch_unused_parameters(
             (Path(tmp) / f"{name}.c").read_text())
@@ -133,11 +146,17 @@ void {name}(const casadi_real* P, const casadi_real* A, const casadi_real* B,
 void {name}(const casadi_real* P, const casadi_real* A, const casadi_real* B,
             const casadi_real* d, casadi_real* AtPA, casadi_real* BtPA,
             casadi_real* BtPB, casadi_real* PB, casadi_real* Pd) {{
-  const casadi_real* arg[4];
-  casadi_real* res[5];
-  arg[0] = P; arg[1] = A; arg[2] = B; arg[3] = d;
-  res[0] = AtPA; res[1] = BtPA; res[2] = BtPB; res[3] = PB; res[4] = Pd;
-  {name}_fn(arg, res, 0, 0, 0);  /* straight-line: no work array */
+  const casadi_real* arg[3];
+  casadi_real* res[3];
+  /* straight-line pieces, no work array; P A lives in PB's n_x × n_x
+   * buffer until P B overwrites it */
+  arg[0] = P; arg[1] = A; res[0] = PB;
+  {name}_pa(arg, res, 0, 0, 0);
+  arg[0] = PB; arg[1] = A; arg[2] = B; res[0] = AtPA; res[1] = BtPA;
+  {name}_apa(arg, res, 0, 0, 0);
+  arg[0] = P; arg[1] = B; arg[2] = d; res[0] = PB; res[1] = BtPB;
+  res[2] = Pd;
+  {name}_pb(arg, res, 0, 0, 0);
 }}
 """
 

@@ -234,23 +234,13 @@ def test_threads_build_and_share_the_solver(tmp_path, monkeypatch):
     assert isinstance(err, ThreadOwnershipError)
 
 
-CRAFT_TOML = """
-name = "toml-craft"
-inertia = [[4.0, 0.1, 0.0], [0.1, 3.0, -0.05], [0.0, -0.05, 5.0]]
-
-[wheels]
-pyramid = { delta_deg = 50.0, gamma_deg = 30.0 }
-h_max = 0.15   # N·m·s
-m_max = 0.03   # N·m
-"""
-
-
 def test_rqp_flies_a_toml_craft(tmp_path):
     """On a craft of the user's own (a TOML file: other inertia, wheel
     angles and limits) the rqp step flies the condensed DAQP loop
     (states to 1e-9) and, capped at 8, reaches the target within every
     bound."""
     from ocp.spacecraft import load_spacecraft
+    from test_primal_qp import CRAFT_TOML, check_toml_runs
 
     path = tmp_path / "craft.toml"
     path.write_text(CRAFT_TOML)
@@ -263,11 +253,7 @@ def test_rqp_flies_a_toml_craft(tmp_path):
         mpc = AttitudeMPC(sc, horizon=10, dt=0.5, solver=solver, rti=True,
                           qp_solver=qp, solver_options=opts)
         runs[name] = simulate_mpc(mpc, [1, 0, 0, 0], qf, t_final=50.0)
-    a, b = runs["rqp"].trajectory, runs["daqp"].trajectory
-    assert np.max(np.abs(np.c_[a.q, a.w] - np.c_[b.q, b.w])) <= 1e-9
-    for r in runs.values():
-        assert r.final_error < np.deg2rad(0.01)
-        assert r.momentum_violation <= 1e-9 and r.torque_violation <= 1e-9
+    check_toml_runs(runs, "rqp")
 
 
 def test_the_costate_certificate_is_the_interior_points():

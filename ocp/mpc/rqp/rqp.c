@@ -42,7 +42,8 @@
 #ifdef RQP_PRODUCTS
 /* the stage's products, generated for the craft's patterns: from P
  * (nx × nx, row-major, symmetric) and the stage's A, B (nonzeros) and d,
- * AᵀPA (nx × nx), BᵀPA (nu × nx), BᵀPB (nu × nu), P B (nx × nu) and P d */
+ * AᵀPA (nx × nx), BᵀPA (nu × nx), BᵀPB (nu × nu), P B (nx × nu) and P d;
+ * PB has room for nx × nx (the generated products keep P A there first) */
 void RQP_PRODUCTS(const rqp_real *P, const rqp_real *A, const rqp_real *B,
                   const rqp_real *d, rqp_real *AtPA, rqp_real *BtPA,
                   rqp_real *BtPB, rqp_real *PB, rqp_real *Pd);
