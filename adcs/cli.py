@@ -91,6 +91,8 @@ def _export(args: argparse.Namespace) -> int:
         sc = sc.with_wheels(WheelArray(w.axes, h, m, w.failed, w.names,
                                        w.scale))
     mpc = args.mpc
+    if mpc is None and args.stagewise_qp:     # the step it solves
+        mpc = "mpc_sw_rti_step"
     if mpc is None:     # single: the condensed RTI step by default
         mpc = ("mpc_cond_rti_step" if args.precision == "single" else
                "mpc_step,mpc_rti_step,mpc_cond_rti_step")
@@ -430,7 +432,8 @@ def _add_export(sub) -> None:
                      "default "
                      "mpc_step,mpc_rti_step,mpc_cond_rti_step; "
                      "mpc_sw_step,mpc_sw_rti_step beyond a horizon of 40; "
-                     "mpc_cond_rti_step with --precision single)")
+                     "mpc_cond_rti_step with --precision single; "
+                     "mpc_sw_rti_step with --stagewise-qp)")
     exp.add_argument("--precision", choices=("double", "single"),
                      default="double",
                      help="C arithmetic: single makes casadi_real float "

@@ -336,6 +336,24 @@ def test_phase_one_limit_and_crossed_bounds(lib, qps):
     assert not np.any(r["lam"])
 
 
+def test_nan_start_gradient_or_bound_is_invalid_input(lib, qps):
+    """A NaN in a bound, the gradient or the start is PQP_INVALID_INPUT
+    before any iteration: the start returned as it came, no multipliers
+    (a NaN bound was once a row left out: the answer kept the others)."""
+    q = qps[0]
+    m, n = q["C"].shape
+    y0 = _twin(q)["x"]
+    for what, j in (("lo", 3), ("hi", m - 1), ("f", 0), ("y", n - 1)):
+        data = {"lo": q["lo"].copy(), "hi": q["hi"].copy(),
+                "f": q["f"].copy(), "y": y0.copy()}
+        data[what][j] = np.nan
+        r = pc.solve_c(lib, q["C"], data["lo"], data["hi"], data["f"],
+                       data["y"], np.zeros(m))
+        assert (r["status"], r["iterations"]) == ("invalid input", 0), what
+        assert not np.any(r["lam"])
+        np.testing.assert_array_equal(r["y"], data["y"])
+
+
 def test_single_precision_equals_double(tmp_path, lib, qps):
     """The float build reaches the double optimum to float accuracy."""
     lib32 = pc.host_library(tmp_path, "single")

@@ -188,6 +188,14 @@ def test_cli_exports_with_rqp(tmp_path, capsys):
     assert "every closed loop reached its target" in printed
     assert (out / "rqp" / "adcs_rqp_5x11x4x8_cap5.c").is_file()
     assert "at most 5 iterations" in (out / "README.md").read_text()
+    # without --mpc, --stagewise-qp exports the step it solves; in float
+    single = tmp_path / "single"
+    assert main(["export", "--out", str(single), "--horizon", "5",
+                 "--stagewise-qp", "rqp", "--precision", "single"]) == 0
+    capsys.readouterr()
+    assert "mpc_sw_rti_step" in (single / "adcs_codegen.h").read_text()
+    assert "#define RQP_SINGLE_PRECISION" in (
+        single / "rqp" / "adcs_rqp_5x11x4x8.c").read_text()
     for bad in (["--mpc", "mpc_cond_rti_step", "--stagewise-qp", "rqp"],
                 ["--mpc", STEP, "--stagewise-qp", "ipm"],
                 ["--mpc", STEP, "--stagewise-qp", "rqp", "--qp-max-iter",

@@ -361,11 +361,14 @@ int pqp_solve_rows(int n, int m, const pqp_real* C, const int* row_start,
            *Cp = v + n, *t = Cp + m, *Cy = t + n, *norm = Cy + m;
   int *ws = iw, *len = iw + n, *start = len + m;
   int i, j, k = 0, it, at_zero = 1, warm = 0, feasible = 1, first = 0;
-  int crossed = 0;
+  int crossed = 0, nan = 0;
   long reflected;
   *iterations = 0;
   if (row_start && !row_len) return PQP_INVALID_INPUT;
-  for (i = 0; i < n; ++i) at_zero = at_zero && y[i] == 0;
+  for (i = 0; i < n; ++i) {
+    at_zero = at_zero && y[i] == 0;
+    nan = nan || y[i] != y[i] || f[i] != f[i];
+  }
   for (j = 0; j < m; ++j) {
     const pqp_real* c;
     start[j] = row_start ? row_start[j] : j * n;
@@ -378,10 +381,12 @@ int pqp_solve_rows(int n, int m, const pqp_real* C, const int* row_start,
     lam[j] = 0;
     norm[j] = dot(len[j], c, c);
     Cy[j] = at_zero ? 0 : dot(len[j], c, y);
+    nan = nan || lo[j] != lo[j] || hi[j] != hi[j];
     crossed = crossed || lo[j] > hi[j] + tol * (1 + PQP_FABS(hi[j]));
     feasible = feasible && Cy[j] >= lo[j] - tol * (1 + PQP_FABS(lo[j])) &&
                Cy[j] <= hi[j] + tol * (1 + PQP_FABS(hi[j]));
   }
+  if (nan) return PQP_INVALID_INPUT; /* lam is 0, y as it came */
   if (crossed) return PQP_INFEASIBLE; /* a row's bounds cross */
   /* the warm rows at their bound, independent ones in order */
   for (j = 0; j < m; ++j) warm += side[j] != 0;

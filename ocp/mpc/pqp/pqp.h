@@ -55,7 +55,8 @@ int pqp_iwork_size(int n, int m);
  * a row dropped; phase one's likewise); *iterations the number made by
  * both phases. tol: the step below which y is a working set's optimum,
  * and the multipliers' sign tolerance, both relative to 1 + max |y + f|
- * (the gradient's scale). */
+ * (the gradient's scale). A start, gradient or bound that is NaN:
+ * PQP_INVALID_INPUT, y left as it came and lam zero. */
 int pqp_solve(int n, int m, const pqp_real* C, const pqp_real* lo,
               const pqp_real* hi, const pqp_real* f, pqp_real* y,
               signed char* side, pqp_real* lam, int max_iter, pqp_real tol,
