@@ -138,11 +138,11 @@ def wrapper_source(N: int, nu: int, nw: int, sp_g: ca.Sparsity,
     uba, lam_u0, lam_a0) -> (y, lam_u, lam_a, lam, infeasible, capped,
     moved)`` (`external_name`; ``infeasible``: 1 where no point keeps
     every bound, phase one reached ``max_iter`` first, or an input is
-    NaN, and then y = 0 and the multipliers 0; ``moved``: 1 where y = 0 breaks a bound and
-    phase one ran (pqp.h); ``capped``: 1 where the solver
-    stopped at ``max_iter`` iterations, at a point that keeps every bound
-    and lowers the cost, with its working set's sides, ±1, in place of
-    the multipliers, pqp.h).
+    NaN, and then y = 0 and the multipliers 0; ``moved``: 1 where y = 0
+    breaks a bound and phase one ran (pqp.h); ``capped``: 1 where the
+    solver stopped at ``max_iter`` iterations, at a point that keeps
+    every bound and lowers the cost, with its working set's sides, ±1,
+    in place of the multipliers, pqp.h).
 
     ``G`` (m × n, ``sp_g``) holds the QP's rows stage by stage, h = m / N
     a stage: the bounds on δu_k (n_u), the momenta of δx_{k+1} (n_w),
