@@ -256,6 +256,23 @@ def _pqp_text(solver_sources: list[str]) -> str:
         "1.")
 
 
+def _rqp_phase_one(wrappers: str) -> str:
+    """The README's sentence on rqp's phase one (its wrappers ``_p1``)."""
+    if "_p1." in wrappers:
+        return ("Where the start breaks a box (a rate box, from the "
+                "linearisation's defects) the wrapper runs a phase one "
+                "first: the broken boxes' bounds widened to the start and "
+                "a penalty pulling each to its bound, solved by rqp in at "
+                "most n_b N + the cap iterations; from the point that "
+                "keeps every box the QP itself is solved, capped as "
+                "without it. Where a box stays beyond its bound the "
+                "step's `qp_kkt` is infinite and the step is refused.")
+    return ("Exported without a rate bound it has no phase one: where the "
+            "start breaks a box (a measured wheel momentum beyond its "
+            "bound), the step's `qp_kkt` is infinite and the step is "
+            "refused.")
+
+
 def _rqp_text(solver_sources: list[str]) -> str:
     """The README's paragraph on the rqp wrappers among the sources ("" if
     none)."""
@@ -270,9 +287,7 @@ def _rqp_text(solver_sources: list[str]) -> str:
         "not compiled alone): started from the shifted plan and the last "
         f"step's working set, at most {cap} iterations of one Riccati "
         "recursion each, memory linear in the horizon, the caller's work "
-        "only. It has no phase one (so no rate bound): where the start "
-        "breaks a box (a measured wheel momentum beyond its bound), the "
-        "step's `qp_kkt` is infinite and the step is refused. A QP "
+        f"only. {_rqp_phase_one(wrappers)} A QP "
         "stopped at that cap "
         "returns a point that keeps every box and lowers the QP's cost: "
         "the step applies it, its `qp_kkt` is then that point's "

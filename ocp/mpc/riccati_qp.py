@@ -19,12 +19,14 @@ rqp.c for the QP's sizes in its own translation unit, its public names
 prefixed, with its stage products generated as straight-line code for
 the step's patterns of A and B, `products_source`), compiled into a shared library for Python (`qp_external`;
 needs a C compiler) and written into the export folder beside rqp.c for
-generated C (`copy_sources`). rqp has no phase one: where the start
-breaks a box the wrapper answers the start, flagged ``infeasible``, and
-the step's certificate fails; the step then returns the shifted plan,
-as every failed QP does (`ocp.mpc.condensed.sqp_step_functions`). So
-the step takes no state boxes whose start the linearisation's defects
-break (`ocp.mpc.stagewise_rqp.check_rqp_problem`).
+generated C (`copy_sources`). rqp.c has no phase one: where the start
+breaks a box it answers the start, flagged ``infeasible``, and the
+step's certificate fails; the step then returns the shifted plan, as
+every failed QP does (`ocp.mpc.condensed.sqp_step_functions`). With a
+rate bound, whose starts the linearisation's defects break, the
+wrapper runs a phase one of its own first (`wrapper_source`'s
+``phase_one``: rqp on the QP with the broken boxes widened to the start
+and pulled to their bound by a penalty).
 
 The wrapper keeps no state (its memory is the caller's work), so a
 controller with this QP may be stepped from several threads.
@@ -51,18 +53,19 @@ RQP_DIR = "rqp"
 #: The solver's step and sign tolerance (in box widths), by casadi_real.
 RQP_TOL = {"double": 1e-10, "single": 1e-4}
 _FILES = ("rqp.c", "rqp.h", "rqp_kernels.h", "rqp_rows.h", "LICENSE")
-_NAME = re.compile(r"\b(adcs_rqp_\d+x\d+x\d+x\d+(?:_cap\d+)?)\(")
+_NAME = re.compile(r"\b(adcs_rqp_\d+x\d+x\d+x\d+(?:_cap\d+)?(?:_p1)?)\(")
 #: Each external built in this process: its `wrapper_source` arguments.
 _BUILT: dict[str, tuple] = {}
 
 
 def external_name(N: int, nx: int, nu: int, nb: int,
-                  max_iter: int = QP_ITER_LIMIT) -> str:
+                  max_iter: int = QP_ITER_LIMIT,
+                  phase_one: bool = False) -> str:
     """The external Function's C name for N stages of n_x states, n_u
     inputs and n_b boxes, with ``_cap<max_iter>`` when capped below
-    `QP_ITER_LIMIT`."""
+    `QP_ITER_LIMIT` and ``_p1`` with the phase one (`wrapper_source`)."""
     cap = f"_cap{max_iter}" if max_iter < QP_ITER_LIMIT else ""
-    return f"adcs_rqp_{N}x{nx}x{nu}x{nb}{cap}"
+    return f"adcs_rqp_{N}x{nx}x{nu}x{nb}{cap}{'_p1' if phase_one else ''}"
 
 
 def max_iter_of(name: str) -> int:
@@ -163,11 +166,12 @@ void {name}(const casadi_real* P, const casadi_real* A, const casadi_real* B,
 
 def wrapper_source(N: int, lay: BoxLayout, nu: int, fixed: np.ndarray,
                    patterns: tuple[ca.Sparsity, ca.Sparsity, ca.Sparsity],
-                   max_iter: int, precision: str = "double",
+                   max_iter: int, phase_one: bool = False,
+                   precision: str = "double",
                    in_export: bool = False) -> str:
     """C text of the external ``adcs_rqp_<N>x<nx>x<nu>x<nb>(dU0, dX0, D,
     A, B, Q, q, g, r, lo, hi, side0) -> (dU, dX, lam, capped,
-    infeasible)`` (`external_name`).
+    infeasible, costate, moved)`` (`external_name`).
 
     Inputs, one column per stage: the start (dU0, n_u × N; dX0, n_x × N,
     the states x_1…x_N, dynamics kept), the defects D, the nonzeros of
@@ -180,11 +184,21 @@ def wrapper_source(N: int, lay: BoxLayout, nu: int, fixed: np.ndarray,
     1 where ``max_iter`` iterations were made, and then ``lam`` holds
     the working set's sides ±1 (the next step's warm start);
     ``infeasible`` 1 where the start breaks a box (or an input is
-    invalid), and then the start, with zero multipliers.
+    invalid), and then the start, with zero multipliers; ``costate``
+    the optimum's costates (n_x × N, zero unless optimal).
+
+    ``phase_one``: a start that breaks boxes is first moved to one that
+    keeps them (the wrapper's phase one: the broken boxes' bounds
+    widened to the start, a penalty of 1e3 (1 + max |q|, |g|) per box
+    width pulling each to its bound, solved by rqp in at most n_b N +
+    ``max_iter`` iterations; then the QP itself from there, capped as
+    without it), ``moved`` 1 where it ran;
+    ``infeasible`` 1 where a box stayed beyond its bound. It keeps
+    2 n_b N + (n_x + n_u) N reals more of work.
     """
     sp_a, sp_b, sp_q = patterns
     nx = sp_a.size1()
-    name = external_name(N, nx, nu, lay.nb, max_iter)
+    name = external_name(N, nx, nu, lay.nb, max_iter, phase_one)
     box, scale = boxes(lay, nu)
     head = ('#include "../adcs_codegen.h"\n' if in_export else
             "#define casadi_real double\n#define casadi_int long long int\n")
@@ -199,6 +213,7 @@ def wrapper_source(N: int, lay: BoxLayout, nu: int, fixed: np.ndarray,
               "SCALE": ", ".join(repr(float(s)) for s in scale),
               "FIXED": _ints(np.asarray(fixed, dtype=bool)),
               "MAXITER": max_iter, "TOL": repr(RQP_TOL[precision]),
+              "PHASEONE": int(bool(phase_one)),
               "PRODUCTS": products_source(sp_a, sp_b, precision,
                                           f"{name}_products")}
     text = (RQP_SOURCES / "wrapper.c.in").read_text()
@@ -207,7 +222,7 @@ def wrapper_source(N: int, lay: BoxLayout, nu: int, fixed: np.ndarray,
 
 def qp_external(N: int, lay: BoxLayout, nu: int, fixed: np.ndarray,
                 patterns: tuple[ca.Sparsity, ca.Sparsity, ca.Sparsity],
-                max_iter: int) -> ca.Function:
+                max_iter: int, phase_one: bool = False) -> ca.Function:
     """The external Function of `wrapper_source`, built as a shared
     library (double) in the user's temporary folder, once per text.
 
@@ -216,10 +231,11 @@ def qp_external(N: int, lay: BoxLayout, nu: int, fixed: np.ndarray,
     CompilerNotFound
         No C compiler: ``qp_solver="rqp"`` needs one.
     """
-    name = external_name(N, patterns[0].size1(), nu, lay.nb, max_iter)
+    name = external_name(N, patterns[0].size1(), nu, lay.nb, max_iter,
+                         phase_one)
     _BUILT[name] = (N, lay, nu, np.asarray(fixed, dtype=bool).copy(),
-                    patterns, max_iter)
-    text = wrapper_source(N, lay, nu, fixed, patterns, max_iter)
+                    patterns, max_iter, phase_one)
+    text = wrapper_source(N, lay, nu, fixed, patterns, max_iter, phase_one)
     return shared_external(name, text, [], [f"-I{RQP_SOURCES}"], "rqp",
                            [RQP_SOURCES / f for f in _FILES[:4]])
 

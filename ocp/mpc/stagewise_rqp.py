@@ -47,45 +47,49 @@ def qp_cost(kern: dict, N: int, dU, dX, Q, q, g, r) -> ca.MX:
             + 0.5 * ca.sum1(ca.sum2(r * dU * dU)) + ca.sum1(ca.sum2(g * dU)))
 
 
-def capped_certificate(parts: StageParts, N: int, start, point, data) -> ca.MX:
+def capped_certificate(parts: StageParts, N: int, start, point, data,
+                       moved=None) -> ca.MX:
     """Certificate of a capped point (dU, dX) reached from ``start``:
     the largest box violation (in box widths) and the cost's rise from
     the start's (relative to 1 + |its cost|). Zero for every iterate of
-    the solver in exact arithmetic."""
+    the solver in exact arithmetic. Where ``moved`` (the wrapper's phase
+    one ran: the start broke a box, and the iterates' costs fall from
+    phase one's point, not from the start's) the violation alone."""
     _, _, Q, q, g, r, lo, hi = data[:8]
     V = parts.lay.values(point[0], point[1])
     broken = ca.fmax(ca.mmax(ca.vertcat(ca.vec(lo - V), ca.vec(V - hi))),
                      0.0)
     c0 = qp_cost(parts.kern, N, start[0], start[1], Q, q, g, r)
     c1 = qp_cost(parts.kern, N, point[0], point[1], Q, q, g, r)
-    return ca.fmax(broken, ca.fmax(c1 - c0, 0.0) / (1.0 + ca.fabs(c0)))
+    rise = ca.fmax(c1 - c0, 0.0) / (1.0 + ca.fabs(c0))
+    if moved is not None:
+        rise = ca.if_else(moved > 0, 0.0, rise)
+    return ca.fmax(broken, rise)
 
 
 def check_rqp_problem(mpc: Any) -> None:
-    """Refuse what rqp cannot take: move blocks, and the state boxes
-    whose start the linearisation's defects break (a rate bound, keep-out
-    cones) while rqp has no phase one.
+    """Refuse what rqp cannot take: move blocks, and keep-out cones
+    (their states' boxes are not tested with the wrapper's phase one).
 
-    With a rate bound of 1°/s the demo slew's shifted plan breaks a rate
-    box in 119 of 453 steps; each would be a refused step returning the
-    shifted plan, and in a loop that applies it (flight code cannot
-    raise) the next starts break more: 448 of the 453 steps, the craft
-    spun up to 259°/s. Torque and momentum boxes are kept by the start
-    (the momentum dynamics are linear, and the shifted plan's last torque
-    is clipped to the momentum bound).
+    A rate bound takes the phase one (`ocp.mpc.riccati_qp.wrapper_source`
+    ``phase_one``): with a rate bound of 1°/s the demo slew's shifted
+    plan breaks a rate box in 119 of 453 steps (the linearisation's
+    defects); without it each was a refused step returning the shifted
+    plan, and a loop that applied them (flight code cannot raise) broke
+    more: 448 of the 453 steps, the craft spun up to 259°/s. Torque and
+    momentum boxes are kept by the start (the momentum dynamics are
+    linear, and the shifted plan's last torque is clipped to the
+    momentum bound).
 
     Raises
     ------
     InvalidValueError
     """
     for what, present in (("move_blocks", mpc.move_blocks is not None),
-                          ("a rate bound (rate_max)",
-                           mpc.rate_max is not None),
                           ("keep-out cones (keep_out)", bool(mpc.keep_out))):
         if present:
             raise InvalidValueError(
-                f"qp_solver='rqp' takes no {what}: rqp has no phase one "
-                "for starts that break a state box; use qp_solver=None "
+                f"qp_solver='rqp' takes no {what}; use qp_solver=None "
                 "(the interior point) or solver='condensed' with "
                 "qp_solver='pqp'")
 
@@ -128,15 +132,17 @@ def rqp_iteration(mpc: Any, qp_max_iter: int = QP_ITER_LIMIT
     p = ca.MX.sym("p", mpc.model.nx + 7)
     X, U, xN, data, D = qp_data(mpc, parts, z, p)
     dU0, dX0, A, B, Q, q, g, r, lo, hi = data
+    phase_one = mpc.rate_max is not None
     ext = qp_external(N, parts.lay, nu, ~parts.free, parts.patterns,
-                      qp_max_iter)
-    dU, dX, lam, capped, infeasible, mu = ext(
+                      qp_max_iter, phase_one)
+    dU, dX, lam, capped, infeasible, mu, moved = ext(
         dU0, dX0, D, A, B, Q, q, g, r, lo, hi,
         warm_sides(mpc, parts, lx0))
     qp = [A, B, Q, q, g, r, lo, hi]
     kkt = costate_residual(parts, N, dU, dX, lam, mu, qp)
     kkt = ca.if_else(capped > 0, capped_certificate(
-        parts, N, (dU0, dX0), (dU, dX), qp), kkt)
+        parts, N, (dU0, dX0), (dU, dX), qp,
+        moved if phase_one else None), kkt)
     kkt = ca.if_else(infeasible > 0, ca.inf, kkt)
     return ca.Function("sw_iter", [z, lx0, p],
                        [*new_plan(mpc, parts, X, U, xN, dU, dX, lam), kkt,

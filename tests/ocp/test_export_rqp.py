@@ -109,6 +109,25 @@ def test_rqp_step_on_the_emulated_m7_equals_the_host(tmp_path, cap):
     assert loop["loop_worst_violation"] <= 1e-9
 
 
+def test_rate_bounded_export_runs_the_phase_one(tmp_path):
+    """With a rate bound the exported rqp wrapper carries the phase one
+    (``_p1``; its README says so), builds under -Wall -Wextra -Werror,
+    and the driver's capped loop of the rate-bounded demo craft at
+    horizon 20 reaches the target within every bound (the capped plans'
+    shifted starts break rate boxes there)."""
+    res = export_c(tmp_path / "rate", spacecraft="demo", horizon=20,
+                   repeats=3, rate_max=np.deg2rad(1.0), mpc_variants=(STEP,),
+                   stagewise_qp_plugin="rqp", stagewise_qp_max_iter=8,
+                   build=True)
+    assert res.extras["warnings"] == 0, res.extras["warning_text"]
+    assert (res.out_dir / "rqp" / "adcs_rqp_20x11x4x11_cap8_p1.c").is_file()
+    assert "runs a phase one" in res.readme.read_text()
+    loop = run_driver(res)[LOOP]
+    assert loop["flag"] == 0 and loop["loop_ok"]
+    assert loop["final_error_deg"] <= 1e-6
+    assert loop["loop_worst_violation"] <= 1e-9
+
+
 #: The float rqp step at horizon 20 on the emulated M4F (demo craft, the
 #: driver's 90° slew; `benchmarks.embedded --target cortex-m4f
 #: --precision single --qp rqp --qp-max-iter 8`): measured flight set

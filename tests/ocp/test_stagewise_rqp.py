@@ -126,9 +126,10 @@ def test_a_start_beyond_a_box_fails_its_certificate():
     assert ok[4] == 0 and ok[3] == 0 and ok[5].any()     # the costates
     lo_bad = lo.copy()
     lo_bad[0, 2] = 0.1                     # torque 1 at stage 2 ≥ 0.1 width
-    dU, dX, lam, capped, infeasible, mu = (np.asarray(v) for v in ext(
-        dU0, dX0, D, A, B, Q, q, g, r, lo_bad, hi, np.zeros_like(lo)))
-    assert infeasible == 1 and capped == 0
+    dU, dX, lam, capped, infeasible, mu, moved = (
+        np.asarray(v) for v in ext(dU0, dX0, D, A, B, Q, q, g, r, lo_bad,
+                                   hi, np.zeros_like(lo)))
+    assert infeasible == 1 and capped == 0 and moved == 0   # no phase one
     assert np.array_equal(dU, dU0) and np.array_equal(dX, dX0)
     assert not lam.any() and not mu.any()
 
@@ -145,16 +146,88 @@ def _rolled(A, B, dU, dX, parts):
     return out
 
 
-def test_rate_bounds_and_cones_are_refused():
-    """rqp has no phase one: a rate bound (whose starts the
-    linearisation's defects break, 448 of 453 steps refused on the
-    rate-bounded demo slew) or keep-out cones are refused, with the
-    way out in the message."""
-    with pytest.raises(InvalidValueError, match="rate bound"):
-        _rqp(horizon=10, rate_max=0.03)
+RATE_MAX = np.deg2rad(1.0)
+
+
+def test_a_rate_bound_flies_the_condensed_loop():
+    """A 1°/s rate bound at horizon 20, uncapped: the same torques as the
+    condensed (DAQP) loop to 1e-9 N·m, the rates within their bound."""
+    runs = [simulate_mpc(m, [1, 0, 0, 0], QF, t_final=60.0)
+            for m in (AttitudeMPC(MODEL, horizon=20, dt=0.5,
+                                  solver="condensed", rti=True,
+                                  rate_max=RATE_MAX),
+                      _rqp(rate_max=RATE_MAX))]
+    a, b = (r.trajectory for r in runs)
+    assert np.abs(a.wheel_torque - b.wheel_torque).max() <= 1e-9
+    assert np.abs(b.w).max() <= RATE_MAX * (1 + 1e-9)
+    assert runs[1].momentum_violation <= 1e-12
+    assert runs[1].torque_violation <= 1e-12
+
+
+def test_starts_beyond_a_rate_box_go_through_the_phase_one():
+    """The demo craft capped at 8 with a 1°/s rate bound: the capped
+    plans' shifted starts break a rate box (by up to 0.66 box widths);
+    the wrapper's phase one moves each to a point that keeps every box
+    (``moved``), the step is certified there, and the loop reaches the
+    target with the rates within their bound. (Without the phase one
+    such a start was refused, the shifted plan applied, and the next
+    starts broke more: the craft spun up.)"""
+    import casadi as ca
+
+    from ocp.mpc.condensed import momentum_safe_tail
+    from ocp.mpc.riccati_qp import qp_external
+    from ocp.mpc.stagewise import StageParts
+    from ocp.mpc.stagewise_rqp import warm_sides
+    from ocp.spacecraft import load_spacecraft
+
+    sc = load_spacecraft("demo")
+    model = rigid_spacecraft(sc.inertia, sc.wheels)
+    mpc = _rqp(model, rate_max=RATE_MAX, solver_options={"qp_max_iter": 8})
+    parts = StageParts(mpc, 1e-9, 1, ipm=False)
+    ext = qp_external(20, parts.lay, model.nu, ~parts.free, parts.patterns,
+                      8, True)
+    zs = ca.MX.sym("z", mpc.nz)
+    tail = ca.Function("tail", [zs], [momentum_safe_tail(mpc, zs)])
+    sides = ca.Function("sides", [zs], [warm_sides(mpc, parts, zs)])
+    data_of = stagewise_qp_function(mpc)
+    rk4 = model.rk4_step(1)
+    x = model.state([1.0, 0, 0, 0])
+    z, lx, lg = mpc.initial_guess(x), np.zeros(mpc.nz), np.zeros(mpc.ng)
+    moved, worst = 0, 0.0
+    for step in range(460):
+        out = _outputs(mpc.rti_function, x, QF, ZERO, z, lx, lg)
+        assert out["qp_kkt"] <= 1e-8, step
+        if step < 12:       # the QP of this step, through the external
+            z0, lx0, _ = (np.asarray(v).ravel()
+                          for v in mpc.shift_function(x, z, lx, lg))
+            z0 = np.asarray(tail(z0)).ravel()
+            dU0, dX0, A, B, Q, q, g, r, lo, hi = (
+                np.asarray(v) for v in data_of(z0, np.r_[x, QF, ZERO]))
+            D = dX0 - _rolled(A, B, dU0, dX0, parts)
+            res = [np.asarray(v) for v in ext(dU0, dX0, D, A, B, Q, q, g,
+                                              r, lo, hi, sides(lx0))]
+            V0 = np.asarray(parts.lay.values(dU0, dX0))
+            V1 = np.asarray(parts.lay.values(res[0], res[1]))
+            assert res[4].item() == 0
+            assert np.all(V1 <= hi + 1e-9) and np.all(V1 >= lo - 1e-9)
+            moved += int(res[6].item())
+            worst = max(worst, float((V0 - hi).max()), float((lo - V0).max()))
+        z, lx, lg = out["z"].ravel(), out["lam_x"].ravel(), \
+            out["lam_g"].ravel()
+        x = np.asarray(rk4(x, out["u"].ravel(), ZERO, mpc.dt)).ravel()
+        assert np.abs(x[4:7]).max() <= RATE_MAX * (1 + 1e-6)
+    assert moved >= 2 and worst > 0.1, (moved, worst)
+    assert 2 * np.arccos(min(1.0, abs(float(np.dot(x[:4], QF))))) <= 1e-3
+
+
+def test_cones_and_move_blocks_are_refused():
+    """Keep-out cones (their states' boxes are not tested with the
+    phase one) and move blocks are refused, with the way out."""
     with pytest.raises(InvalidValueError, match="keep-out"):
         _rqp(horizon=10, keep_out=slew_keep_out(np.deg2rad(90.0),
                                                 np.deg2rad(20.0)))
+    with pytest.raises(InvalidValueError, match="move_blocks"):
+        _rqp(horizon=10, move_blocks=2)
 
 
 def test_the_wrapper_answers_the_posed_qp_and_its_multipliers():
@@ -277,7 +350,7 @@ def test_the_costate_certificate_is_the_interior_points():
     _, _, _, data, D = qp_data(mpc, parts, z, p)
     dU0, dX0, A, B, Q, q, g, r, lo, hi = data
     ext = qp_external(N, parts.lay, nu, ~parts.free, parts.patterns, 1000)
-    dU, dX, lam, _, _, mu = ext(dU0, dX0, D, A, B, Q, q, g, r, lo, hi,
+    dU, dX, lam, _, _, mu, _ = ext(dU0, dX0, D, A, B, Q, q, g, r, lo, hi,
                                 ca.MX.zeros(lo.shape))
     qp = [A, B, Q, q, g, r, lo, hi]
     V = parts.lay.values(dU, dX)
