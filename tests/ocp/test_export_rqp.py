@@ -92,7 +92,8 @@ def test_copied_folder_builds_alone_without_heap(exports, tmp_path):
 @pytest.mark.skipif(toolchain_missing() is not None,
                     reason=str(toolchain_missing()))
 @pytest.mark.parametrize("cap", [None, 5])
-def test_rqp_step_on_the_emulated_m7_equals_the_host(tmp_path, cap):
+def test_rqp_step_on_the_emulated_m7_equals_the_host(exports, tmp_path,
+                                                     cap):
     """Cross-compiled clean (-Werror), no heap in the memory report, and
     the emulated closed loop (double) ends in the host driver's state to
     1e-9; also with the QP capped at 5 iterations."""
@@ -102,7 +103,8 @@ def test_rqp_step_on_the_emulated_m7_equals_the_host(tmp_path, cap):
     rec = res.extras["memory"]["functions"][STEP]
     assert rec["heap"] is False and not set(rec["library_calls"]) & set(HEAP)
     loop = run_target(res)[LOOP]
-    host = run_driver(_export(tmp_path / "host", **kw))[LOOP]
+    host = run_driver(exports["rqp"] if cap is None else
+                      _export(tmp_path / "host", **kw))[LOOP]
     assert loop["flag"] == 0 and loop["loop_ok"]
     np.testing.assert_allclose(loop["state"], host["state"], rtol=0,
                                atol=1e-9)
@@ -126,6 +128,26 @@ def test_rate_bounded_export_runs_the_phase_one(tmp_path):
     assert loop["flag"] == 0 and loop["loop_ok"]
     assert loop["final_error_deg"] <= 1e-6
     assert loop["loop_worst_violation"] <= 1e-9
+
+
+def test_rate_bounded_float_export_reaches_the_target(tmp_path):
+    """The phase one in float (rqp.c's float build, the wrapper's penalty
+    in float): the rate-bounded demo craft at horizon 12, capped at 8,
+    built clean, its host loop reaching the target within float's
+    tolerances (measured: 4.8e-6°, worst scaled violation 3.7e-7)."""
+    from test_targets import (M4F_SINGLE_FINAL_ERROR_RAD,
+                              M4F_SINGLE_STEP_VIOLATION)
+
+    res = export_c(tmp_path / "rate", spacecraft="demo", horizon=12,
+                   repeats=3, rate_max=np.deg2rad(1.0), precision="single",
+                   mpc_variants=(STEP,), stagewise_qp_plugin="rqp",
+                   stagewise_qp_max_iter=8, build=True)
+    assert res.extras["warnings"] == 0, res.extras["warning_text"]
+    assert "runs a phase one" in res.readme.read_text()
+    loop = run_driver(res)[LOOP]
+    assert loop["flag"] == 0 and loop["loop_ok"]
+    assert np.deg2rad(loop["final_error_deg"]) <= M4F_SINGLE_FINAL_ERROR_RAD
+    assert loop["loop_worst_violation"] <= M4F_SINGLE_STEP_VIOLATION
 
 
 #: The float rqp step at horizon 20 on the emulated M4F (demo craft, the
