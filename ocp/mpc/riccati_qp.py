@@ -17,9 +17,10 @@ The solver enters the step's graph as a CasADi external Function: a C
 wrapper in CasADi's calling convention (`wrapper_source`, which compiles
 rqp.c for the QP's sizes in its own translation unit, its public names
 prefixed, with its stage products generated as straight-line code for
-the step's patterns of A and B, `products_source`), compiled into a shared library for Python (`qp_external`;
-needs a C compiler) and written into the export folder beside rqp.c for
-generated C (`copy_sources`). rqp.c has no phase one: where the start
+the step's patterns of A and B, `products_source`), compiled into a
+shared library for Python (`qp_external`; needs a C compiler) and
+written into the export folder beside rqp.c for generated C
+(`copy_sources`). rqp.c has no phase one: where the start
 breaks a box it answers the start, flagged ``infeasible``, and the
 step's certificate fails; the step then returns the shifted plan, as
 every failed QP does (`ocp.mpc.condensed.sqp_step_functions`). With a

@@ -20,7 +20,7 @@ from ocp.codegen.build import run_driver
 from ocp.codegen.export import export_c
 from ocp.codegen.target import run_target, toolchain_missing
 
-from export_build import HEAP, check_heap_free, make_copy
+from export_build import HEAP, check_heap_free, make_copy, undefined_symbols
 
 pytestmark = [
     pytest.mark.slow,
@@ -122,12 +122,30 @@ def test_rate_bounded_export_runs_the_phase_one(tmp_path):
                    stagewise_qp_plugin="rqp", stagewise_qp_max_iter=8,
                    build=True)
     assert res.extras["warnings"] == 0, res.extras["warning_text"]
-    assert (res.out_dir / "rqp" / "adcs_rqp_20x11x4x11_cap8_p1.c").is_file()
+    wrapper = res.out_dir / "rqp" / "adcs_rqp_20x11x4x11_cap8_p1"
+    assert wrapper.with_suffix(".c").is_file()
+    assert not undefined_symbols([wrapper.with_suffix(".o")]) & set(HEAP)
     assert "runs a phase one" in res.readme.read_text()
     loop = run_driver(res)[LOOP]
     assert loop["flag"] == 0 and loop["loop_ok"]
     assert loop["final_error_deg"] <= 1e-6
     assert loop["loop_worst_violation"] <= 1e-9
+
+
+def test_a_toml_crafts_rate_bound_reaches_the_phase_one(tmp_path):
+    """A user's craft whose TOML file sets ``rate_max_deg``: its rqp
+    export carries the phase one (the ``_p1`` wrapper, 11 boxes a stage:
+    the 3 rates with the 4 torques and 4 momenta)."""
+    from test_primal_qp import CRAFT_TOML
+
+    path = tmp_path / "craft.toml"
+    path.write_text(CRAFT_TOML.replace('name = "toml-craft"',
+                                       'name = "toml-craft"\n'
+                                       'rate_max_deg = 1.5'))
+    res = export_c(tmp_path / "out", spacecraft=path, horizon=5,
+                   mpc_variants=(STEP,), stagewise_qp_plugin="rqp")
+    assert (res.out_dir / "rqp" / "adcs_rqp_5x11x4x11_p1.c").is_file()
+    assert "runs a phase one" in res.readme.read_text()
 
 
 def test_rate_bounded_float_export_reaches_the_target(tmp_path):
