@@ -27,7 +27,8 @@ every failed QP does (`ocp.mpc.condensed.sqp_step_functions`). With a
 rate bound, whose starts the linearisation's defects break, the
 wrapper runs a phase one of its own first (`wrapper_source`'s
 ``phase_one``: rqp on the QP with the broken boxes widened to the start
-and pulled to their bound by a penalty).
+and pulled to their bound by a penalty, over the stages from the first
+broken one).
 
 The wrapper keeps no state (its memory is the caller's work), so a
 controller with this QP may be stepped from several threads.
@@ -191,11 +192,14 @@ def wrapper_source(N: int, lay: BoxLayout, nu: int, fixed: np.ndarray,
     ``phase_one``: a start that breaks boxes is first moved to one that
     keeps them (the wrapper's phase one: the broken boxes' bounds
     widened to the start, a penalty of 1e3 (1 + max |q|, |g|) per box
-    width pulling each to its bound, solved by rqp in at most n_b N +
-    ``max_iter`` iterations; then the QP itself from there, capped as
-    without it), ``moved`` 1 where it ran;
-    ``infeasible`` 1 where a box stayed beyond its bound. It keeps
-    2 n_b N + (n_x + n_u) N reals more of work.
+    width pulling each to its bound, solved by rqp over stages j…N−1
+    alone, x_j held at the start's and the earlier stages keeping the
+    start, in at most n_b (N − j) + ``max_iter`` iterations: j the first
+    stage with a broken box, then, where a box stays beyond its bound,
+    ever earlier stages, the span doubled, up to 0; then the QP itself
+    from there, capped as without it), ``moved`` 1 where it ran;
+    ``infeasible`` 1 where a box stayed beyond its bound from stage 0
+    too. It keeps 2 n_b N + (2 n_x + n_u) N reals more of work.
     """
     sp_a, sp_b, sp_q = patterns
     nx = sp_a.size1()

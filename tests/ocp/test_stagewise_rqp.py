@@ -171,7 +171,10 @@ def test_starts_beyond_a_rate_box_go_through_the_phase_one():
     (``moved``), the step is certified there, and the loop reaches the
     target with the rates within their bound. (Without the phase one
     such a start was refused, the shifted plan applied, and the next
-    starts broke more: the craft spun up.)"""
+    starts broke more: the craft spun up.) The phase one moves only the
+    stages from the first broken one (here the plan's tail, the last
+    stage): with a cap of 0 the wrapper returns its point, whose earlier
+    stages are the start's."""
     import casadi as ca
 
     from ocp.mpc.condensed import momentum_safe_tail
@@ -184,8 +187,8 @@ def test_starts_beyond_a_rate_box_go_through_the_phase_one():
     model = rigid_spacecraft(sc.inertia, sc.wheels)
     mpc = _rqp(model, rate_max=RATE_MAX, solver_options={"qp_max_iter": 8})
     parts = StageParts(mpc, 1e-9, 1, ipm=False)
-    ext = qp_external(20, parts.lay, model.nu, ~parts.free, parts.patterns,
-                      8, True)
+    ext, ext0 = (qp_external(20, parts.lay, model.nu, ~parts.free,
+                             parts.patterns, cap, True) for cap in (8, 0))
     zs = ca.MX.sym("z", mpc.nz)
     tail = ca.Function("tail", [zs], [momentum_safe_tail(mpc, zs)])
     sides = ca.Function("sides", [zs], [warm_sides(mpc, parts, zs)])
@@ -193,7 +196,7 @@ def test_starts_beyond_a_rate_box_go_through_the_phase_one():
     rk4 = model.rk4_step(1)
     x = model.state([1.0, 0, 0, 0])
     z, lx, lg = mpc.initial_guess(x), np.zeros(mpc.nz), np.zeros(mpc.ng)
-    moved, worst = 0, 0.0
+    moved, worst, firsts = 0, 0.0, set()
     for step in range(460):
         out = _outputs(mpc.rti_function, x, QF, ZERO, z, lx, lg)
         assert out["qp_kkt"] <= 1e-8, step
@@ -212,11 +215,23 @@ def test_starts_beyond_a_rate_box_go_through_the_phase_one():
             assert np.all(V1 <= hi + 1e-9) and np.all(V1 >= lo - 1e-9)
             moved += int(res[6].item())
             worst = max(worst, float((V0 - hi).max()), float((lo - V0).max()))
+            if res[6].item():
+                first = int(np.flatnonzero(((V0 > hi + 1e-9) |
+                                            (V0 < lo - 1e-9)).any(0))[0])
+                p1 = [np.asarray(v) for v in ext0(dU0, dX0, D, A, B, Q, q,
+                                                  g, r, lo, hi, sides(lx0))]
+                V = np.asarray(parts.lay.values(p1[0], p1[1]))
+                assert p1[3].item() == 1 and p1[6].item() == 1
+                assert np.all(V <= hi + 1e-9) and np.all(V >= lo - 1e-9)
+                assert np.array_equal(p1[0][:, :first], dU0[:, :first])
+                assert np.array_equal(p1[1][:, :first], dX0[:, :first])
+                firsts.add(first)
         z, lx, lg = out["z"].ravel(), out["lam_x"].ravel(), \
             out["lam_g"].ravel()
         x = np.asarray(rk4(x, out["u"].ravel(), ZERO, mpc.dt)).ravel()
         assert np.abs(x[4:7]).max() <= RATE_MAX * (1 + 1e-6)
     assert moved >= 2 and worst > 0.1, (moved, worst)
+    assert firsts == {19}
     assert 2 * np.arccos(min(1.0, abs(float(np.dot(x[:4], QF))))) <= 1e-3
 
 
