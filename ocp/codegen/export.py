@@ -74,6 +74,7 @@ from .daqp_static import (
 )
 from .driver import _driver_source, _readme, write_build_files
 from .patches import (
+    patch_braces,
     patch_daqp_failure,
     patch_daqp_warm_start,
     patch_minmax,
@@ -284,6 +285,7 @@ def _write_source(fns: dict, out: Path, reuse_factorization: bool,
     text, _ = patch_unused_parameters(text)       # last: the others
     if precision == "single":                    # match CasADi's text
         text, _ = to_single(patch_qrqp_failure(text)[0])
+    text, _ = patch_braces(text)                 # the compile's time
     source.write_text(text)
     solver_sources = (copy_daqp_sources(out, precision == "single")
                       if daqp_conics else [])

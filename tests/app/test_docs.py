@@ -8,6 +8,7 @@ has its anchor there (its object documented, or a module's section).
 """
 
 import importlib
+import os
 import pkgutil
 import re
 import subprocess
@@ -146,10 +147,13 @@ def test_api_page_documents_every_public_name(tmp_path):
 
 @pytest.mark.slow
 def test_docs_build_without_warnings(tmp_path):
+    # the notebooks run with their small settings (the tests' executions
+    # of the notebooks are these: test_notebooks.py)
+    env = {**os.environ, "ADCS_NOTEBOOK_SMALL": "1", "MPLBACKEND": "Agg"}
     run = subprocess.run(
         [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-b", "html",
          "-q", str(DOCS), str(tmp_path / "html")],
-        capture_output=True, text=True, timeout=600)
+        capture_output=True, text=True, timeout=900, env=env)
     assert run.returncode == 0, run.stderr[-3000:]
     # a quiet log: no kernel's transport warning, no warning at all
     assert "WARNING" not in run.stderr, run.stderr[-3000:]
@@ -166,5 +170,7 @@ def test_docs_build_without_warnings(tmp_path):
     assert _dead_links(tmp_path / "html") == []
     # the notebooks are executed by the build: their pages carry figures
     pages = sorted((tmp_path / "html" / "notebooks").glob("*.html"))
+    assert {p.stem for p in pages} >= {p.stem for p in (
+        DOCS.parent / "notebooks").glob("*.ipynb")}
     assert len(pages) >= 12
     assert len(list((tmp_path / "html" / "_images").glob("*.png"))) >= 10
