@@ -218,8 +218,8 @@ def test_capped_rqp_step_meets_every_flight_goal(tmp_path, target,
                                                  precision, horizon):
     """With rqp capped at 8 the stage-wise step's flight set meets every
     figure of the goal table on the driver's slew at horizon 9, in double
-    on the emulated M7 (measured: median 320,920, worst 1,586,280; 161,068
-    bytes of flash, 65,440 of RAM: 96 under 64 KiB) and in float on the
+    on the emulated M7 (measured: median 320,800, worst 1,586,160; 161,324
+    bytes of flash, 65,456 of RAM: 80 under 64 KiB) and in float on the
     M4F (330,920 and 1,689,440; 164,656 and 33,848); over 200 Monte Carlo
     loops too (docs/benchmarks.md)."""
     from test_targets import _meets_the_step_goals
