@@ -141,8 +141,8 @@ def test_rate_bounded_phase_one_costs_a_capped_step_on_target(
     """The rate-bounded demo slew at horizon 20, capped at 8, on the
     emulated M7 (double) and M4F (float): the phase one repairs the
     plan's tail over the stages from the first broken box, so the worst
-    step stays a capped QP's (measured after the cold step: 4,170,520
-    instructions on the M7, 4,923,160 on the M4F; the phase one over the
+    step stays a capped QP's (measured after the cold step: 4,173,920
+    instructions on the M7, 4,926,880 on the M4F; the phase one over the
     whole horizon took 16.4 M on the M7), and the loop reaches the target
     within every bound (float: within float's tolerances)."""
     from test_targets import (M4F_SINGLE_FINAL_ERROR_RAD,
