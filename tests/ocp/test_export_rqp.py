@@ -38,6 +38,15 @@ def _export(out: Path, **kw):
     return export_c(out, spacecraft="demo", horizon=6, repeats=5, **kw)
 
 
+def _rate_export(out: Path, horizon: int = 20, **kw):
+    """The step with rqp capped at 8 on the demo craft with a 1°/s rate
+    bound (the phase one's wrapper), built."""
+    return export_c(out, spacecraft="demo", horizon=horizon, repeats=3,
+                    rate_max=np.deg2rad(1.0), mpc_variants=(STEP,),
+                    stagewise_qp_plugin="rqp", stagewise_qp_max_iter=8,
+                    build=True, **kw)
+
+
 @pytest.fixture(scope="module")
 def exports(tmp_path_factory):
     root = tmp_path_factory.mktemp("rqp-export")
@@ -117,10 +126,7 @@ def test_rate_bounded_export_runs_the_phase_one(tmp_path):
     and the driver's capped loop of the rate-bounded demo craft at
     horizon 20 reaches the target within every bound (the capped plans'
     shifted starts break rate boxes there)."""
-    res = export_c(tmp_path / "rate", spacecraft="demo", horizon=20,
-                   repeats=3, rate_max=np.deg2rad(1.0), mpc_variants=(STEP,),
-                   stagewise_qp_plugin="rqp", stagewise_qp_max_iter=8,
-                   build=True)
+    res = _rate_export(tmp_path / "rate")
     assert res.extras["warnings"] == 0, res.extras["warning_text"]
     wrapper = res.out_dir / "rqp" / "adcs_rqp_20x11x4x11_cap8_p1"
     assert wrapper.with_suffix(".c").is_file()
@@ -148,11 +154,8 @@ def test_rate_bounded_phase_one_costs_a_capped_step_on_target(
     from test_targets import (M4F_SINGLE_FINAL_ERROR_RAD,
                               M4F_SINGLE_STEP_VIOLATION)
 
-    res = export_c(tmp_path / target, spacecraft="demo", horizon=20,
-                   repeats=3, rate_max=np.deg2rad(1.0),
-                   mpc_variants=(STEP,), stagewise_qp_plugin="rqp",
-                   stagewise_qp_max_iter=8, target=target,
-                   precision=precision, build=True)
+    res = _rate_export(tmp_path / target, target=target,
+                       precision=precision)
     loop = run_target(res, timeout=600)[LOOP]
     steps = np.asarray(loop["steps"])
     single = precision == "single"
@@ -188,10 +191,7 @@ def test_rate_bounded_float_export_reaches_the_target(tmp_path):
     from test_targets import (M4F_SINGLE_FINAL_ERROR_RAD,
                               M4F_SINGLE_STEP_VIOLATION)
 
-    res = export_c(tmp_path / "rate", spacecraft="demo", horizon=12,
-                   repeats=3, rate_max=np.deg2rad(1.0), precision="single",
-                   mpc_variants=(STEP,), stagewise_qp_plugin="rqp",
-                   stagewise_qp_max_iter=8, build=True)
+    res = _rate_export(tmp_path / "rate", horizon=12, precision="single")
     assert res.extras["warnings"] == 0, res.extras["warning_text"]
     assert "runs a phase one" in res.readme.read_text()
     loop = run_driver(res)[LOOP]
