@@ -95,9 +95,9 @@ def _table(ds, rate_max: float = 0.0) -> Table:
 
 
 def run(ctx: StudyContext) -> Section:
-    """Compute the study (4 draws of 30 s quick, 20 of 50 s full; the
+    """Compute the study (2 draws of 30 s quick, 20 of 50 s full; the
     200-draw figures are `benchmarks.robust_mc`'s)."""
-    draws, t_final = (4, 30.0) if ctx.quick else (20, 50.0)
+    draws, t_final = (2, 30.0) if ctx.quick else (20, 50.0)
     ds = ctx.sweep(*_case_and_params(draws, t_final))
     ds_rate = ctx.sweep(*_case_and_params(
         draws, t_final if ctx.quick else 60.0, RATE_BOUND))

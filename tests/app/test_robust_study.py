@@ -13,7 +13,7 @@ from adcs.studies import robust as study  # noqa: E402
 
 
 def test_robust_study_table_is_the_monte_carlo(tmp_path, monkeypatch):
-    """The study's tables summarise its two Monte Carlos (4 draws each,
+    """The study's tables summarise its two Monte Carlos (2 draws each,
     quick), whose cases are `run_robust_mc`'s: its first draw, run again
     through `run_robust_mc`, is the study's to the last digit."""
     swept = []
@@ -29,8 +29,8 @@ def test_robust_study_table_is_the_monte_carlo(tmp_path, monkeypatch):
     assert (tmp_path / section.figures[0].filename).stat().st_size > 10_000
     (case, params, ds), (_, params_r, ds_r) = swept
     assert case is robust_mc_case
-    assert params == robust_mc_params(4, t_final=30.0, rate_max=0.0)
-    assert params_r == robust_mc_params(4, t_final=30.0,
+    assert params == robust_mc_params(2, t_final=30.0, rate_max=0.0)
+    assert params_r == robust_mc_params(2, t_final=30.0,
                                         rate_max=study.RATE_BOUND,
                                         keep_out_deg=study.KEEP_OUT_DEG)
     one = run_robust_mc(1, t_final=30.0, rate_max=0.0)
@@ -42,7 +42,7 @@ def test_robust_study_table_is_the_monte_carlo(tmp_path, monkeypatch):
     rows = {r[0]: r[1:] for r in table.rows}
     nom, rob = summarise(ds)
     assert rows["loops broken"][:2] == [nom.failed, rob.failed] == [0, 0]
-    assert rows["settled (0.1°)"][:2] == [4, 4]
+    assert rows["settled (0.1°)"][:2] == [2, 2]
     assert rows["energy, median [N²·m²·s]"][:2] == [nom.energy_median,
                                                     rob.energy_median]
     assert rows["settling time, worst [s]"][:2] == [nom.settle_worst,
