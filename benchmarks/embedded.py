@@ -31,7 +31,25 @@ import time
 
 from ocp.codegen.export import export_c
 from ocp.codegen.memory import format_memory
+from ocp.codegen.result import ExportResult
 from ocp.codegen.target import format_counts, run_target, toolchain_missing
+
+
+def target_export(out: str, craft: str, mpc: tuple[str, ...],
+                  args: argparse.Namespace) -> ExportResult:
+    """Export ``craft``'s ``mpc`` steps into ``out``, built for
+    ``args.target`` in ``args.precision``, horizon ``args.horizon`` (dt
+    0.5 s), their QP ``args.qp`` (rqp: the stage-wise steps') capped at
+    ``args.qp_max_iter``."""
+    rqp = args.qp == "rqp"
+    return export_c(out, craft, horizon=args.horizon, dt=0.5,
+                    mpc_variants=mpc,
+                    condensed_qp_plugin=None if rqp else args.qp,
+                    condensed_qp_max_iter=None if rqp else args.qp_max_iter,
+                    stagewise_qp_plugin="rqp" if rqp else None,
+                    stagewise_qp_max_iter=args.qp_max_iter if rqp else None,
+                    target=args.target, precision=args.precision,
+                    build=True)
 
 
 def main() -> None:
@@ -59,19 +77,9 @@ def main() -> None:
         raise SystemExit(f"benchmarks.embedded: {reason}")
     mpc = () if args.quick else tuple(
         v.strip() for v in args.mpc.split(",") if v.strip())
-    rqp = args.qp == "rqp"
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
-        res = export_c(out, "demo", horizon=args.horizon, dt=0.5,
-                       mpc_variants=mpc,
-                       condensed_qp_plugin=None if rqp else args.qp,
-                       condensed_qp_max_iter=None if rqp
-                       else args.qp_max_iter,
-                       stagewise_qp_plugin="rqp" if rqp else None,
-                       stagewise_qp_max_iter=args.qp_max_iter if rqp
-                       else None,
-                       target=args.target, precision=args.precision,
-                       build=True)
+        res = target_export(out, "demo", mpc, args)
         t1 = time.perf_counter()
         times = run_target(res, timeout=3600)
         t2 = time.perf_counter()

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from adcs_common.exceptions import AdcsError
-from ocp.codegen.export import export_c
+from benchmarks.embedded import target_export
 from ocp.codegen.target import (CORES, CROSS_CC, QEMU, TARGET_DRIVER,
                                 compile_flags, parse_target_output,
                                 toolchain_missing)
@@ -275,18 +275,8 @@ def main() -> None:
     reason = toolchain_missing()
     if reason:
         raise SystemExit(f"benchmarks.embedded_profile: {reason}")
-    rqp = args.qp == "rqp"
     with tempfile.TemporaryDirectory() as out:
-        res = export_c(out, args.spacecraft, horizon=args.horizon, dt=0.5,
-                       mpc_variants=(args.mpc,),
-                       condensed_qp_plugin=None if rqp else args.qp,
-                       condensed_qp_max_iter=None if rqp
-                       else args.qp_max_iter,
-                       stagewise_qp_plugin="rqp" if rqp else None,
-                       stagewise_qp_max_iter=args.qp_max_iter if rqp
-                       else None,
-                       target=args.target, precision=args.precision,
-                       build=True)
+        res = target_export(out, args.spacecraft, (args.mpc,), args)
         calls, figures = profile_export(res, args.mpc)
         parts = object_parts(res, args.target)
         names = generated_names(res.out_dir)
