@@ -109,8 +109,8 @@ def parse_trace(lines: Iterable[str], symbols: Symbols, entry: str,
     ``Trace``); a block rewound at an I/O access (``cpu_io_recompile``)
     counts up to that access, one stopped before it ran (``Stopped
     execution``) nothing. A call runs from a block at ``entry``'s address
-    to the first block of a ``driver`` function (interrupt handlers, whose
-    names end in ``_Handler``, count in the call).
+    that ran to the first block of a ``driver`` function (interrupt
+    handlers, whose names end in ``_Handler``, count in the call).
     """
     start = symbols.starts[symbols.names.index(entry)]
     blocks: dict[str, list[int]] = {}
@@ -151,7 +151,8 @@ def parse_trace(lines: Iterable[str], symbols: Symbols, entry: str,
         elif line.startswith("Stopped execution") and last and call:
             if line.split()[6] == last[0]:
                 call[last[1]] -= len(last[2])
-    return calls
+    # an entry block stopped before it ran starts no call
+    return [c for c in calls if sum(c.values())]
 
 
 def driver_functions(res, core) -> set[str]:

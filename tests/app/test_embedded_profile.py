@@ -45,6 +45,9 @@ def test_a_call_counts_its_blocks_until_the_driver_runs_again():
         "Stopped execution of TB chain before 0x7f03 [00000200] kernel",
         _trace("0x7f01", 0x300, "loop"),                   # the call ends
         _trace("0x7f03", 0x200, "kernel"),                 # outside a call
+        # the entry traced, stopped before it ran: no call yet
+        _trace("0x7f02", 0x100, "step"),
+        "Stopped execution of TB chain before 0x7f02 [00000100] step",
         _trace("0x7f02", 0x100, "step"),                   # call 2
         _trace("0x7f03", 0x200, "kernel"),
     ]
