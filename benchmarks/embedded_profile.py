@@ -38,14 +38,16 @@ import numpy as np
 
 from adcs_common.exceptions import AdcsError
 from benchmarks.embedded import target_export
+from ocp.codegen.result import SOURCE
 from ocp.codegen.target import (CORES, CROSS_CC, QEMU, TARGET_DRIVER,
                                 compile_flags, parse_target_output,
                                 toolchain_missing)
 
-#: The parts a function's instructions are summed into, by the file
-#: that defines it (the rest: the C library).
-PARTS = (("adcs_codegen", "generated (CasADi)"), ("adcs_rqp_", "rqp"),
-         ("adcs_pqp_", "pqp"), ("", "DAQP"))
+#: The parts a function's instructions are summed into, by the folder
+#: of the source that defines it (the export's own: the generated
+#: functions; the rest: the C library).
+PARTS = {".": "generated (CasADi)", "rqp": "rqp", "pqp": "pqp",
+         "daqp": "DAQP"}
 _NM = CROSS_CC.replace("gcc", "nm")
 _GENERATED = re.compile(r"^/\* (\w+):\(.*\*/\n(?:static )?int casadi_(f\d+)\(",
                         re.M)
@@ -91,7 +93,7 @@ def generated_names(folder: Path) -> dict[str, str]:
     """Symbol stem -> the CasADi Function's name, from the sources'
     comments (``adcs_codegen_f18`` -> ``sw_lin``)."""
     names = {}
-    for src in [folder / "adcs_codegen.c", *folder.glob("*/adcs_*.c")]:
+    for src in [folder / f"{SOURCE}.c", *folder.glob("*/adcs_*.c")]:
         text = src.read_text()
         prefix = _PREFIX.findall(text)
         for name, f in _GENERATED.findall(text):
@@ -167,15 +169,15 @@ def driver_functions(res, core) -> set[str]:
 
 
 def object_parts(res, target: str) -> dict[str, str]:
-    """Function -> part (`PARTS`) of every function the export defines."""
+    """Function -> part (`PARTS`) of every function the export defines
+    (its objects: ``<source stem>_<target>.o``)."""
     parts = {}
-    for obj in sorted(res.out_dir.glob(f"*_{target}.o")):
-        if obj.stem.startswith("startup_"):
-            continue
-        part = next(p for key, p in PARTS if obj.stem.startswith(key))
-        for r in _nm(obj):
+    root = res.out_dir.resolve()
+    for src in [root / f"{SOURCE}.c", *map(Path, res.extras["c_sources"])]:
+        folder = src.resolve().parent.relative_to(root).as_posix()
+        for r in _nm(root / f"{src.stem}_{target}.o"):
             if len(r) == 3 and r[1] in "tTwW":
-                parts[r[2]] = part
+                parts[r[2]] = PARTS.get(folder, folder)
     return parts
 
 
