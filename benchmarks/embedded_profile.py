@@ -38,10 +38,10 @@ import numpy as np
 
 from adcs_common.exceptions import AdcsError
 from benchmarks.embedded import target_export
-from ocp.codegen.result import SOURCE
+from ocp.codegen.result import SOURCE, ExportResult
 from ocp.codegen.target import (CORES, CROSS_CC, QEMU, TARGET_DRIVER,
-                                compile_flags, parse_target_output,
-                                toolchain_missing)
+                                CortexM, compile_flags,
+                                parse_target_output, toolchain_missing)
 
 #: The parts a function's instructions are summed into, by the folder
 #: of the source that defines it (the export's own: the generated
@@ -157,7 +157,7 @@ def parse_trace(lines: Iterable[str], symbols: Symbols, entry: str,
     return [c for c in calls if sum(c.values())]
 
 
-def driver_functions(res, core) -> set[str]:
+def driver_functions(res: ExportResult, core: CortexM) -> set[str]:
     """The functions of the target driver's own source (and startup)."""
     with tempfile.TemporaryDirectory() as tmp:
         obj = Path(tmp) / "driver.o"
@@ -168,7 +168,7 @@ def driver_functions(res, core) -> set[str]:
     return {r[2] for r in rows if len(r) == 3 and r[1] in "tTwW"}
 
 
-def object_parts(res, target: str) -> dict[str, str]:
+def object_parts(res: ExportResult, target: str) -> dict[str, str]:
     """Function -> part (`PARTS`) of every function the export defines
     (its objects: ``<source stem>_<target>.o``)."""
     parts = {}
@@ -181,10 +181,16 @@ def object_parts(res, target: str) -> dict[str, str]:
     return parts
 
 
-def profile_export(res, entry: str, timeout: float = 3600.0
+def profile_export(res: ExportResult, entry: str, timeout: float = 3600.0
                    ) -> tuple[list[Counter], dict]:
     """Run ``res``'s target driver traced; ``(calls, figures)``: each
-    call's instructions by function and `run_target`'s figures."""
+    call's instructions by function and `run_target`'s figures.
+
+    Raises
+    ------
+    AdcsError
+        The driver failed (its output's last lines in the message).
+    """
     target = res.extras["target"]
     symbols = elf_symbols(res.executable)
     driver = driver_functions(res, CORES[target])
@@ -201,7 +207,11 @@ def profile_export(res, entry: str, timeout: float = 3600.0
             with open(fifo, errors="replace") as log:
                 calls = parse_trace(log, symbols, entry, driver)
             proc.wait(timeout=timeout)
-        return calls, parse_target_output(stdout.read_text())
+        text = stdout.read_text()
+    if proc.returncode != 0:
+        raise AdcsError(f"the traced driver exited {proc.returncode}:\n"
+                        + "\n".join(text.splitlines()[-20:]))
+    return calls, parse_target_output(text)
 
 
 def loop_profiles(calls: list[Counter], figures: dict, entry: str
