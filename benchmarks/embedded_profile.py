@@ -39,9 +39,9 @@ import numpy as np
 from adcs_common.exceptions import AdcsError
 from benchmarks.embedded import target_export
 from ocp.codegen.result import SOURCE, ExportResult
-from ocp.codegen.target import (CORES, CROSS_CC, QEMU, TARGET_DRIVER,
-                                CortexM, compile_flags,
-                                parse_target_output, toolchain_missing)
+from ocp.codegen.target import (CORES, CROSS_CC, TARGET_DRIVER, CortexM,
+                                compile_flags, parse_target_output,
+                                qemu_command, toolchain_missing)
 
 #: The parts a function's instructions are summed into, by the folder
 #: of the source that defines it (the export's own: the generated
@@ -199,9 +199,7 @@ def profile_export(res: ExportResult, entry: str, timeout: float = 3600.0
         os.mkfifo(fifo)
         with open(stdout, "w") as sink:
             proc = subprocess.Popen(
-                [QEMU, "-M", CORES[target].machine, "-nographic",
-                 "-semihosting-config", "enable=on,target=native",
-                 "-icount", "shift=0", "-kernel", str(res.executable),
+                [*qemu_command(CORES[target], res.executable),
                  "-d", "in_asm,exec,nochain", "-D", str(fifo)],
                 stdout=sink)
             with open(fifo, errors="replace") as log:
@@ -261,12 +259,12 @@ def format_profile(steps: dict[str, Counter], parts: dict[str, str],
     for key, v in sorted(rows.items(), key=lambda kv: -kv[1][0]):
         lines.append(f"| {key} | " + " | ".join(f"{n:,}" for n in v) + " |")
     lines.append("| **by part** |" + " |" * len(heads))
+    tot = [sum(steps[h].values()) for h in heads]
     for part, v in sorted(by_part.items(), key=lambda kv: -kv[1][0]):
-        tot = [sum(steps[h].values()) for h in heads]
         lines.append(f"| {part} | " + " | ".join(
             f"{n:,} ({100 * n / t:.0f} %)" for n, t in zip(v, tot)) + " |")
-    lines.append("| **step** | " + " | ".join(
-        f"**{sum(steps[h].values()):,}**" for h in heads) + " |")
+    lines.append("| **step** | " + " | ".join(f"**{t:,}**" for t in tot)
+                 + " |")
     return "\n".join(lines)
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from ocp.codegen.memory import call_graph, section_sizes, worst_stack
 from ocp.codegen.result import OPT_FLAGS
 from ocp.codegen.target import (CORES, CROSS_CC, INSTRUCTIONS_PER_TICK,
-                                QEMU, TARGET_WARNINGS, target_head,
+                                TARGET_WARNINGS, qemu_command, target_head,
                                 toolchain_missing)
 
 
@@ -61,11 +61,9 @@ def run_driver(main: str, source: Path, data: bytes, target: str,
                         "--specs=rdimon.specs", "-Tcortex_m.ld",
                         "-Wl,--gc-sections", "-lm", "-o", "solver.elf"],
                        cwd=out, check=True, capture_output=True, text=True)
-        proc = subprocess.run(
-            [QEMU, "-M", core.machine, "-nographic", "-semihosting-config",
-             "enable=on,target=native", "-icount", "shift=0", "-kernel",
-             "solver.elf"], cwd=out, capture_output=True, text=True,
-            timeout=timeout)
+        proc = subprocess.run(qemu_command(core, "solver.elf"), cwd=out,
+                              capture_output=True, text=True,
+                              timeout=timeout)
     if proc.returncode != 0 or "ERROR" in proc.stdout:
         raise RuntimeError(f"target driver failed: {proc.stdout[-2000:]}"
                            f"{proc.stderr[-2000:]}")

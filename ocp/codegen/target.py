@@ -86,6 +86,15 @@ CORES = {
 }
 
 
+def qemu_command(core: CortexM, elf: str | os.PathLike[str]) -> list[str]:
+    """qemu-system-arm's command line running ``elf`` on ``core``'s board:
+    semihosting for its output, ``-icount shift=0`` so that SysTick
+    counts instructions (`INSTRUCTIONS_PER_TICK`)."""
+    return [QEMU, "-M", core.machine, "-nographic", "-semihosting-config",
+            "enable=on,target=native", "-icount", "shift=0", "-kernel",
+            str(elf)]
+
+
 def check_target(target: str) -> str:
     """Return ``target`` if it is one of `TARGETS`, else raise."""
     if target not in TARGETS:
@@ -247,9 +256,7 @@ def run_target(res: ExportResult, timeout: float = 600.0,
                                 "with target=... and build=True")
     if shutil.which(QEMU) is None:
         raise AdcsError(f"{QEMU} not found: {toolchain_missing()}")
-    cmd = [QEMU, "-M", CORES[target].machine, "-nographic",
-           "-semihosting-config", "enable=on,target=native",
-           "-icount", "shift=0", "-kernel", str(res.executable)]
+    cmd = qemu_command(CORES[target], res.executable)
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True,
                               timeout=timeout)
